@@ -1,0 +1,5 @@
+//! The `gloam` binary: everything happens in `gloam::cli`.
+
+fn main() -> std::process::ExitCode {
+    gloam::cli::main()
+}

@@ -1,0 +1,1022 @@
+//! Load-time tooling: writes glTF 2.0 files (.gltf + .bin, or .glb) from simple mesh data;
+//! used by the asset generators in `kit` and by tests that need glTF files.
+//!
+//! The data model is deliberately small: one triangle-list primitive per mesh (POSITION,
+//! NORMAL, optional TEXCOORD_0, u32 indices), metallic-roughness materials with emission,
+//! transmission and ior, PNG images (one texture per image, one linear/repeat sampler),
+//! perspective cameras and a TRS node tree. Output is byte-for-byte deterministic and
+//! every file is written atomically (temporary file in the same folder, then rename).
+//! `MeshData` also carries the shape builders the generators use (quad, box, cylinder,
+//! flat-shaded convex solid).
+
+use std::collections::BTreeSet;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use anyhow::{Context as _, bail, ensure};
+use glam::{Quat, Vec2, Vec3, Vec4};
+use serde_json::{Map, Value, json};
+
+/// One mesh with a single triangle-list primitive. Attribute vectors have equal length
+/// (`uvs` may instead be empty); triangles are counter-clockwise seen from the front.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshData {
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    /// Unit normals, one per position.
+    pub normals: Vec<Vec3>,
+    /// TEXCOORD_0 (glTF convention: v grows downwards in the image), or empty.
+    pub uvs: Vec<Vec2>,
+    pub indices: Vec<[u32; 3]>,
+    /// Index into `GltfDocument::materials`.
+    pub material: usize,
+}
+
+/// A metallic-roughness material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialData {
+    pub name: String,
+    /// Linear RGBA, each component in [0, 1].
+    pub base_color: Vec4,
+    /// Index into `GltfDocument::images` (sampled with TEXCOORD_0, sRGB-encoded).
+    pub base_color_texture: Option<usize>,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// Emitted radiance in W/(sr m^2); written as emissiveFactor x emissiveStrength.
+    pub emissive: Vec3,
+    /// KHR_materials_transmission factor (written only when not 0).
+    pub transmission: f32,
+    /// KHR_materials_ior (written only when not 1.5).
+    pub ior: f32,
+    pub double_sided: bool,
+}
+
+/// An image stored as PNG bytes inside the binary buffer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageData {
+    pub name: String,
+    pub png: Vec<u8>,
+}
+
+/// A perspective camera with an infinite far plane and the film's aspect ratio.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraData {
+    pub name: String,
+    /// Vertical field of view in radians.
+    pub yfov: f32,
+    pub znear: f32,
+}
+
+/// A node with a translation-rotation-scale transform.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeData {
+    pub name: String,
+    pub translation: Vec3,
+    pub rotation: Quat,
+    pub scale: Vec3,
+    /// Index into `GltfDocument::meshes`.
+    pub mesh: Option<usize>,
+    /// Index into `GltfDocument::cameras`.
+    pub camera: Option<usize>,
+    /// Indices into `GltfDocument::nodes`.
+    pub children: Vec<usize>,
+}
+
+/// Everything one glTF file holds; indices refer into the sibling vectors.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GltfDocument {
+    pub meshes: Vec<MeshData>,
+    pub materials: Vec<MaterialData>,
+    pub images: Vec<ImageData>,
+    pub cameras: Vec<CameraData>,
+    pub nodes: Vec<NodeData>,
+    /// Root nodes of the file's single scene.
+    pub roots: Vec<usize>,
+}
+
+impl MaterialData {
+    /// A Lambertian material (metallic 0, roughness 1, no emission, opaque).
+    pub fn lambertian(name: &str, albedo: Vec3) -> Self {
+        MaterialData {
+            name: name.to_owned(),
+            base_color: albedo.extend(1.0),
+            base_color_texture: None,
+            metallic: 0.0,
+            roughness: 1.0,
+            emissive: Vec3::ZERO,
+            transmission: 0.0,
+            ior: 1.5,
+            double_sided: false,
+        }
+    }
+}
+
+impl NodeData {
+    /// A node with the identity transform and nothing attached.
+    pub fn named(name: &str) -> Self {
+        NodeData {
+            name: name.to_owned(),
+            translation: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            scale: Vec3::ONE,
+            mesh: None,
+            camera: None,
+            children: Vec::new(),
+        }
+    }
+
+    /// A node with the identity transform showing mesh `mesh`.
+    pub fn with_mesh(name: &str, mesh: usize) -> Self {
+        NodeData {
+            mesh: Some(mesh),
+            ..NodeData::named(name)
+        }
+    }
+}
+
+impl GltfDocument {
+    /// Adds `mesh` (with its material) and a node showing it as a new root; returns the node.
+    pub fn add_mesh_node(&mut self, mut mesh: MeshData, material: MaterialData) -> usize {
+        mesh.material = self.materials.len();
+        self.materials.push(material);
+        let node = NodeData::with_mesh(&mesh.name, self.meshes.len());
+        self.meshes.push(mesh);
+        self.nodes.push(node);
+        self.roots.push(self.nodes.len() - 1);
+        self.nodes.len() - 1
+    }
+
+    /// Total triangle count over all meshes (not instanced).
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.iter().map(|mesh| mesh.indices.len()).sum()
+    }
+}
+
+// ---- mesh shapes --------------------------------------------------------------------------
+
+impl MeshData {
+    /// An empty mesh using material `material`.
+    pub fn new(name: &str, material: usize) -> Self {
+        MeshData {
+            name: name.to_owned(),
+            positions: Vec::new(),
+            normals: Vec::new(),
+            uvs: Vec::new(),
+            indices: Vec::new(),
+            material,
+        }
+    }
+
+    /// Appends a flat-shaded convex planar polygon (fan-triangulated) given counter-clockwise
+    /// as seen from the side its normal faces. UVs are the planar coordinates in metres:
+    /// u along the first edge, v downwards (against the in-plane "up").
+    pub fn push_polygon(&mut self, corners: &[Vec3]) {
+        if corners.len() < 3 {
+            return;
+        }
+        let normal = newell_normal(corners);
+        let right = (corners[1] - corners[0]).normalize_or_zero();
+        let up = normal.cross(right);
+        let planar = |p: Vec3| Vec2::new((p - corners[0]).dot(right), (p - corners[0]).dot(up));
+        let top = corners
+            .iter()
+            .map(|&p| planar(p).y)
+            .fold(f32::NEG_INFINITY, f32::max);
+        let first = self.positions.len() as u32;
+        for &corner in corners {
+            let uv = planar(corner);
+            self.positions.push(corner);
+            self.normals.push(normal);
+            self.uvs.push(Vec2::new(uv.x, top - uv.y));
+        }
+        for i in 1..corners.len() as u32 - 1 {
+            self.indices.push([first, first + i, first + i + 1]);
+        }
+    }
+
+    /// One flat quad; `corners` are counter-clockwise as seen from the front.
+    pub fn quad(name: &str, corners: [Vec3; 4], material: usize) -> Self {
+        let mut mesh = MeshData::new(name, material);
+        mesh.push_polygon(&corners);
+        mesh
+    }
+
+    /// An axis-aligned box from `min` to `max` with outward per-face normals and UVs in
+    /// metres, each face's UVs starting at 0 at its top-left corner seen from outside.
+    pub fn cuboid(name: &str, min: Vec3, max: Vec3, material: usize) -> Self {
+        let centre = (min + max) * 0.5;
+        let half = (max - min) * 0.5;
+        // (outward normal, right, up) as seen from outside; right x up = normal.
+        let faces = [
+            (Vec3::X, Vec3::NEG_Z, Vec3::Y),
+            (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+            (Vec3::Y, Vec3::X, Vec3::NEG_Z),
+            (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+            (Vec3::Z, Vec3::X, Vec3::Y),
+            (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
+        ];
+        let mut mesh = MeshData::new(name, material);
+        for (normal, right, up) in faces {
+            let face_centre = centre + normal * half;
+            let (r, u) = (right * half, up * half);
+            mesh.push_polygon(&[
+                face_centre - r - u,
+                face_centre + r - u,
+                face_centre + r + u,
+                face_centre - r + u,
+            ]);
+        }
+        mesh
+    }
+
+    /// A closed cylinder around +Y from y = 0 to `height`: smooth sides (the seam vertices
+    /// are duplicated so u runs 0..circumference in metres) and flat fan-triangulated caps.
+    pub fn cylinder(name: &str, radius: f32, height: f32, segments: u32, material: usize) -> Self {
+        let segments = segments.max(3);
+        let point = |i: u32| {
+            // Trig in f64, rounded to f32: the same bits whether or not the optimiser folds it,
+            // which keeps the committed assets byte-identical across build profiles.
+            let angle = std::f64::consts::TAU * f64::from(i % segments) / f64::from(segments);
+            Vec3::new(angle.sin() as f32, 0.0, angle.cos() as f32)
+        };
+        let mut mesh = MeshData::new(name, material);
+        let circumference = std::f32::consts::TAU * radius;
+        for i in 0..=segments {
+            let direction = point(i);
+            let u = circumference * i as f32 / segments as f32;
+            for (y, v) in [(0.0, height), (height, 0.0)] {
+                mesh.positions.push(direction * radius + Vec3::Y * y);
+                mesh.normals.push(direction);
+                mesh.uvs.push(Vec2::new(u, v));
+            }
+        }
+        for i in 0..segments {
+            // Columns i and i + 1, each (bottom, top); the angle grows to the right seen from outside.
+            let (bottom_left, top_left, bottom_right, top_right) =
+                (2 * i, 2 * i + 1, 2 * i + 2, 2 * i + 3);
+            mesh.indices.push([bottom_left, bottom_right, top_right]);
+            mesh.indices.push([bottom_left, top_right, top_left]);
+        }
+        let rim: Vec<Vec3> = (0..segments).map(|i| point(i) * radius).collect();
+        let top: Vec<Vec3> = rim.iter().map(|&p| p + Vec3::Y * height).collect();
+        let bottom: Vec<Vec3> = rim.iter().rev().copied().collect();
+        mesh.push_polygon(&top);
+        mesh.push_polygon(&bottom);
+        mesh
+    }
+
+    /// A flat-shaded convex solid: each face lists indices into `vertices` and may be given
+    /// in either winding; it is oriented away from the centroid of `vertices`. Faces may be
+    /// omitted (e.g. a block's hidden bottom); the centroid must still lie inside.
+    pub fn convex_solid(
+        name: &str,
+        vertices: &[Vec3],
+        faces: &[&[usize]],
+        material: usize,
+    ) -> anyhow::Result<Self> {
+        ensure!(
+            !vertices.is_empty(),
+            "convex solid '{name}' has no vertices"
+        );
+        let centroid = vertices.iter().copied().sum::<Vec3>() / vertices.len() as f32;
+        let mut mesh = MeshData::new(name, material);
+        for (face_index, face) in faces.iter().enumerate() {
+            let mut corners = face
+                .iter()
+                .map(|&i| vertices.get(i).copied())
+                .collect::<Option<Vec<Vec3>>>()
+                .with_context(|| {
+                    format!(
+                        "face {face_index} of convex solid '{name}' names a vertex out of range"
+                    )
+                })?;
+            ensure!(
+                corners.len() >= 3,
+                "face {face_index} of convex solid '{name}' has fewer than 3 corners"
+            );
+            let face_centre = corners.iter().copied().sum::<Vec3>() / corners.len() as f32;
+            if newell_normal(&corners).dot(face_centre - centroid) < 0.0 {
+                corners.reverse();
+            }
+            mesh.push_polygon(&corners);
+        }
+        Ok(mesh)
+    }
+
+    /// Multiplies every UV by `scale` (e.g. 0.25 so a 4 m face spans the texture once).
+    pub fn scale_uvs(mut self, scale: f32) -> Self {
+        self.uvs.iter_mut().for_each(|uv| *uv *= scale);
+        self
+    }
+}
+
+/// Unit normal of a planar polygon by Newell's method (counter-clockwise = front).
+fn newell_normal(corners: &[Vec3]) -> Vec3 {
+    let mut normal = Vec3::ZERO;
+    for (i, &a) in corners.iter().enumerate() {
+        let b = corners[(i + 1) % corners.len()];
+        normal += Vec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    normal.normalize_or_zero()
+}
+
+// ---- writing ------------------------------------------------------------------------------
+
+/// Writes `document` to `path`: a `.glb`, or a pretty-printed `.gltf` with a sibling
+/// `<stem>.bin`. Parent folders are created; each file is replaced atomically.
+pub fn write_gltf(document: &GltfDocument, path: &Path) -> anyhow::Result<()> {
+    enum Container {
+        Binary,
+        Text,
+    }
+    let container = match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("glb") => Container::Binary,
+        Some("gltf") => Container::Text,
+        _ => bail!(
+            "cannot write glTF to '{}': the file name must end in .gltf or .glb",
+            path.display()
+        ),
+    };
+    validate(document).with_context(|| format!("cannot write '{}'", path.display()))?;
+    let (mut json, buffer) = build_json_and_buffer(document)?;
+    match container {
+        Container::Binary => {
+            if !buffer.is_empty() {
+                json["buffers"] = json!([{ "byteLength": buffer.len() }]);
+            }
+            let text = serde_json::to_string(&json)?;
+            write_atomically(path, &glb_bytes(text.as_bytes(), &buffer)?)
+        }
+        Container::Text => {
+            if !buffer.is_empty() {
+                let stem = path
+                    .file_stem()
+                    .and_then(|s| s.to_str())
+                    .unwrap_or("buffer");
+                let bin_name = format!("{stem}.bin");
+                write_atomically(&path.with_file_name(&bin_name), &buffer)?;
+                json["buffers"] =
+                    json!([{ "byteLength": buffer.len(), "uri": percent_encode(&bin_name) }]);
+            }
+            let mut text = serde_json::to_string_pretty(&json)?;
+            text.push('\n');
+            write_atomically(path, text.as_bytes())
+        }
+    }
+}
+
+/// Checks every index and value the JSON would otherwise carry wrongly.
+fn validate(document: &GltfDocument) -> anyhow::Result<()> {
+    for mesh in &document.meshes {
+        let name = &mesh.name;
+        let vertex_count = mesh.positions.len();
+        ensure!(
+            vertex_count > 0 && !mesh.indices.is_empty(),
+            "mesh '{name}' has no triangles"
+        );
+        ensure!(
+            u32::try_from(vertex_count).is_ok(),
+            "mesh '{name}' has more vertices than u32 indices can address"
+        );
+        ensure!(
+            mesh.normals.len() == vertex_count,
+            "mesh '{name}' has {} normals for {vertex_count} positions",
+            mesh.normals.len()
+        );
+        ensure!(
+            mesh.uvs.is_empty() || mesh.uvs.len() == vertex_count,
+            "mesh '{name}' has {} UVs for {vertex_count} positions",
+            mesh.uvs.len()
+        );
+        ensure!(
+            mesh.positions
+                .iter()
+                .chain(&mesh.normals)
+                .all(|v| v.is_finite()),
+            "mesh '{name}' has a non-finite position or normal"
+        );
+        ensure!(
+            mesh.uvs.iter().all(|uv| uv.is_finite()),
+            "mesh '{name}' has a non-finite UV"
+        );
+        ensure!(
+            mesh.indices
+                .iter()
+                .flatten()
+                .all(|&i| (i as usize) < vertex_count),
+            "mesh '{name}' has an index past its {vertex_count} vertices"
+        );
+        ensure!(
+            mesh.material < document.materials.len(),
+            "mesh '{name}' uses material {} which does not exist",
+            mesh.material
+        );
+    }
+    for material in &document.materials {
+        let name = &material.name;
+        let in_unit = |x: f32| (0.0..=1.0).contains(&x);
+        ensure!(
+            material.base_color.to_array().into_iter().all(in_unit),
+            "material '{name}': base colour must lie in [0, 1]"
+        );
+        ensure!(
+            in_unit(material.metallic)
+                && in_unit(material.roughness)
+                && in_unit(material.transmission),
+            "material '{name}': metallic, roughness and transmission must lie in [0, 1]"
+        );
+        ensure!(
+            material.emissive.is_finite() && material.emissive.min_element() >= 0.0,
+            "material '{name}': emission must be finite and >= 0"
+        );
+        ensure!(
+            material.ior.is_finite() && material.ior >= 1.0,
+            "material '{name}': ior must be at least 1"
+        );
+        if let Some(image) = material.base_color_texture {
+            ensure!(
+                image < document.images.len(),
+                "material '{name}' uses image {image} which does not exist"
+            );
+        }
+    }
+    for image in &document.images {
+        ensure!(
+            image.png.starts_with(b"\x89PNG\r\n\x1a\n"),
+            "image '{}' is not PNG data",
+            image.name
+        );
+    }
+    for camera in &document.cameras {
+        ensure!(
+            camera.yfov > 0.0
+                && camera.yfov < std::f32::consts::PI
+                && camera.znear > 0.0
+                && camera.znear.is_finite(),
+            "camera '{}': yfov must lie in (0, pi) and znear must be positive",
+            camera.name
+        );
+    }
+    for node in &document.nodes {
+        let name = &node.name;
+        ensure!(
+            node.translation.is_finite() && node.rotation.is_finite() && node.scale.is_finite(),
+            "node '{name}' has a non-finite transform"
+        );
+        ensure!(
+            node.mesh.is_none_or(|m| m < document.meshes.len()),
+            "node '{name}' shows a mesh that does not exist"
+        );
+        ensure!(
+            node.camera.is_none_or(|c| c < document.cameras.len()),
+            "node '{name}' holds a camera that does not exist"
+        );
+        ensure!(
+            node.children.iter().all(|&c| c < document.nodes.len()),
+            "node '{name}' has a child that does not exist"
+        );
+    }
+    ensure!(
+        document.roots.iter().all(|&r| r < document.nodes.len()),
+        "a scene root names a node that does not exist"
+    );
+    Ok(())
+}
+
+/// A JSON number that reads back as exactly `x` (shortest f32 decimal, not the f64 widening).
+fn number(x: f32) -> Value {
+    // Display prints the shortest decimal that round-trips as f32; callers validated finiteness.
+    x.to_string()
+        .parse::<f64>()
+        .ok()
+        .and_then(serde_json::Number::from_f64)
+        .map_or(Value::Null, Value::Number)
+}
+
+fn numbers(values: &[f32]) -> Value {
+    Value::Array(values.iter().map(|&x| number(x)).collect())
+}
+
+/// The binary buffer under construction, its buffer views and the accessors into them.
+#[derive(Default)]
+struct BufferBuilder {
+    bytes: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_INT: u32 = 5125;
+
+impl BufferBuilder {
+    /// Appends `data` at a 4-byte aligned offset as a new buffer view; returns its index.
+    fn push_view(&mut self, data: &[u8], target: Option<u32>) -> usize {
+        self.pad();
+        let mut view = Map::new();
+        view.insert("buffer".into(), json!(0));
+        view.insert("byteOffset".into(), json!(self.bytes.len()));
+        view.insert("byteLength".into(), json!(data.len()));
+        if let Some(target) = target {
+            view.insert("target".into(), json!(target));
+        }
+        self.bytes.extend_from_slice(data);
+        self.views.push(Value::Object(view));
+        self.views.len() - 1
+    }
+
+    /// Appends a tightly packed float vertex attribute (`kind` VEC2 or VEC3); returns the accessor.
+    fn push_floats<const N: usize>(
+        &mut self,
+        elements: &[[f32; N]],
+        kind: &str,
+        bounds: Option<(Vec3, Vec3)>,
+    ) -> usize {
+        let bytes: Vec<u8> = elements
+            .iter()
+            .flatten()
+            .flat_map(|x| x.to_le_bytes())
+            .collect();
+        let view = self.push_view(&bytes, Some(ARRAY_BUFFER));
+        let mut accessor = json!({ "bufferView": view, "componentType": FLOAT, "count": elements.len(), "type": kind });
+        if let Some((min, max)) = bounds {
+            accessor["min"] = numbers(&min.to_array());
+            accessor["max"] = numbers(&max.to_array());
+        }
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    /// Appends a u32 triangle index list; returns the accessor.
+    fn push_indices(&mut self, triangles: &[[u32; 3]]) -> usize {
+        let bytes: Vec<u8> = triangles
+            .iter()
+            .flatten()
+            .flat_map(|i| i.to_le_bytes())
+            .collect();
+        let view = self.push_view(&bytes, Some(ELEMENT_ARRAY_BUFFER));
+        self.accessors.push(json!({ "bufferView": view, "componentType": UNSIGNED_INT, "count": triangles.len() * 3, "type": "SCALAR" }));
+        self.accessors.len() - 1
+    }
+
+    fn pad(&mut self) {
+        self.bytes.resize(self.bytes.len().next_multiple_of(4), 0);
+    }
+}
+
+fn build_json_and_buffer(document: &GltfDocument) -> anyhow::Result<(Value, Vec<u8>)> {
+    let mut buffer = BufferBuilder::default();
+    let mut extensions_used = BTreeSet::new();
+    let mut meshes = Vec::new();
+    for mesh in &document.meshes {
+        let min = mesh
+            .positions
+            .iter()
+            .copied()
+            .fold(Vec3::INFINITY, Vec3::min);
+        let max = mesh
+            .positions
+            .iter()
+            .copied()
+            .fold(Vec3::NEG_INFINITY, Vec3::max);
+        let mut attributes = Map::new();
+        let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
+        attributes.insert(
+            "POSITION".into(),
+            json!(buffer.push_floats(&positions, "VEC3", Some((min, max)))),
+        );
+        let normals: Vec<[f32; 3]> = mesh.normals.iter().map(|n| n.to_array()).collect();
+        attributes.insert(
+            "NORMAL".into(),
+            json!(buffer.push_floats(&normals, "VEC3", None)),
+        );
+        if !mesh.uvs.is_empty() {
+            let uvs: Vec<[f32; 2]> = mesh.uvs.iter().map(|uv| uv.to_array()).collect();
+            attributes.insert(
+                "TEXCOORD_0".into(),
+                json!(buffer.push_floats(&uvs, "VEC2", None)),
+            );
+        }
+        let indices = buffer.push_indices(&mesh.indices);
+        meshes.push(json!({
+            "name": mesh.name,
+            "primitives": [{ "attributes": attributes, "indices": indices, "material": mesh.material, "mode": 4 }],
+        }));
+    }
+
+    let images: Vec<Value> = document
+        .images
+        .iter()
+        .map(|image| {
+            let view = buffer.push_view(&image.png, None);
+            json!({ "name": image.name, "bufferView": view, "mimeType": "image/png" })
+        })
+        .collect();
+    let textures: Vec<Value> = (0..document.images.len())
+        .map(|image| json!({ "sampler": 0, "source": image }))
+        .collect();
+    buffer.pad();
+
+    let materials: Vec<Value> = document
+        .materials
+        .iter()
+        .map(|material| material_json(material, &mut extensions_used))
+        .collect();
+
+    let cameras: Vec<Value> = document
+        .cameras
+        .iter()
+        .map(|camera| json!({ "name": camera.name, "type": "perspective", "perspective": { "yfov": number(camera.yfov), "znear": number(camera.znear) } }))
+        .collect();
+
+    let nodes: Vec<Value> = document.nodes.iter().map(node_json).collect();
+
+    let mut root = Map::new();
+    root.insert(
+        "asset".into(),
+        json!({ "version": "2.0", "generator": "gloam gltf_export" }),
+    );
+    if !extensions_used.is_empty() {
+        root.insert("extensionsUsed".into(), json!(extensions_used));
+    }
+    root.insert("scene".into(), json!(0));
+    root.insert("scenes".into(), json!([{ "nodes": document.roots }]));
+    let mut insert_nonempty = |key: &str, values: Vec<Value>| {
+        if !values.is_empty() {
+            root.insert(key.into(), Value::Array(values));
+        }
+    };
+    insert_nonempty("nodes", nodes);
+    insert_nonempty("meshes", meshes);
+    insert_nonempty("materials", materials);
+    insert_nonempty("cameras", cameras);
+    insert_nonempty("images", images);
+    if !textures.is_empty() {
+        insert_nonempty(
+            "samplers",
+            vec![json!({ "magFilter": 9729, "minFilter": 9729, "wrapS": 10497, "wrapT": 10497 })],
+        );
+    }
+    insert_nonempty("textures", textures);
+    insert_nonempty("accessors", buffer.accessors);
+    insert_nonempty("bufferViews", buffer.views);
+    Ok((Value::Object(root), buffer.bytes))
+}
+
+fn material_json(material: &MaterialData, extensions_used: &mut BTreeSet<&'static str>) -> Value {
+    let mut pbr = json!({
+        "baseColorFactor": numbers(&material.base_color.to_array()),
+        "metallicFactor": number(material.metallic),
+        "roughnessFactor": number(material.roughness),
+    });
+    if let Some(image) = material.base_color_texture {
+        pbr["baseColorTexture"] = json!({ "index": image });
+    }
+    let mut value = json!({ "name": material.name, "pbrMetallicRoughness": pbr });
+    let mut extensions = Map::new();
+    let strength = material.emissive.max_element();
+    if strength > 0.0 {
+        // emissiveFactor must lie in [0, 1]; the brightest channel's radiance moves to the strength.
+        value["emissiveFactor"] =
+            numbers(&(material.emissive / strength).min(Vec3::ONE).to_array());
+        if strength > 1.0 {
+            extensions.insert(
+                "KHR_materials_emissive_strength".into(),
+                json!({ "emissiveStrength": number(strength) }),
+            );
+        }
+    }
+    if material.transmission != 0.0 {
+        extensions.insert(
+            "KHR_materials_transmission".into(),
+            json!({ "transmissionFactor": number(material.transmission) }),
+        );
+    }
+    if material.ior != 1.5 {
+        extensions.insert(
+            "KHR_materials_ior".into(),
+            json!({ "ior": number(material.ior) }),
+        );
+    }
+    if material.double_sided {
+        value["doubleSided"] = json!(true);
+    }
+    for name in [
+        "KHR_materials_emissive_strength",
+        "KHR_materials_ior",
+        "KHR_materials_transmission",
+    ] {
+        if extensions.contains_key(name) {
+            extensions_used.insert(name);
+        }
+    }
+    if !extensions.is_empty() {
+        value["extensions"] = Value::Object(extensions);
+    }
+    value
+}
+
+fn node_json(node: &NodeData) -> Value {
+    let mut value = json!({ "name": node.name });
+    if node.translation != Vec3::ZERO {
+        value["translation"] = numbers(&node.translation.to_array());
+    }
+    if node.rotation != Quat::IDENTITY {
+        value["rotation"] = numbers(&node.rotation.to_array());
+    }
+    if node.scale != Vec3::ONE {
+        value["scale"] = numbers(&node.scale.to_array());
+    }
+    if let Some(mesh) = node.mesh {
+        value["mesh"] = json!(mesh);
+    }
+    if let Some(camera) = node.camera {
+        value["camera"] = json!(camera);
+    }
+    if !node.children.is_empty() {
+        value["children"] = json!(node.children);
+    }
+    value
+}
+
+/// A GLB container: 12-byte header, JSON chunk padded with spaces, BIN chunk padded with zeros.
+fn glb_bytes(json: &[u8], bin: &[u8]) -> anyhow::Result<Vec<u8>> {
+    let json_length = json.len().next_multiple_of(4);
+    let bin_length = bin.len().next_multiple_of(4);
+    let total = 12 + 8 + json_length + if bin.is_empty() { 0 } else { 8 + bin_length };
+    let as_u32 = |n: usize| u32::try_from(n).context("GLB files are limited to 4 GiB");
+    let mut bytes = Vec::with_capacity(total);
+    bytes.extend_from_slice(b"glTF");
+    bytes.extend_from_slice(&2u32.to_le_bytes());
+    bytes.extend_from_slice(&as_u32(total)?.to_le_bytes());
+    bytes.extend_from_slice(&as_u32(json_length)?.to_le_bytes());
+    bytes.extend_from_slice(b"JSON");
+    bytes.extend_from_slice(json);
+    bytes.resize(20 + json_length, b' ');
+    if !bin.is_empty() {
+        bytes.extend_from_slice(&as_u32(bin_length)?.to_le_bytes());
+        bytes.extend_from_slice(b"BIN\0");
+        bytes.extend_from_slice(bin);
+        bytes.resize(total, 0);
+    }
+    Ok(bytes)
+}
+
+/// Escapes everything but RFC 3986 unreserved characters, for a relative `uri`.
+fn percent_encode(name: &str) -> String {
+    name.bytes()
+        .map(|b| {
+            if b.is_ascii_alphanumeric() || b"-._~".contains(&b) {
+                (b as char).to_string()
+            } else {
+                format!("%{b:02X}")
+            }
+        })
+        .collect()
+}
+
+/// Writes `bytes` to a temporary file beside `path`, then renames it over `path`, so a
+/// reader never sees a half-written file. Creates missing parent folders.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let folder = match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent.to_owned(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&folder)
+        .with_context(|| format!("cannot create folder '{}'", folder.display()))?;
+    let file_name = path
+        .file_name()
+        .with_context(|| format!("'{}' has no file name", path.display()))?;
+    let temporary = folder.join(format!(
+        ".{}.{}-{}.tmp",
+        file_name.to_string_lossy(),
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let result = (|| {
+        let mut file = std::fs::File::create(&temporary)?;
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        std::fs::rename(&temporary, path)
+    })();
+    if let Err(error) = result {
+        let _ = std::fs::remove_file(&temporary);
+        return Err(error).with_context(|| format!("cannot write '{}'", path.display()));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::gltf_import::import_gltf;
+
+    fn unique_temp_dir(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("gloam-gltf-export-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    /// A small document touching every feature the writer has.
+    fn sample_document() -> GltfDocument {
+        use image::ImageEncoder as _;
+        let mut png = Vec::new();
+        let rgba = [
+            255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 255, 255, 255, 255, 255,
+        ];
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(&rgba, 2, 2, image::ExtendedColorType::Rgba8)
+            .unwrap();
+        let glass = MaterialData {
+            transmission: 1.0,
+            ior: 1.33,
+            roughness: 0.0,
+            ..MaterialData::lambertian("glass", Vec3::ONE)
+        };
+        let lamp = MaterialData {
+            emissive: Vec3::new(0.5, 8.0, 2.0),
+            ..MaterialData::lambertian("lamp", Vec3::splat(0.5))
+        };
+        let textured = MaterialData {
+            base_color_texture: Some(0),
+            ..MaterialData::lambertian("textured", Vec3::ONE)
+        };
+        let mut document = GltfDocument::default();
+        document.add_mesh_node(MeshData::cuboid("box", Vec3::ZERO, Vec3::ONE, 0), glass);
+        document.add_mesh_node(MeshData::cylinder("can", 0.5, 2.0, 8, 0), lamp);
+        document.add_mesh_node(
+            MeshData::quad(
+                "sign",
+                [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+                0,
+            ),
+            textured,
+        );
+        document.images.push(ImageData {
+            name: "checker".into(),
+            png,
+        });
+        document.cameras.push(CameraData {
+            name: "eye".into(),
+            yfov: 0.8,
+            znear: 0.05,
+        });
+        document.nodes.push(NodeData {
+            camera: Some(0),
+            translation: Vec3::new(0.0, 1.0, 5.0),
+            rotation: Quat::from_rotation_y(0.3),
+            ..NodeData::named("eye")
+        });
+        document.nodes[0].children.push(3);
+        document
+    }
+
+    #[test]
+    fn writing_twice_gives_identical_bytes() {
+        let dir = unique_temp_dir("determinism");
+        let document = sample_document();
+        for name in ["sample.gltf", "sample.glb"] {
+            let path = dir.join(name);
+            write_gltf(&document, &path).unwrap();
+            let first = std::fs::read(&path).unwrap();
+            let first_bin = std::fs::read(dir.join("sample.bin")).ok();
+            write_gltf(&document, &path).unwrap();
+            assert_eq!(
+                first,
+                std::fs::read(&path).unwrap(),
+                "{name} changed between writes"
+            );
+            assert_eq!(first_bin, std::fs::read(dir.join("sample.bin")).ok());
+        }
+        // No temporary files are left behind.
+        let leftovers: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(leftovers.len(), 3, "{leftovers:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn written_files_import_with_the_same_content() {
+        let dir = unique_temp_dir("roundtrip");
+        let document = sample_document();
+        for name in ["sample.gltf", "sample.glb"] {
+            write_gltf(&document, &dir.join(name)).unwrap();
+            let asset = import_gltf(&dir.join(name)).unwrap();
+            assert_eq!(asset.triangle_count(), document.triangle_count());
+            assert_eq!(
+                asset.meshes[1].primitives[0].positions,
+                document.meshes[1].positions
+            );
+            assert_eq!(asset.meshes[1].primitives[0].uv0, document.meshes[1].uvs);
+            let glass = &asset.materials[asset.material_by_name("glass").unwrap()];
+            assert_eq!(
+                (
+                    glass.transmission,
+                    glass.ior,
+                    glass.metallic,
+                    glass.roughness
+                ),
+                (1.0, 1.33, 0.0, 0.0)
+            );
+            let lamp = &asset.materials[asset.material_by_name("lamp").unwrap()];
+            assert!(
+                (lamp.emissive - Vec3::new(0.5, 8.0, 2.0))
+                    .abs()
+                    .max_element()
+                    < 1e-6,
+                "{}",
+                lamp.emissive
+            );
+            let textured = &asset.materials[asset.material_by_name("textured").unwrap()];
+            let texture = &asset.textures[textured.base_color_texture.as_ref().unwrap().texture];
+            let image = &asset.images[texture.image];
+            assert_eq!(
+                (image.width, image.height, image.rgba8[1]),
+                (2, 2, [0, 255, 0, 255])
+            );
+            assert_eq!(asset.cameras.len(), 1);
+            assert_eq!(asset.nodes[3].name, "eye");
+            assert_eq!(asset.nodes[0].children, vec![3]);
+            assert_eq!(asset.roots, vec![0, 1, 2]);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bad_documents_and_extensions_are_errors_naming_the_path() {
+        let dir = unique_temp_dir("errors");
+        let error = write_gltf(&sample_document(), &dir.join("sample.obj")).unwrap_err();
+        assert!(error.to_string().contains("sample.obj"), "{error}");
+        let mut broken = sample_document();
+        broken.meshes[0].material = 99;
+        let error = write_gltf(&broken, &dir.join("broken.glb")).unwrap_err();
+        assert!(
+            format!("{error:#}").contains("broken.glb")
+                && format!("{error:#}").contains("material 99"),
+            "{error:#}"
+        );
+        assert!(!dir.join("broken.glb").exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn shapes_face_outwards_and_agree_with_their_winding() {
+        let vertices = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+        let tetrahedron = MeshData::convex_solid(
+            "tetrahedron",
+            &vertices,
+            &[&[0, 1, 2], &[0, 1, 3], &[0, 2, 3], &[1, 2, 3]],
+            0,
+        )
+        .unwrap();
+        let shapes = [
+            (
+                MeshData::cuboid(
+                    "box",
+                    Vec3::new(-1.0, 0.0, -2.0),
+                    Vec3::new(1.0, 3.0, 2.0),
+                    0,
+                ),
+                Vec3::new(0.0, 1.5, 0.0),
+            ),
+            (
+                MeshData::cylinder("cylinder", 0.3, 3.0, 24, 0),
+                Vec3::new(0.0, 1.5, 0.0),
+            ),
+            (tetrahedron, Vec3::splat(0.25)),
+        ];
+        for (mesh, centre) in shapes {
+            for triangle in &mesh.indices {
+                let [a, b, c] = triangle.map(|i| mesh.positions[i as usize]);
+                let geometric = (b - a).cross(c - a).normalize();
+                assert!(
+                    geometric.dot((a + b + c) / 3.0 - centre) > 0.0,
+                    "{} has an inward triangle",
+                    mesh.name
+                );
+                for i in triangle {
+                    assert!(
+                        mesh.normals[*i as usize].dot(geometric) > 0.0,
+                        "{} normal disagrees with winding",
+                        mesh.name
+                    );
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,603 @@
+//! The level format, version 1: a RON file that places glTF assets, lights, a camera and
+//! the player spawn in the world. Load time, and the editor's save path.
+//!
+//! A level names its assets by paths relative to the level file. Each entity is a name, a
+//! transform and a set of optional components; gameplay components (shards, wardens, patrol
+//! routes) join as further optional fields in later versions of this struct, and unknown
+//! fields are rejected so a typo is an error, not a silent default. A complete example is
+//! `levels/first-light.ron`; README.md documents every field.
+//!
+//! Parsing gives typed data; `validate` then checks values (finite numbers, positive scale,
+//! ior >= 1, one player spawn in a playable level, ...) and reports each problem at its
+//! place in the text through `source_map`.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use glam::{EulerRot, Mat4, Quat, Vec3, Vec4};
+use ron::extensions::Extensions;
+use serde::{Deserialize, Serialize};
+
+use super::diagnostic::{Diagnostic, LoadError, Pointer};
+use super::model::Material;
+
+/// The level format version this build reads and writes.
+pub const LEVEL_VERSION: u32 = 1;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Level {
+    /// Format version; must be 1.
+    pub version: u32,
+    /// Shown in menus and the editor.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub name: String,
+    /// A playable level needs exactly one player spawn; a showcase scene (the Cornell box)
+    /// sets this to false.
+    #[serde(default = "default_true", skip_serializing_if = "is_true")]
+    pub playable: bool,
+    #[serde(default, skip_serializing_if = "Environment::is_default")]
+    pub environment: Environment,
+    #[serde(default)]
+    pub entities: Vec<EntityDef>,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Environment {
+    /// Radiance of the sky seen by rays that leave the level, linear RGB in W/(sr m^2).
+    #[serde(default)]
+    pub sky: Vec3,
+}
+
+impl Environment {
+    fn is_default(&self) -> bool {
+        *self == Environment::default()
+    }
+}
+
+/// One thing in the level: a name, a transform, and optional components.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EntityDef {
+    /// Unique within the level; gameplay and the editor refer to entities by name.
+    pub name: String,
+    #[serde(default, skip_serializing_if = "TransformDef::is_identity")]
+    pub transform: TransformDef,
+    /// Draw a glTF asset here.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub instance: Option<InstanceDef>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub light: Option<LightDef>,
+    /// The level's view for `gloam render` and the editor's start view; looks down local -Z.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraDef>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub player_spawn: Option<PlayerSpawn>,
+}
+
+impl EntityDef {
+    /// An entity with only a name and the identity transform.
+    pub fn named(name: impl Into<String>) -> Self {
+        EntityDef {
+            name: name.into(),
+            transform: TransformDef::default(),
+            instance: None,
+            light: None,
+            camera: None,
+            player_spawn: None,
+        }
+    }
+}
+
+/// Placement relative to the world. Rotation is Euler angles in degrees, written
+/// (pitch about X, yaw about Y, roll about Z) and applied yaw, then pitch, then roll
+/// (`Quat::from_euler(YXZ, yaw, pitch, roll)`), the order a first-person view uses.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransformDef {
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub translation: Vec3,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub rotation: Vec3,
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub scale: Vec3,
+}
+
+impl Default for TransformDef {
+    fn default() -> Self {
+        TransformDef {
+            translation: Vec3::ZERO,
+            rotation: Vec3::ZERO,
+            scale: Vec3::ONE,
+        }
+    }
+}
+
+impl TransformDef {
+    pub fn is_identity(&self) -> bool {
+        *self == TransformDef::default()
+    }
+
+    pub fn rotation_quat(&self) -> Quat {
+        let radians = self.rotation * (std::f32::consts::PI / 180.0);
+        Quat::from_euler(EulerRot::YXZ, radians.y, radians.x, radians.z)
+    }
+
+    /// World-from-entity matrix.
+    pub fn matrix(&self) -> Mat4 {
+        Mat4::from_scale_rotation_translation(self.scale, self.rotation_quat(), self.translation)
+    }
+}
+
+/// An instance of a glTF asset (its default scene, under the entity's transform).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InstanceDef {
+    /// Path to a .gltf or .glb file, relative to the level file.
+    pub asset: String,
+    /// Per-instance changes to the asset's materials, keyed by material name.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub material_overrides: BTreeMap<String, MaterialOverride>,
+}
+
+/// Replaces the named material's values for one instance; absent fields keep the asset's.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialOverride {
+    /// Linear RGBA albedo and coverage, each in [0, 1].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_color: Option<Vec4>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metallic: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub roughness: Option<f32>,
+    /// Emitted radiance in W/(sr m^2) (already multiplied by any strength).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub emissive: Option<Vec3>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transmission: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ior: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub double_sided: Option<bool>,
+}
+
+impl MaterialOverride {
+    /// `material` with this override's fields replaced.
+    pub fn apply(&self, material: &Material) -> Material {
+        let mut result = material.clone();
+        if let Some(v) = self.base_color {
+            result.base_color = v;
+        }
+        if let Some(v) = self.metallic {
+            result.metallic = v;
+        }
+        if let Some(v) = self.roughness {
+            result.roughness = v;
+        }
+        if let Some(v) = self.emissive {
+            result.emissive = v;
+        }
+        if let Some(v) = self.transmission {
+            result.transmission = v;
+        }
+        if let Some(v) = self.ior {
+            result.ior = v;
+        }
+        if let Some(v) = self.double_sided {
+            result.double_sided = v;
+        }
+        result
+    }
+}
+
+/// A punctual light at the entity (same units as KHR_lights_punctual).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum LightDef {
+    /// Radiant intensity `intensity` x `color` in W/sr, in every direction.
+    Point { color: Vec3, intensity: f32 },
+    /// As a point light, inside a cone down the entity's -Z; angles from the axis.
+    Spot {
+        color: Vec3,
+        intensity: f32,
+        inner_cone_degrees: f32,
+        outer_cone_degrees: f32,
+    },
+    /// Irradiance `intensity` x `color` in W/m^2, travelling down the entity's -Z.
+    Directional { color: Vec3, intensity: f32 },
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDef {
+    /// Vertical field of view in degrees.
+    pub yfov_degrees: f32,
+    #[serde(default = "default_znear")]
+    pub znear: f32,
+}
+
+/// Where the player starts: the entity's position is the feet, its yaw the view direction.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlayerSpawn {
+    /// Eye height above the spawn point in metres.
+    #[serde(default = "default_eye_height")]
+    pub eye_height: f32,
+}
+
+fn default_true() -> bool {
+    true
+}
+fn is_true(value: &bool) -> bool {
+    *value
+}
+fn one() -> Vec3 {
+    Vec3::ONE
+}
+fn is_one(value: &Vec3) -> bool {
+    *value == Vec3::ONE
+}
+fn is_zero(value: &Vec3) -> bool {
+    *value == Vec3::ZERO
+}
+fn default_znear() -> f32 {
+    0.05
+}
+fn default_eye_height() -> f32 {
+    1.6
+}
+
+fn ron_options() -> ron::Options {
+    // `implicit_some` lets a level write `light: Point(...)` instead of `Some(Point(...))`.
+    ron::Options::default().with_default_extension(Extensions::IMPLICIT_SOME)
+}
+
+/// Parses and validates level text. `path` names the file in diagnostics.
+pub fn parse_level(path: &Path, text: &str) -> Result<Level, LoadError> {
+    // The version decides how to read the rest, so it is checked before the schema: a
+    // version-2 file should say "version 2", not "unknown field".
+    #[derive(Deserialize)]
+    struct VersionProbe {
+        version: u32,
+    }
+    if let Ok(probe) = ron_options().from_str::<VersionProbe>(text)
+        && probe.version != LEVEL_VERSION
+    {
+        return Err(Diagnostic::at_pointer(
+            path,
+            text,
+            &Pointer::root().key("version"),
+            format!(
+                "unsupported level version {} (this gloam reads version {LEVEL_VERSION})",
+                probe.version
+            ),
+        )
+        .into());
+    }
+    let level: Level = ron_options().from_str(text).map_err(|error| Diagnostic {
+        file: path.to_owned(),
+        line: error.span.start.line.max(1),
+        column: error.span.start.col.max(1),
+        message: error.code.to_string(),
+    })?;
+    let problems = validate_level(&level);
+    if problems.is_empty() {
+        Ok(level)
+    } else {
+        Err(LoadError {
+            diagnostics: problems
+                .into_iter()
+                .map(|(pointer, message)| Diagnostic::at_pointer(path, text, &pointer, message))
+                .collect(),
+        })
+    }
+}
+
+/// Reads and validates the level file at `path`.
+pub fn load_level(path: &Path) -> Result<Level, LoadError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|error| Diagnostic::whole_file(path, format!("cannot read level: {error}")))?;
+    parse_level(path, &text)
+}
+
+/// The level as RON text, stable: saving what was loaded from saved text gives the same text.
+pub fn level_to_string(level: &Level) -> String {
+    let config = ron::ser::PrettyConfig::new()
+        .extensions(Extensions::IMPLICIT_SOME)
+        .indentor("    ".to_owned())
+        .new_line("\n".to_owned());
+    // Serializing plain data with derived impls cannot fail.
+    ron::ser::to_string_pretty(level, config).expect("level serializes") + "\n"
+}
+
+/// Writes the level to `path` atomically (a temporary file renamed over the target), so a
+/// failed save never leaves a half-written level.
+pub fn save_level(level: &Level, path: &Path) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    let text = level_to_string(level);
+    let directory = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let file_name = path
+        .file_name()
+        .with_context(|| format!("{}: not a file path", path.display()))?;
+    let temporary = directory.join(format!(".{}.saving", file_name.to_string_lossy()));
+    std::fs::write(&temporary, text).with_context(|| format!("writing {}", temporary.display()))?;
+    std::fs::rename(&temporary, path).with_context(|| format!("replacing {}", path.display()))?;
+    Ok(())
+}
+
+/// Checks every value a parse cannot: returns (place, problem) pairs, empty when valid.
+pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
+    let mut problems = Vec::new();
+    let mut report = |pointer: Pointer, message: String| problems.push((pointer, message));
+
+    check_colour(
+        &mut report,
+        Pointer::root().key("environment").key("sky"),
+        level.environment.sky,
+        "sky radiance",
+        None,
+    );
+
+    let mut first_use: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut spawns = Vec::new();
+    for (index, entity) in level.entities.iter().enumerate() {
+        let at = Pointer::root().key("entities").index(index);
+        if entity.name.trim().is_empty() {
+            report(at.key("name"), "entity name is empty".into());
+        } else if let Some(first) = first_use.insert(&entity.name, index) {
+            report(
+                at.key("name"),
+                format!(
+                    "duplicate entity name '{}' (entity {first} has it too)",
+                    entity.name
+                ),
+            );
+            first_use.insert(&entity.name, first);
+        }
+
+        let transform = at.key("transform");
+        check_finite3(
+            &mut report,
+            transform.key("translation"),
+            entity.transform.translation,
+            "translation",
+        );
+        check_finite3(
+            &mut report,
+            transform.key("rotation"),
+            entity.transform.rotation,
+            "rotation",
+        );
+        let scale = entity.transform.scale;
+        if !(scale.is_finite() && scale.min_element() > 0.0) {
+            report(
+                transform.key("scale"),
+                format!("scale must be positive and finite in every axis (found {scale})"),
+            );
+        }
+
+        if let Some(instance) = &entity.instance {
+            let asset = &instance.asset;
+            if !(asset.ends_with(".gltf") || asset.ends_with(".glb")) {
+                report(
+                    at.key("instance").key("asset"),
+                    format!("asset '{asset}' is not a .gltf or .glb file"),
+                );
+            }
+            for (material, change) in &instance.material_overrides {
+                check_override(
+                    &mut report,
+                    at.key("instance").key("material_overrides").key(material),
+                    change,
+                );
+            }
+        }
+
+        if let Some(light) = &entity.light {
+            let light_at = at.key("light");
+            let (LightDef::Point { color, intensity }
+            | LightDef::Spot {
+                color, intensity, ..
+            }
+            | LightDef::Directional { color, intensity }) = light;
+            check_colour(
+                &mut report,
+                light_at.key("color"),
+                *color,
+                "light colour",
+                None,
+            );
+            if !(intensity.is_finite() && *intensity >= 0.0) {
+                report(
+                    light_at.key("intensity"),
+                    format!("light intensity must be finite and not negative (found {intensity})"),
+                );
+            }
+            if let LightDef::Spot {
+                inner_cone_degrees: inner,
+                outer_cone_degrees: outer,
+                ..
+            } = light
+                && !(0.0 <= *inner && inner < outer && *outer <= 90.0)
+            {
+                report(
+                    light_at.key("outer_cone_degrees"),
+                    format!(
+                        "spot cone angles need 0 <= inner < outer <= 90 degrees (found {inner} and {outer})"
+                    ),
+                );
+            }
+        }
+
+        if let Some(camera) = &entity.camera {
+            if !(camera.yfov_degrees > 0.0 && camera.yfov_degrees < 180.0) {
+                report(
+                    at.key("camera").key("yfov_degrees"),
+                    format!(
+                        "yfov_degrees must lie in (0, 180) (found {})",
+                        camera.yfov_degrees
+                    ),
+                );
+            }
+            if !(camera.znear > 0.0 && camera.znear.is_finite()) {
+                report(
+                    at.key("camera").key("znear"),
+                    format!("znear must be positive (found {})", camera.znear),
+                );
+            }
+        }
+
+        if let Some(spawn) = &entity.player_spawn {
+            spawns.push(index);
+            if !(spawn.eye_height > 0.0 && spawn.eye_height.is_finite()) {
+                report(
+                    at.key("player_spawn").key("eye_height"),
+                    format!("eye_height must be positive (found {})", spawn.eye_height),
+                );
+            }
+        }
+    }
+
+    if level.playable {
+        match spawns.as_slice() {
+            [] => report(
+                Pointer::root().key("entities"),
+                "playable level has no player spawn (add an entity with `player_spawn: (eye_height: 1.6)`, or set `playable: false`)".into(),
+            ),
+            [_] => {}
+            [_, extra @ ..] => {
+                for &index in extra {
+                    report(
+                        Pointer::root().key("entities").index(index).key("player_spawn"),
+                        format!("a second player spawn (entity {} has the first)", spawns[0]),
+                    );
+                }
+            }
+        }
+    }
+    problems
+}
+
+fn check_finite3(report: &mut impl FnMut(Pointer, String), at: Pointer, value: Vec3, what: &str) {
+    if !value.is_finite() {
+        report(at, format!("{what} must be finite (found {value})"));
+    }
+}
+
+/// Colours are finite and not negative; `max` bounds reflectances to 1.
+fn check_colour(
+    report: &mut impl FnMut(Pointer, String),
+    at: Pointer,
+    value: Vec3,
+    what: &str,
+    max: Option<f32>,
+) {
+    let in_range = value.is_finite()
+        && value.min_element() >= 0.0
+        && max.is_none_or(|max| value.max_element() <= max);
+    if !in_range {
+        let range = match max {
+            Some(max) => format!("in [0, {max}]"),
+            None => "finite and not negative".to_owned(),
+        };
+        report(at, format!("{what} must be {range} (found {value})"));
+    }
+}
+
+fn check_override(
+    report: &mut impl FnMut(Pointer, String),
+    at: Pointer,
+    change: &MaterialOverride,
+) {
+    if let Some(base) = change.base_color {
+        let in_range = base.is_finite() && base.min_element() >= 0.0 && base.max_element() <= 1.0;
+        if !in_range {
+            report(
+                at.key("base_color"),
+                format!("base_color must be in [0, 1] (found {base})"),
+            );
+        }
+    }
+    for (name, value) in [
+        ("metallic", change.metallic),
+        ("roughness", change.roughness),
+        ("transmission", change.transmission),
+    ] {
+        if let Some(value) = value
+            && !(0.0..=1.0).contains(&value)
+        {
+            report(
+                at.key(name),
+                format!("{name} must be in [0, 1] (found {value})"),
+            );
+        }
+    }
+    if let Some(emissive) = change.emissive {
+        check_colour(
+            report,
+            at.key("emissive"),
+            emissive,
+            "emissive radiance",
+            None,
+        );
+    }
+    if let Some(ior) = change.ior
+        && !(ior >= 1.0 && ior.is_finite())
+    {
+        report(
+            at.key("ior"),
+            format!("ior must be at least 1 (found {ior})"),
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn euler_order_is_yaw_then_pitch() {
+        let transform = TransformDef {
+            rotation: Vec3::new(0.0, 90.0, 0.0),
+            ..Default::default()
+        };
+        // Yaw 90 degrees turns the forward view (-Z) to -X.
+        let forward = transform.rotation_quat() * Vec3::NEG_Z;
+        assert!((forward - Vec3::NEG_X).length() < 1e-6, "{forward}");
+    }
+
+    #[test]
+    fn override_replaces_only_given_fields() {
+        let base = Material {
+            name: "m".into(),
+            roughness: 0.3,
+            ..Material::default()
+        };
+        let changed = MaterialOverride {
+            ior: Some(1.33),
+            ..Default::default()
+        }
+        .apply(&base);
+        assert_eq!(changed.ior, 1.33);
+        assert_eq!(changed.roughness, 0.3);
+    }
+
+    #[test]
+    fn minimal_level_parses_with_defaults() {
+        let text = "(version: 1, playable: false, entities: [(name: \"a\", light: Point(color: (1, 1, 1), intensity: 2))])";
+        let level = parse_level(Path::new("x.ron"), text).unwrap();
+        assert_eq!(level.entities[0].transform, TransformDef::default());
+        assert_eq!(
+            level.entities[0].light,
+            Some(LightDef::Point {
+                color: Vec3::ONE,
+                intensity: 2.0
+            })
+        );
+    }
+}

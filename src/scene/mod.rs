@@ -1,0 +1,22 @@
+//! Load time: everything that reads or writes asset and level files.
+//!
+//! Owns glTF import (`gltf_import`) into the asset model (`model`), the level format
+//! (`level`), loading a level or a bare glTF into one `Scene` (`world`), validation with
+//! `file:line:column` diagnostics (`diagnostic`, `source_map`), and the generators that
+//! write Gloam's own assets (`gltf_export`, `kit`). The editor saves through this module;
+//! no other module touches asset or level files.
+
+pub mod diagnostic;
+pub mod gltf_export;
+pub mod gltf_import;
+pub mod kit;
+pub mod level;
+pub mod model;
+pub mod source_map;
+pub mod world;
+
+pub use diagnostic::{Diagnostic, LoadError, Pointer};
+pub use gltf_import::import_gltf;
+pub use level::Level;
+pub use model::Asset;
+pub use world::Scene;

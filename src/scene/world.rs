@@ -1,0 +1,362 @@
+//! One scene model for levels and bare glTF files: the level description plus every asset it
+//! instances, loaded and cross-checked. Load time; the game spawns ECS entities from a
+//! `Scene`, and headless tools (render, raybench, check) read it directly.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use glam::{Mat4, Vec3};
+use rayon::prelude::*;
+
+use super::diagnostic::{Diagnostic, LoadError, Pointer};
+use super::gltf_import::import_gltf;
+use super::level::{EntityDef, InstanceDef, LEVEL_VERSION, Level, load_level};
+use super::model::{Asset, Camera, Light, Material, Projection};
+
+/// A loaded level (or a glTF file seen as a one-entity level) with its assets.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The file the scene was loaded from.
+    pub source: PathBuf,
+    pub level: Level,
+    /// Every distinct asset the level instances, in first-use order.
+    pub assets: Vec<Asset>,
+    /// For each level entity, the index into `assets` of what it instances.
+    pub entity_assets: Vec<Option<usize>>,
+}
+
+/// A mesh placed in the world, with its materials resolved (overrides applied).
+#[derive(Clone, Debug)]
+pub struct MeshPlacement<'a> {
+    pub entity: usize,
+    pub asset: &'a Asset,
+    pub mesh: usize,
+    pub world_from_mesh: Mat4,
+}
+
+/// A camera placed in the world.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraPlacement {
+    pub name: String,
+    /// Vertical field of view in radians.
+    pub yfov: f32,
+    pub znear: f32,
+    /// World-from-camera; the camera looks down its local -Z.
+    pub world_from_camera: Mat4,
+}
+
+impl Scene {
+    /// Loads a level (.ron) or a glTF file (.gltf, .glb) and every asset it needs.
+    pub fn load(path: &Path) -> Result<Scene, LoadError> {
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            Some("ron") => Self::load_level(path),
+            Some("gltf" | "glb") => Self::from_asset(import_gltf(path)?),
+            _ => Err(
+                Diagnostic::whole_file(path, "not a level (.ron) or glTF file (.gltf, .glb)")
+                    .into(),
+            ),
+        }
+    }
+
+    /// A bare glTF seen as a level: one showcase entity instancing it at the origin.
+    pub fn from_asset(asset: Asset) -> Result<Scene, LoadError> {
+        let file_name = asset
+            .source
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let stem = asset
+            .source
+            .file_stem()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut entity = EntityDef::named(stem.clone());
+        entity.instance = Some(InstanceDef {
+            asset: file_name,
+            material_overrides: BTreeMap::new(),
+        });
+        let level = Level {
+            version: LEVEL_VERSION,
+            name: stem,
+            playable: false,
+            environment: Default::default(),
+            entities: vec![entity],
+        };
+        Ok(Scene {
+            source: asset.source.clone(),
+            level,
+            assets: vec![asset],
+            entity_assets: vec![Some(0)],
+        })
+    }
+
+    fn load_level(path: &Path) -> Result<Scene, LoadError> {
+        let level = load_level(path)?;
+        // Positions for cross-file problems need the text again (only read on error).
+        let text = || std::fs::read_to_string(path).unwrap_or_default();
+        let base = path.parent().unwrap_or(Path::new("."));
+
+        // Distinct asset files, in first-use order.
+        let mut files: Vec<PathBuf> = Vec::new();
+        let mut entity_assets = Vec::with_capacity(level.entities.len());
+        for entity in &level.entities {
+            entity_assets.push(entity.instance.as_ref().map(|instance| {
+                let file = base.join(&instance.asset);
+                files.iter().position(|f| *f == file).unwrap_or_else(|| {
+                    files.push(file);
+                    files.len() - 1
+                })
+            }));
+        }
+        // Assets import independently; rayon spreads them over the cores.
+        let imported: Vec<Result<Asset, LoadError>> =
+            files.par_iter().map(|file| import_gltf(file)).collect();
+
+        let mut diagnostics = Vec::new();
+        let mut assets = Vec::new();
+        for (asset_index, result) in imported.into_iter().enumerate() {
+            match result {
+                Ok(asset) => assets.push(asset),
+                Err(error) => {
+                    let user = entity_assets
+                        .iter()
+                        .position(|a| *a == Some(asset_index))
+                        .unwrap_or(0);
+                    let pointer = Pointer::root()
+                        .key("entities")
+                        .index(user)
+                        .key("instance")
+                        .key("asset");
+                    let file = &files[asset_index];
+                    let message = if file.exists() {
+                        format!(
+                            "asset '{}' failed to load (problems follow)",
+                            file.display()
+                        )
+                    } else {
+                        format!("missing asset '{}' (no such file)", file.display())
+                    };
+                    diagnostics.push(Diagnostic::at_pointer(path, &text(), &pointer, message));
+                    if file.exists() {
+                        diagnostics.extend(error.diagnostics);
+                    }
+                }
+            }
+        }
+        if !diagnostics.is_empty() {
+            return Err(LoadError { diagnostics });
+        }
+
+        // Material overrides must name materials the asset has.
+        for (index, entity) in level.entities.iter().enumerate() {
+            let (Some(instance), Some(asset)) = (&entity.instance, entity_assets[index]) else {
+                continue;
+            };
+            for name in instance.material_overrides.keys() {
+                if assets[asset].material_by_name(name).is_none() {
+                    let known: Vec<&str> = assets[asset]
+                        .materials
+                        .iter()
+                        .map(|m| m.name.as_str())
+                        .collect();
+                    let pointer = Pointer::root()
+                        .key("entities")
+                        .index(index)
+                        .key("instance")
+                        .key("material_overrides")
+                        .key(name);
+                    diagnostics.push(Diagnostic::at_pointer(
+                        path,
+                        &text(),
+                        &pointer,
+                        format!(
+                            "asset '{}' has no material '{name}' (it has: {})",
+                            instance.asset,
+                            known.join(", ")
+                        ),
+                    ));
+                }
+            }
+        }
+        if !diagnostics.is_empty() {
+            return Err(LoadError { diagnostics });
+        }
+        Ok(Scene {
+            source: path.to_owned(),
+            level,
+            assets,
+            entity_assets,
+        })
+    }
+
+    /// Every mesh in the world: each instance entity's asset hierarchy under its transform.
+    pub fn mesh_placements(&self) -> Vec<MeshPlacement<'_>> {
+        let mut placements = Vec::new();
+        for (entity_index, entity) in self.level.entities.iter().enumerate() {
+            let Some(asset_index) = self.entity_assets[entity_index] else {
+                continue;
+            };
+            let asset = &self.assets[asset_index];
+            asset.visit_nodes(entity.transform.matrix(), |node, world| {
+                if let Some(mesh) = asset.nodes[node].mesh {
+                    placements.push(MeshPlacement {
+                        entity: entity_index,
+                        asset,
+                        mesh,
+                        world_from_mesh: world,
+                    });
+                }
+            });
+        }
+        placements
+    }
+
+    /// The material a placed primitive uses, with the entity's overrides applied
+    /// (glTF's default material when the primitive names none).
+    pub fn resolved_material(
+        &self,
+        entity: usize,
+        asset: &Asset,
+        material: Option<usize>,
+    ) -> Material {
+        let base = material
+            .map(|m| asset.materials[m].clone())
+            .unwrap_or_default();
+        let overrides = self.level.entities[entity]
+            .instance
+            .as_ref()
+            .map(|i| &i.material_overrides);
+        match overrides.and_then(|o| o.get(&base.name)) {
+            Some(change) => change.apply(&base),
+            None => base,
+        }
+    }
+
+    /// Triangles in the world, counting every instance.
+    pub fn triangle_count(&self) -> usize {
+        self.mesh_placements()
+            .iter()
+            .map(|p| {
+                p.asset.meshes[p.mesh]
+                    .primitives
+                    .iter()
+                    .map(|q| q.indices.len())
+                    .sum::<usize>()
+            })
+            .sum()
+    }
+
+    /// The view to render from: the level's first camera entity, else the first perspective
+    /// camera found in the instanced assets' hierarchies, else None (the renderer frames
+    /// the scene's bounds).
+    pub fn camera(&self) -> Option<CameraPlacement> {
+        if let Some(entity) = self.level.entities.iter().find(|e| e.camera.is_some()) {
+            let camera = entity.camera.as_ref()?;
+            return Some(CameraPlacement {
+                name: entity.name.clone(),
+                yfov: camera.yfov_degrees.to_radians(),
+                znear: camera.znear,
+                world_from_camera: entity.transform.matrix(),
+            });
+        }
+        let mut found = None;
+        for (entity_index, entity) in self.level.entities.iter().enumerate() {
+            let Some(asset_index) = self.entity_assets[entity_index] else {
+                continue;
+            };
+            let asset = &self.assets[asset_index];
+            asset.visit_nodes(entity.transform.matrix(), |node, world| {
+                let camera = asset.nodes[node].camera.map(|c| &asset.cameras[c]);
+                if let (
+                    None,
+                    Some(Camera {
+                        name,
+                        projection: Projection::Perspective { yfov, znear, .. },
+                    }),
+                ) = (&found, camera)
+                {
+                    // Cameras are often unnamed in files; their node usually is not.
+                    let name = if name.is_empty() {
+                        &asset.nodes[node].name
+                    } else {
+                        name
+                    };
+                    found = Some(CameraPlacement {
+                        name: name.clone(),
+                        yfov: *yfov,
+                        znear: *znear,
+                        world_from_camera: world,
+                    });
+                }
+            });
+            if found.is_some() {
+                break;
+            }
+        }
+        found
+    }
+
+    /// Punctual lights in the world: the level's light entities and the assets' glTF lights.
+    pub fn punctual_lights(&self) -> Vec<(Light, Mat4)> {
+        use super::level::LightDef;
+        use super::model::LightKind;
+        let mut lights = Vec::new();
+        for (entity_index, entity) in self.level.entities.iter().enumerate() {
+            if let Some(light) = &entity.light {
+                let (kind, color, intensity) = match *light {
+                    LightDef::Point { color, intensity } => (LightKind::Point, color, intensity),
+                    LightDef::Spot {
+                        color,
+                        intensity,
+                        inner_cone_degrees,
+                        outer_cone_degrees,
+                    } => (
+                        LightKind::Spot {
+                            inner_cone_angle: inner_cone_degrees.to_radians(),
+                            outer_cone_angle: outer_cone_degrees.to_radians(),
+                        },
+                        color,
+                        intensity,
+                    ),
+                    LightDef::Directional { color, intensity } => {
+                        (LightKind::Directional, color, intensity)
+                    }
+                };
+                lights.push((
+                    Light {
+                        name: entity.name.clone(),
+                        kind,
+                        color,
+                        intensity,
+                        range: None,
+                    },
+                    entity.transform.matrix(),
+                ));
+            }
+            let Some(asset_index) = self.entity_assets[entity_index] else {
+                continue;
+            };
+            let asset = &self.assets[asset_index];
+            asset.visit_nodes(entity.transform.matrix(), |node, world| {
+                if let Some(light) = asset.nodes[node].light {
+                    lights.push((asset.lights[light].clone(), world));
+                }
+            });
+        }
+        lights
+    }
+
+    /// The player's start (feet position and eye height), if the level has one.
+    pub fn player_spawn(&self) -> Option<(Vec3, f32)> {
+        self.level.entities.iter().find_map(|e| {
+            e.player_spawn
+                .as_ref()
+                .map(|spawn| (e.transform.translation, spawn.eye_height))
+        })
+    }
+}

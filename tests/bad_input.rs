@@ -1,0 +1,481 @@
+//! Bad input of every kind gets a diagnostic naming the file and the place, never a panic.
+//!
+//! Each case writes a broken file into a scratch folder, loads it the way `gloam check`
+//! does, and asserts on the `file:line:column: message` text a user would see.
+
+mod common;
+
+use std::path::Path;
+
+use base64::Engine as _;
+use gloam::scene::Scene;
+
+/// A valid one-triangle glTF whose buffer is embedded as a data URI; `edit` changes the
+/// JSON value before it is written.
+fn triangle_gltf(edit: impl FnOnce(&mut serde_json::Value)) -> String {
+    let mut bytes = Vec::new();
+    for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        bytes.extend(v.to_le_bytes());
+    }
+    for i in [0u16, 1, 2, 0] {
+        bytes.extend(i.to_le_bytes());
+    }
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bytes)
+    );
+    let mut json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "triangle", "mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}],
+        "materials": [{"name": "white", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1]}}],
+        "buffers": [{"byteLength": 44, "uri": uri}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 6}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}
+        ]
+    });
+    edit(&mut json);
+    serde_json::to_string_pretty(&json).unwrap()
+}
+
+/// Loads `path`, expects failure, and returns every diagnostic line.
+fn errors_of(path: &Path) -> Vec<String> {
+    match Scene::load(path) {
+        Ok(_) => panic!("{} loaded, but it is broken", path.display()),
+        Err(error) => error.diagnostics.iter().map(ToString::to_string).collect(),
+    }
+}
+
+/// Asserts some diagnostic names `file` with `line` (when given) and contains every needle.
+fn assert_reported(path: &Path, file_name: &str, line: Option<usize>, needles: &[&str]) {
+    let lines = errors_of(path);
+    let found = lines.iter().any(|message| {
+        let place = match line {
+            Some(line) => message.contains(&format!("{file_name}:{line}:")),
+            None => message.contains(&format!("{file_name}:")),
+        };
+        place && needles.iter().all(|needle| message.contains(needle))
+    });
+    assert!(
+        found,
+        "no diagnostic with {file_name}:{line:?} and {needles:?} in:\n{}",
+        lines.join("\n")
+    );
+}
+
+/// Line (1-based) of the first occurrence of `needle` in `text`.
+fn line_of(text: &str, needle: &str) -> usize {
+    text.lines()
+        .position(|l| l.contains(needle))
+        .expect("needle in text")
+        + 1
+}
+
+#[test]
+fn the_valid_triangle_loads() {
+    let dir = common::scratch_dir("valid");
+    let path = common::write(&dir, "ok.gltf", triangle_gltf(|_| {}));
+    let scene = Scene::load(&path).unwrap();
+    assert_eq!(scene.triangle_count(), 1);
+}
+
+#[test]
+fn truncated_json_reports_line_and_column() {
+    let dir = common::scratch_dir("truncated");
+    let text = triangle_gltf(|_| {});
+    let cut = &text[..text.len() / 2];
+    let path = common::write(&dir, "truncated.gltf", cut);
+    let last_line = cut.lines().count();
+    assert_reported(
+        &path,
+        "truncated.gltf",
+        Some(last_line),
+        &["invalid glTF JSON", "EOF"],
+    );
+}
+
+#[test]
+fn missing_buffer_file_names_the_uri() {
+    let dir = common::scratch_dir("missing-buffer");
+    let text = triangle_gltf(|json| json["buffers"][0]["uri"] = "geometry.bin".into());
+    let path = common::write(&dir, "missing-buffer.gltf", &text);
+    assert_reported(
+        &path,
+        "missing-buffer.gltf",
+        Some(line_of(&text, "geometry.bin")),
+        &["/buffers/0/uri", "geometry.bin", "cannot read"],
+    );
+}
+
+#[test]
+fn bad_base64_names_the_buffer() {
+    let dir = common::scratch_dir("base64");
+    let text = triangle_gltf(|json| {
+        json["buffers"][0]["uri"] = "data:application/octet-stream;base64,@@not base64@@".into()
+    });
+    let path = common::write(&dir, "bad-base64.gltf", &text);
+    assert_reported(
+        &path,
+        "bad-base64.gltf",
+        Some(line_of(&text, "@@not base64")),
+        &["bad base64", "/buffers/0/uri"],
+    );
+}
+
+#[test]
+fn accessor_past_its_buffer_view_is_out_of_range() {
+    let dir = common::scratch_dir("accessor");
+    let text = triangle_gltf(|json| json["accessors"][0]["count"] = 300.into());
+    let path = common::write(&dir, "accessor.gltf", &text);
+    assert_reported(
+        &path,
+        "accessor.gltf",
+        None,
+        &["/accessors/0", "300 elements", "36 bytes"],
+    );
+}
+
+#[test]
+fn buffer_view_past_its_buffer_is_reported() {
+    let dir = common::scratch_dir("view");
+    let text = triangle_gltf(|json| json["bufferViews"][1]["byteOffset"] = 4000.into());
+    let path = common::write(&dir, "view.gltf", &text);
+    assert_reported(
+        &path,
+        "view.gltf",
+        None,
+        &["/bufferViews/1", "buffer 0 has only"],
+    );
+}
+
+#[test]
+fn index_beyond_the_vertices_is_reported() {
+    let dir = common::scratch_dir("index");
+    // Read the indices as u32 from the positions' bytes at 1.0f32 (0x3f800000): a huge index.
+    let text = triangle_gltf(|json| {
+        json["accessors"][1]["bufferView"] = 0.into();
+        json["accessors"][1]["byteOffset"] = 12.into();
+        json["accessors"][1]["componentType"] = 5125.into();
+    });
+    let path = common::write(&dir, "index.gltf", &text);
+    assert_reported(
+        &path,
+        "index.gltf",
+        None,
+        &[
+            "/meshes/0/primitives/0/indices",
+            "out of range for 3 vertices",
+        ],
+    );
+}
+
+#[test]
+fn dangling_reference_is_reported_by_path() {
+    let dir = common::scratch_dir("reference");
+    let text = triangle_gltf(|json| {
+        json["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = 9.into()
+    });
+    let path = common::write(&dir, "reference.gltf", &text);
+    assert_reported(
+        &path,
+        "reference.gltf",
+        None,
+        &[
+            "index out of range",
+            "/meshes/0/primitives/0/attributes/POSITION",
+        ],
+    );
+}
+
+#[test]
+fn unknown_required_extension_is_named() {
+    let dir = common::scratch_dir("extension");
+    let text = triangle_gltf(|json| {
+        json["extensionsUsed"] = serde_json::json!(["EXT_imaginary_compression"]);
+        json["extensionsRequired"] = serde_json::json!(["EXT_imaginary_compression"]);
+    });
+    let path = common::write(&dir, "extension.gltf", &text);
+    let line = line_of(&text, "\"extensionsRequired\"") + 1;
+    assert_reported(
+        &path,
+        "extension.gltf",
+        Some(line),
+        &[
+            "required extension 'EXT_imaginary_compression' is not supported",
+            "/extensionsRequired/0",
+        ],
+    );
+}
+
+#[test]
+fn negative_ior_in_gltf_is_reported() {
+    let dir = common::scratch_dir("gltf-ior");
+    let text = triangle_gltf(|json| {
+        json["extensionsUsed"] = serde_json::json!(["KHR_materials_ior"]);
+        json["materials"][0]["extensions"] =
+            serde_json::json!({"KHR_materials_ior": {"ior": -1.5}});
+    });
+    let path = common::write(&dir, "ior.gltf", &text);
+    assert_reported(
+        &path,
+        "ior.gltf",
+        Some(line_of(&text, "-1.5")),
+        &[
+            "ior must be at least 1",
+            "/materials/0/extensions/KHR_materials_ior/ior",
+        ],
+    );
+}
+
+#[test]
+fn undecodable_image_is_reported() {
+    let dir = common::scratch_dir("image");
+    let text = triangle_gltf(|json| {
+        json["images"] = serde_json::json!([{"uri": "data:image/png;base64,aGVsbG8="}]);
+    });
+    let path = common::write(&dir, "image.gltf", &text);
+    assert_reported(
+        &path,
+        "image.gltf",
+        None,
+        &["/images/0", "cannot decode image"],
+    );
+}
+
+#[test]
+fn truncated_and_garbage_glb_are_reported() {
+    let dir = common::scratch_dir("glb");
+    let mut glb = b"glTF".to_vec();
+    glb.extend(2u32.to_le_bytes());
+    glb.extend(4000u32.to_le_bytes()); // claims 4000 bytes
+    glb.extend(b"short");
+    let path = common::write(&dir, "short.glb", &glb);
+    assert_reported(
+        &path,
+        "short.glb",
+        Some(1),
+        &["not a valid GLB", "truncated"],
+    );
+
+    let path = common::write(&dir, "noise.glb", [0xffu8, 0xfe, 0x00, 0x13]);
+    assert_reported(&path, "noise.glb", Some(1), &["not a glTF file"]);
+}
+
+#[test]
+fn unreadable_and_unknown_files_are_reported() {
+    let dir = common::scratch_dir("missing-file");
+    assert_reported(
+        &dir.join("nowhere.ron"),
+        "nowhere.ron",
+        Some(1),
+        &["cannot read level"],
+    );
+    assert_reported(
+        &dir.join("nowhere.glb"),
+        "nowhere.glb",
+        Some(1),
+        &["cannot read glTF file"],
+    );
+    let path = common::write(&dir, "notes.txt", "hello");
+    assert_reported(&path, "notes.txt", Some(1), &["not a level"]);
+}
+
+// ---- levels ---------------------------------------------------------------------------------
+
+/// A folder with a valid asset and a level whose text is `level`.
+fn level_fixture(name: &str, level: &str) -> std::path::PathBuf {
+    let dir = common::scratch_dir(name);
+    common::write(&dir, "triangle.gltf", triangle_gltf(|_| {}));
+    common::write(&dir, "level.ron", level)
+}
+
+const GOOD_LEVEL: &str = r#"(
+    version: 1,
+    name: "fixture",
+    entities: [
+        (
+            name: "thing",
+            transform: (translation: (1.0, 0.0, 0.0), scale: (1.0, 2.0, 1.0)),
+            instance: (asset: "triangle.gltf", material_overrides: {"white": (roughness: 0.5)}),
+        ),
+        (name: "start", player_spawn: (eye_height: 1.6)),
+    ],
+)
+"#;
+
+#[test]
+fn the_good_level_loads() {
+    let path = level_fixture("good-level", GOOD_LEVEL);
+    let scene = Scene::load(&path).unwrap();
+    assert_eq!(scene.triangle_count(), 1);
+    assert_eq!(scene.player_spawn().unwrap().1, 1.6);
+}
+
+fn broken_level(name: &str, from: &str, to: &str) -> (std::path::PathBuf, String) {
+    assert!(GOOD_LEVEL.contains(from), "fixture lacks {from}");
+    let text = GOOD_LEVEL.replacen(from, to, 1);
+    (level_fixture(name, &text), text)
+}
+
+#[test]
+fn ron_syntax_error_has_line_and_column() {
+    let (path, text) = broken_level("syntax", "name: \"thing\",", "name: \"thing\" oops,");
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "oops")),
+        &["Expected"],
+    );
+}
+
+#[test]
+fn unknown_field_is_a_typo_not_a_default() {
+    let (path, text) = broken_level("typo", "player_spawn:", "player_spwan:");
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "player_spwan")),
+        &["player_spwan"],
+    );
+}
+
+#[test]
+fn wrong_version_is_reported_at_the_version() {
+    let (path, _) = broken_level("version", "version: 1", "version: 7");
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(2),
+        &["unsupported level version 7", "reads version 1"],
+    );
+}
+
+#[test]
+fn nan_translation_is_reported() {
+    let (path, text) = broken_level(
+        "nan",
+        "translation: (1.0, 0.0, 0.0)",
+        "translation: (1.0, NaN, 0.0)",
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "NaN")),
+        &[
+            "translation must be finite",
+            "/entities/0/transform/translation",
+        ],
+    );
+}
+
+#[test]
+fn negative_scale_is_reported() {
+    let (path, text) = broken_level("scale", "scale: (1.0, 2.0, 1.0)", "scale: (1.0, -2.0, 1.0)");
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "-2.0")),
+        &["scale must be positive", "/entities/0/transform/scale"],
+    );
+}
+
+#[test]
+fn negative_ior_override_is_reported() {
+    let (path, text) = broken_level("ior", "roughness: 0.5", "ior: -1.33");
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "-1.33")),
+        &[
+            "ior must be at least 1",
+            "/entities/0/instance/material_overrides/white/ior",
+        ],
+    );
+}
+
+#[test]
+fn missing_asset_is_reported_at_its_reference() {
+    let (path, text) = broken_level("missing-asset", "\"triangle.gltf\"", "\"gone.glb\"");
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "gone.glb")),
+        &["missing asset", "gone.glb"],
+    );
+}
+
+#[test]
+fn broken_asset_reports_both_places() {
+    let path = level_fixture("broken-asset", GOOD_LEVEL);
+    let asset = path.with_file_name("triangle.gltf");
+    std::fs::write(&asset, "{ \"asset\": ").unwrap();
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(GOOD_LEVEL, "triangle.gltf")),
+        &["failed to load"],
+    );
+    assert_reported(&path, "triangle.gltf", Some(1), &["invalid glTF JSON"]);
+}
+
+#[test]
+fn unknown_material_override_is_reported() {
+    let (path, text) = broken_level("override", "{\"white\":", "{\"whit\":");
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "whit")),
+        &["has no material 'whit'", "white"],
+    );
+}
+
+#[test]
+fn playable_level_without_spawn_is_reported() {
+    let (path, _) = broken_level(
+        "spawn",
+        "(name: \"start\", player_spawn: (eye_height: 1.6)),",
+        "",
+    );
+    assert_reported(&path, "level.ron", None, &["no player spawn"]);
+    // The same level as a showcase is fine.
+    let text = GOOD_LEVEL
+        .replace("(name: \"start\", player_spawn: (eye_height: 1.6)),", "")
+        .replace("name: \"fixture\",", "name: \"fixture\", playable: false,");
+    let path = level_fixture("showcase", &text);
+    assert!(Scene::load(&path).is_ok());
+}
+
+#[test]
+fn duplicate_names_and_bad_lights_are_all_listed() {
+    let (path, text) = broken_level(
+        "many",
+        "(name: \"start\", player_spawn: (eye_height: 1.6)),",
+        "(name: \"start\", player_spawn: (eye_height: 1.6)),\n        (name: \"thing\", light: Spot(color: (1.0, 1.0, 1.0), intensity: -5.0, inner_cone_degrees: 30.0, outer_cone_degrees: 10.0)),",
+    );
+    let line = line_of(&text, "Spot(");
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line),
+        &["duplicate entity name 'thing'"],
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line),
+        &["intensity must be finite and not negative"],
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line),
+        &["0 <= inner < outer <= 90"],
+    );
+}

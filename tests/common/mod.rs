@@ -1,0 +1,44 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// The repository root (where Cargo.toml is).
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `../shared/<relative>` beside the repository, or None with a printed notice: a user's
+/// clone has no ../shared, so tests that need it skip rather than fail.
+pub fn shared(relative: &str) -> Option<PathBuf> {
+    let path = repo().join("..").join("shared").join(relative);
+    if path.exists() {
+        Some(path)
+    } else {
+        println!(
+            "notice: skipping, {} is absent (it exists only beside the development checkout)",
+            path.display()
+        );
+        None
+    }
+}
+
+/// A fresh empty folder for one test.
+pub fn scratch_dir(name: &str) -> PathBuf {
+    static COUNTER: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "gloam-test-{}-{}-{name}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create scratch dir");
+    dir
+}
+
+pub fn write(dir: &Path, name: &str, contents: impl AsRef<[u8]>) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, contents).expect("write test file");
+    path
+}
