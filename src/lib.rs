@@ -4,7 +4,11 @@
 //! extract -> accel -> render -> film -> present. This crate grows one module per step;
 //! what exists today:
 //! - `scene`: load time — glTF import, the level format, validation, asset generators.
-//! - `cli`: the `gloam` command line (`main.rs` only calls `cli::main`).
+//! - `extract`: scene data to accel inputs (headless path today; the ECS path later).
+//! - `accel`: BLAS per mesh (refit when deforming), TLAS rebuilt per frame, ray queries.
+//! - `cli`: the `gloam` command line (`main.rs` only calls `cli::main`), with `raybench`.
 
+pub mod accel;
 pub mod cli;
+pub mod extract;
 pub mod scene;

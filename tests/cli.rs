@@ -147,3 +147,99 @@ fn check_accepts_the_shared_samples() {
         );
     }
 }
+
+#[test]
+fn raybench_writes_the_documented_json() {
+    let dir = common::scratch_dir("cli-raybench");
+    let json = dir.join("nested/raybench.json");
+    let output = gloam(&[
+        "raybench",
+        "levels/cornell.ron",
+        "--size",
+        "48",
+        "--repeats",
+        "1",
+        "--threads",
+        "2",
+        "--instances",
+        "20",
+        "--deforming-triangles",
+        "2000",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        output.status.success(),
+        "{}{}",
+        text(&output.stdout),
+        text(&output.stderr)
+    );
+    let stdout = text(&output.stdout);
+    assert!(
+        stdout.contains("gloam / obvhs flat"),
+        "the table shows the ratios: {stdout}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for key in [
+        "primary_mrays_per_s",
+        "shadow_mrays_per_s",
+        "diffuse_mrays_per_s",
+        "tlas_build_ms",
+        "blas_refit_ms",
+    ] {
+        assert!(
+            report[key].as_f64().is_some_and(|v| v > 0.0),
+            "{key}: {}",
+            report[key]
+        );
+    }
+    assert_eq!(
+        report["instances"], 21,
+        "20 scene instances plus the deforming grid"
+    );
+    // The Cornell box places 8 meshes (32 triangles): 20 instances are 2.5 boxes.
+    assert!(report["triangles"].as_u64().unwrap() >= 2 * 32 + 2000);
+    for ray_type in ["primary", "shadow", "diffuse"] {
+        let key = format!("{ray_type}_mrays_per_s");
+        assert!(
+            report["baseline_obvhs_bvh2"][&key]
+                .as_f64()
+                .is_some_and(|v| v > 0.0),
+            "baseline {key}"
+        );
+        for layout in [
+            "gloam_tlas_blas_bvh2",
+            "obvhs_bvh2_flat",
+            "obvhs_cwbvh_flat",
+        ] {
+            for threads in ["threads_1", "threads_2"] {
+                assert!(
+                    report["layouts"][layout][threads][&key].as_f64().is_some(),
+                    "{layout} {threads} {key}"
+                );
+            }
+        }
+    }
+    // One shadow ray (to the box's light) and one bounce per primary hit; the classic
+    // Cornell view's edge pixels look just past the box (half-angle 19.65 vs 19.16 degrees).
+    assert_eq!(report["rays"]["primary"], 48 * 48);
+    assert_eq!(report["rays"]["shadow"], report["rays"]["diffuse"]);
+    assert!(report["rays"]["shadow"].as_u64().unwrap() > 48 * 48 * 9 / 10);
+    assert_eq!(report["agreement_with_baseline"], 1.0);
+    assert_eq!(report["deforming"]["frames"], 30);
+}
+
+#[test]
+fn raybench_bad_input_is_one_line() {
+    for args in [
+        &["raybench", "levels/nowhere.ron"][..],
+        &["raybench", "levels/cornell.ron", "--size", "0"],
+    ] {
+        let output = gloam(args);
+        assert_eq!(output.status.code(), Some(1), "{args:?}");
+        let stderr = text(&output.stderr);
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(!stderr.contains("panicked"));
+    }
+}

@@ -10,13 +10,13 @@
 //! flat-shaded convex solid).
 
 use std::collections::BTreeSet;
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 use anyhow::{Context as _, bail, ensure};
 use glam::{Quat, Vec2, Vec3, Vec4};
 use serde_json::{Map, Value, json};
+
+pub use super::files::write_atomically;
 
 /// One mesh with a single triangle-list primitive. Attribute vectors have equal length
 /// (`uvs` may instead be empty); triangles are counter-clockwise seen from the front.
@@ -786,42 +786,11 @@ fn percent_encode(name: &str) -> String {
         .collect()
 }
 
-/// Writes `bytes` to a temporary file beside `path`, then renames it over `path`, so a
-/// reader never sees a half-written file. Creates missing parent folders.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let folder = match path.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent.to_owned(),
-        _ => PathBuf::from("."),
-    };
-    std::fs::create_dir_all(&folder)
-        .with_context(|| format!("cannot create folder '{}'", folder.display()))?;
-    let file_name = path
-        .file_name()
-        .with_context(|| format!("'{}' has no file name", path.display()))?;
-    let temporary = folder.join(format!(
-        ".{}.{}-{}.tmp",
-        file_name.to_string_lossy(),
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
-    let result = (|| {
-        let mut file = std::fs::File::create(&temporary)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        std::fs::rename(&temporary, path)
-    })();
-    if let Err(error) = result {
-        let _ = std::fs::remove_file(&temporary);
-        return Err(error).with_context(|| format!("cannot write '{}'", path.display()));
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::scene::gltf_import::import_gltf;
+    use std::path::PathBuf;
 
     fn unique_temp_dir(name: &str) -> PathBuf {
         let dir =

@@ -41,6 +41,18 @@ pub fn generate_assets(out_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
 
 /// Writes a stress-test glTF/GLB with at least `triangles` triangles (a subdivided wavy grid with normals and UVs), for import timing.
 pub fn write_stress_mesh(path: &Path, triangles: usize) -> anyhow::Result<usize> {
+    let mut document = GltfDocument::default();
+    document.add_mesh_node(
+        stress_grid(triangles)?,
+        MaterialData::lambertian("stress grey", Vec3::splat(0.5)),
+    );
+    write_gltf(&document, path)?;
+    Ok(document.triangle_count())
+}
+
+/// A 10 x 10 m wavy height-field grid centred on the origin with at least `triangles`
+/// triangles, normals and UVs (material 0): the stress mesh, and `raybench`'s deforming mesh.
+pub fn stress_grid(triangles: usize) -> anyhow::Result<MeshData> {
     // An n x n grid of quads has 2 n^2 triangles.
     let mut cells = ((triangles as f64 / 2.0).sqrt().ceil() as usize).max(1);
     while 2 * cells * cells < triangles {
@@ -93,13 +105,7 @@ pub fn write_stress_mesh(path: &Path, triangles: usize) -> anyhow::Result<usize>
             mesh.indices.push([v00, v11, v10]);
         }
     }
-    let mut document = GltfDocument::default();
-    document.add_mesh_node(
-        mesh,
-        MaterialData::lambertian("stress grey", Vec3::splat(0.5)),
-    );
-    write_gltf(&document, path)?;
-    Ok(document.triangle_count())
+    Ok(mesh)
 }
 
 // ---- the Cornell box ----------------------------------------------------------------------

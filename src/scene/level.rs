@@ -315,19 +315,7 @@ pub fn level_to_string(level: &Level) -> String {
 /// Writes the level to `path` atomically (a temporary file renamed over the target), so a
 /// failed save never leaves a half-written level.
 pub fn save_level(level: &Level, path: &Path) -> anyhow::Result<()> {
-    use anyhow::Context as _;
-    let text = level_to_string(level);
-    let directory = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let file_name = path
-        .file_name()
-        .with_context(|| format!("{}: not a file path", path.display()))?;
-    let temporary = directory.join(format!(".{}.saving", file_name.to_string_lossy()));
-    std::fs::write(&temporary, text).with_context(|| format!("writing {}", temporary.display()))?;
-    std::fs::rename(&temporary, path).with_context(|| format!("replacing {}", path.display()))?;
-    Ok(())
+    super::files::write_atomically(path, level_to_string(level).as_bytes())
 }
 
 /// Checks every value a parse cannot: returns (place, problem) pairs, empty when valid.

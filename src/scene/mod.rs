@@ -7,6 +7,7 @@
 //! no other module touches asset or level files.
 
 pub mod diagnostic;
+pub mod files;
 pub mod gltf_export;
 pub mod gltf_import;
 pub mod kit;

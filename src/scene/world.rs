@@ -45,6 +45,23 @@ pub struct CameraPlacement {
     pub world_from_camera: Mat4,
 }
 
+impl CameraPlacement {
+    /// A view down -Z that frames the box [min, max] (for scenes with no camera): 60 degrees
+    /// vertical field of view, backed off until the bounding sphere fits.
+    pub fn framing(min: Vec3, max: Vec3) -> CameraPlacement {
+        let yfov = 60f32.to_radians();
+        let centre = (min + max) * 0.5;
+        let radius = ((max - min).length() * 0.5).max(1e-3);
+        let distance = radius / (yfov * 0.5).sin();
+        CameraPlacement {
+            name: "framing".to_owned(),
+            yfov,
+            znear: (distance - radius).max(1e-3) * 0.5,
+            world_from_camera: Mat4::from_translation(centre + Vec3::Z * distance),
+        }
+    }
+}
+
 impl Scene {
     /// Loads a level (.ron) or a glTF file (.gltf, .glb) and every asset it needs.
     pub fn load(path: &Path) -> Result<Scene, LoadError> {

@@ -1,6 +1,8 @@
 //! The `gloam` command line: parses arguments and calls into the library. Outside the frame;
 //! this is where user errors become one line on stderr and exit status 1.
 
+mod raybench;
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -34,6 +36,34 @@ pub enum Command {
     /// Write generated files: the shipped assets, or a stress-test mesh.
     #[command(subcommand)]
     Generate(Generate),
+    /// Ray throughput (primary, shadow, diffuse bounce) through gloam's TLAS -> BLAS and
+    /// through obvhs's flat BVH2 and CWBVH on the same rays; BLAS, TLAS and refit times.
+    Raybench {
+        /// Level or glTF/GLB file (its camera; emissive triangles are the shadow-ray targets).
+        scene: PathBuf,
+        /// Repeat the scene's instances in a grid until there are N.
+        #[arg(long)]
+        instances: Option<usize>,
+        /// Add a deforming grid of at least M triangles and time its per-frame refit.
+        #[arg(long, default_value_t = 0)]
+        deforming_triangles: usize,
+        /// Threads for the multi-threaded measurement (one thread is always measured).
+        #[arg(long, default_value_t = default_threads())]
+        threads: usize,
+        /// Primary rays per side (size x size).
+        #[arg(long, default_value_t = 512)]
+        size: u32,
+        /// Timed runs per measurement; medians are reported.
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// Write the report as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+}
+
+fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 #[derive(Debug, Subcommand)]
@@ -97,6 +127,26 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             for file in &files {
                 println!("wrote {}", file.display());
             }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Raybench {
+            scene,
+            instances,
+            deforming_triangles,
+            threads,
+            size,
+            repeats,
+            json,
+        } => {
+            raybench::run(&raybench::Options {
+                scene,
+                instances,
+                deforming_triangles,
+                threads,
+                size,
+                repeats,
+                json,
+            })?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Generate(Generate::Stress { triangles, out }) => {

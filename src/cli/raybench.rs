@@ -1,0 +1,610 @@
+//! `gloam raybench`: ray throughput per ray type, and BVH build, refit and TLAS times.
+//!
+//! A measurement tool over `accel`, outside the frame. One run:
+//! 1. load the scene and extract its static BLASes and instances (BLAS build timed);
+//! 2. optionally repeat the instances in a grid (`--instances N`) and add a deforming
+//!    wavy grid (`--deforming-triangles M`) placed below the scene;
+//! 3. make the rays once, by the rule of ../shared/scenes/SOURCES.md: size x size primary
+//!    rays from the camera; per primary hit, one shadow ray to a uniform point on the
+//!    emissive triangles and one cosine-weighted diffuse bounce;
+//! 4. time each ray type through gloam's TLAS -> BLAS traversal, and through obvhs's own
+//!    flat BVH2 (the baseline) and CWBVH over the same world-space triangles, on one thread
+//!    and on `--threads`, `--repeats` times; report medians;
+//! 5. time TLAS rebuilds and the deforming grid's refits.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context as _, bail};
+use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
+use obvhs::BvhBuildParams;
+use obvhs::bvh2::builder::build_bvh2;
+use obvhs::cwbvh::builder::build_cwbvh_from_tris;
+use obvhs::ray::RayHit;
+use obvhs::rt_triangle::RtTriangle;
+use obvhs::triangle::Triangle;
+use rayon::prelude::*;
+use serde_json::{Value, json};
+
+use crate::accel::{
+    AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry, Opaque, Ray, RefitOutcome,
+};
+use crate::extract::{DEFAULT_MATERIAL, ExtractedScene, extract_static};
+use crate::scene::files::write_atomically;
+use crate::scene::world::{CameraPlacement, Scene};
+
+/// Flattening more world-space triangles than this for the baseline would need gigabytes.
+const MAX_FLAT_TRIANGLES: usize = 5_000_000;
+
+pub struct Options {
+    pub scene: PathBuf,
+    pub instances: Option<usize>,
+    pub deforming_triangles: usize,
+    pub threads: usize,
+    pub size: u32,
+    pub repeats: usize,
+    pub json: Option<PathBuf>,
+}
+
+/// Rays of each type, made once and traced by every layout.
+struct RaySet {
+    primary: Vec<Ray>,
+    shadow: Vec<Ray>,
+    diffuse: Vec<Ray>,
+}
+
+/// Mrays/s medians for the three ray types.
+#[derive(Clone, Copy, Default)]
+struct Throughput {
+    primary: f64,
+    shadow: f64,
+    diffuse: f64,
+}
+
+impl Throughput {
+    fn json(&self) -> Value {
+        json!({"primary_mrays_per_s": round(self.primary), "shadow_mrays_per_s": round(self.shadow), "diffuse_mrays_per_s": round(self.diffuse)})
+    }
+}
+
+fn round(value: f64) -> f64 {
+    (value * 1000.0).round() / 1000.0
+}
+
+fn milliseconds(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(0.0)
+}
+
+pub fn run(options: &Options) -> anyhow::Result<()> {
+    let name = options.scene.display().to_string();
+    if options.size == 0 || options.repeats == 0 || options.threads == 0 {
+        bail!("--size, --repeats and --threads must be at least 1");
+    }
+    // 1. Load and extract.
+    let scene = Scene::load(&options.scene)?;
+    let start = Instant::now();
+    let ExtractedScene { mut accel, sources } = extract_static(&scene);
+    let blas_build_ms = milliseconds(start);
+    let scene_instances = accel.instances().len();
+    if scene_instances == 0 {
+        bail!("{name}: the scene places no triangles, so there is nothing to trace");
+    }
+    let emitters = emissive_triangles(&scene, &accel, &sources);
+    let bounds = accel.bounds();
+    let camera = scene
+        .camera()
+        .unwrap_or_else(|| CameraPlacement::framing(bounds.min.into(), bounds.max.into()));
+
+    // 2. Replicas and the deforming grid.
+    if let Some(wanted) = options.instances {
+        replicate_instances(&mut accel, scene_instances, wanted);
+    }
+    let deforming = if options.deforming_triangles > 0 {
+        let grid = crate::scene::kit::stress_grid(options.deforming_triangles)?;
+        let geometry = MeshGeometry {
+            materials: vec![0; grid.indices.len()],
+            positions: grid.positions,
+            normals: grid.normals,
+            uvs: grid.uvs,
+            triangles: grid.indices,
+            alpha_tested: Vec::new(),
+        };
+        let start = Instant::now();
+        let blas = Blas::build(geometry, BlasKind::Deforming);
+        let build_ms = milliseconds(start);
+        accel.blases.push(blas);
+        let below = Affine3A::from_translation(Vec3::new(0.0, bounds.min.y - 2.0, 0.0));
+        accel.push_instance(Instance::new(
+            accel.blases.len() as u32 - 1,
+            below,
+            InstanceMask::ALL,
+            u64::MAX,
+        ));
+        Some((accel.blases.len() - 1, build_ms))
+    } else {
+        None
+    };
+    accel.rebuild_tlas();
+
+    // 3. Rays.
+    let rays = make_rays(&accel, &camera, &emitters, options.size);
+    println!(
+        "gloam raybench {name}: {} triangles in {} BLASes, {} instances ({} triangles instanced); {} primary, {} shadow, {} diffuse rays; median of {}",
+        accel.blases.iter().map(Blas::triangle_count).sum::<usize>(),
+        accel.blases.len(),
+        accel.instances().len(),
+        accel.instanced_triangle_count(),
+        rays.primary.len(),
+        rays.shadow.len(),
+        rays.diffuse.len(),
+        options.repeats
+    );
+
+    // 4. Throughput: gloam's two-level traversal, then obvhs's flat layouts.
+    let closest = |ray: &Ray| accel.intersect(ray, InstanceMask::ALL, &Opaque).is_some();
+    let any = |ray: &Ray| accel.occluded(ray, InstanceMask::ALL, &Opaque);
+    let mut thread_counts = vec![1];
+    if options.threads > 1 {
+        thread_counts.push(options.threads);
+    }
+    let mut layouts: Vec<(&str, Vec<Throughput>, f64)> = Vec::new();
+    let gloam: Vec<Throughput> = thread_counts
+        .iter()
+        .map(|&t| measure_all(&rays, t, options.repeats, &closest, &any))
+        .collect::<anyhow::Result<_>>()?;
+    layouts.push(("gloam_tlas_blas_bvh2", gloam.clone(), blas_build_ms));
+
+    let flat_count = accel.instanced_triangle_count();
+    let mut agreement = None;
+    if flat_count <= MAX_FLAT_TRIANGLES {
+        let world = flat_triangles(&accel);
+        // obvhs BVH2, the same build preset as static BLASes.
+        let start = Instant::now();
+        let rt: Vec<RtTriangle> = world
+            .iter()
+            .map(|t| RtTriangle::new(t.v0, t.v1, t.v2))
+            .collect();
+        let bvh = build_bvh2(&rt, BvhBuildParams::medium_build(), &mut Default::default());
+        let bvh_ms = milliseconds(start);
+        let ordered: Vec<RtTriangle> = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| rt[i as usize])
+            .collect();
+        let bvh_closest = |ray: &Ray| {
+            bvh.ray_traverse(ray.to_obvhs(), &mut RayHit::none(), |r, id| {
+                ordered[id].intersect(r)
+            })
+        };
+        let bvh_any =
+            |ray: &Ray| !bvh.ray_traverse_miss(ray.to_obvhs(), |r, id| ordered[id].intersect(r));
+        let flat: Vec<Throughput> = thread_counts
+            .iter()
+            .map(|&t| measure_all(&rays, t, options.repeats, &bvh_closest, &bvh_any))
+            .collect::<anyhow::Result<_>>()?;
+        layouts.push(("obvhs_bvh2_flat", flat, bvh_ms));
+        agreement = Some(agreement_with_flat(&accel, &rays.diffuse, |ray| {
+            let mut hit = RayHit::none();
+            bvh.ray_traverse(ray.to_obvhs(), &mut hit, |r, id| ordered[id].intersect(r))
+                .then_some(hit.t)
+        }));
+
+        // obvhs CWBVH (8-wide compressed nodes), measured to choose the BLAS layout.
+        let start = Instant::now();
+        let cwbvh = build_cwbvh_from_tris(
+            &world,
+            BvhBuildParams::medium_build(),
+            &mut Default::default(),
+        );
+        let cwbvh_ms = milliseconds(start);
+        let cw_ordered: Vec<RtTriangle> = cwbvh
+            .primitive_indices
+            .iter()
+            .map(|&i| rt[i as usize])
+            .collect();
+        let cw_closest = |ray: &Ray| {
+            cwbvh.ray_traverse(ray.to_obvhs(), &mut RayHit::none(), |r, id| {
+                cw_ordered[id].intersect(r)
+            })
+        };
+        let cw_any = |ray: &Ray| {
+            !cwbvh.ray_traverse_miss(ray.to_obvhs(), |r, id| cw_ordered[id].intersect(r))
+        };
+        let cw: Vec<Throughput> = thread_counts
+            .iter()
+            .map(|&t| measure_all(&rays, t, options.repeats, &cw_closest, &cw_any))
+            .collect::<anyhow::Result<_>>()?;
+        layouts.push(("obvhs_cwbvh_flat", cw, cwbvh_ms));
+    } else {
+        println!(
+            "(baseline skipped: flattening {flat_count} triangles would exceed {MAX_FLAT_TRIANGLES})"
+        );
+    }
+
+    // 5. TLAS rebuilds and deforming refits, on `threads` (as in a frame).
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(options.threads)
+        .build()
+        .context("starting the thread pool")?;
+    let tlas_build_ms = pool.install(|| {
+        median(
+            (0..50)
+                .map(|_| {
+                    let start = Instant::now();
+                    accel.rebuild_tlas();
+                    milliseconds(start)
+                })
+                .collect(),
+        )
+    });
+    let deforming_report = deforming.map(|(blas_index, build_ms)| {
+        pool.install(|| bench_refit(&mut accel, blas_index, build_ms))
+    });
+
+    // Report.
+    print_table(&layouts, &thread_counts);
+    println!(
+        "builds: static BLASes {blas_build_ms:.1} ms (all meshes, parallel); TLAS rebuild {tlas_build_ms:.3} ms for {} instances ({} threads)",
+        accel.instances().len(),
+        options.threads
+    );
+    if let Some(agreement) = agreement {
+        println!(
+            "agreement with the flat baseline on diffuse rays: {:.4}% same hit distance",
+            agreement * 100.0
+        );
+    }
+    if let Some(report) = &deforming_report {
+        println!(
+            "deforming: {} triangles refit in {:.3} ms (median of {} frames, {} rebuilds; full rebuild {:.1} ms); SAH cost {:.3}x its last build, {:.3}x a fresh build",
+            report["triangles"],
+            report["refit_ms"],
+            report["frames"],
+            report["rebuilds"],
+            report["rebuild_ms"],
+            report["sah_decay"],
+            report["sah_vs_fresh_build"]
+        );
+    }
+
+    if let Some(path) = &options.json {
+        let single = |i: usize| layouts.get(i).map(|l| l.1[0]);
+        let mut layout_json = serde_json::Map::new();
+        for (layout, per_threads, build_ms) in &layouts {
+            let mut entry = serde_json::Map::new();
+            for (threads, throughput) in thread_counts.iter().zip(per_threads) {
+                entry.insert(format!("threads_{threads}"), throughput.json());
+            }
+            entry.insert("build_ms".into(), json!(round(*build_ms)));
+            layout_json.insert((*layout).into(), Value::Object(entry));
+        }
+        let top = gloam[0];
+        let report = json!({
+            "scene": name,
+            "primary_mrays_per_s": round(top.primary),
+            "shadow_mrays_per_s": round(top.shadow),
+            "diffuse_mrays_per_s": round(top.diffuse),
+            "threads": 1,
+            "all_threads": {"threads": options.threads, "mrays_per_s": gloam.last().map(Throughput::json)},
+            "triangles": accel.instanced_triangle_count(),
+            "unique_triangles": accel.blases.iter().map(Blas::triangle_count).sum::<usize>(),
+            "instances": accel.instances().len(),
+            "rays": {"primary": rays.primary.len(), "shadow": rays.shadow.len(), "diffuse": rays.diffuse.len()},
+            "tlas_build_ms": round(tlas_build_ms),
+            "blas_build_ms": round(blas_build_ms),
+            "blas_refit_ms": deforming_report.as_ref().map(|r| r["refit_ms"].clone()),
+            "deforming": deforming_report,
+            "baseline_obvhs_bvh2": single(1).map(|t| t.json()),
+            "agreement_with_baseline": agreement,
+            "layouts": layout_json,
+        });
+        let text = serde_json::to_string_pretty(&report).context("encoding the report")? + "\n";
+        write_atomically(path, text.as_bytes())?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// Times the three ray types on `threads` threads: median Mrays/s of `repeats` runs each.
+fn measure_all(
+    rays: &RaySet,
+    threads: usize,
+    repeats: usize,
+    closest: &(impl Fn(&Ray) -> bool + Sync),
+    any: &(impl Fn(&Ray) -> bool + Sync),
+) -> anyhow::Result<Throughput> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("starting the thread pool")?;
+    let rate = |set: &[Ray], trace: &(dyn Fn(&Ray) -> bool + Sync)| -> f64 {
+        if set.is_empty() {
+            return 0.0;
+        }
+        median(
+            (0..repeats)
+                .map(|_| {
+                    let start = Instant::now();
+                    // The hit count keeps the work observable to the optimiser.
+                    let hits: usize = pool.install(|| {
+                        set.par_chunks(1024)
+                            .map(|chunk| chunk.iter().filter(|r| trace(r)).count())
+                            .sum()
+                    });
+                    std::hint::black_box(hits);
+                    set.len() as f64 / start.elapsed().as_secs_f64() / 1e6
+                })
+                .collect(),
+        )
+    };
+    Ok(Throughput {
+        primary: rate(&rays.primary, closest),
+        shadow: rate(&rays.shadow, any),
+        diffuse: rate(&rays.diffuse, closest),
+    })
+}
+
+fn print_table(layouts: &[(&str, Vec<Throughput>, f64)], thread_counts: &[usize]) {
+    println!(
+        "{:<24} {:>8} {:>10} {:>9} {:>9}   (Mrays/s)",
+        "layout", "threads", "primary", "shadow", "diffuse"
+    );
+    let baseline = layouts.iter().find(|l| l.0 == "obvhs_bvh2_flat");
+    for (layout, per_threads, build_ms) in layouts {
+        for (threads, t) in thread_counts.iter().zip(per_threads) {
+            println!(
+                "{layout:<24} {threads:>8} {:>10.2} {:>9.2} {:>9.2}   build {build_ms:.1} ms",
+                t.primary, t.shadow, t.diffuse
+            );
+        }
+    }
+    if let (Some(baseline), Some(gloam)) = (baseline, layouts.first()) {
+        for (index, threads) in thread_counts.iter().enumerate() {
+            let (g, b) = (gloam.1[index], baseline.1[index]);
+            println!(
+                "{:<24} {threads:>8} {:>9.2}x {:>8.2}x {:>8.2}x",
+                "gloam / obvhs flat",
+                g.primary / b.primary,
+                g.shadow / b.shadow,
+                g.diffuse / b.diffuse
+            );
+        }
+    }
+}
+
+/// Adds copies of the scene's first `scene_instances` instances, moved along a square grid
+/// in X and Z spaced by the scene's size, until there are `wanted` instances in all.
+fn replicate_instances(accel: &mut AccelScene, scene_instances: usize, wanted: usize) {
+    let bounds = accel.bounds();
+    let step = Vec3::from(bounds.diagonal()) * 1.1;
+    let side = (wanted as f64 / scene_instances as f64)
+        .sqrt()
+        .ceil()
+        .max(1.0) as i32;
+    let originals: Vec<Instance> = accel.instances()[..scene_instances].to_vec();
+    let mut copy = 1;
+    while accel.instances().len() < wanted {
+        let (column, row) = (copy % side, copy / side);
+        let offset = Affine3A::from_translation(Vec3::new(
+            column as f32 * step.x,
+            0.0,
+            -(row as f32) * step.z,
+        ));
+        for original in &originals {
+            if accel.instances().len() >= wanted {
+                break;
+            }
+            let mut instance = original.clone();
+            instance.set_transform(offset * original.world_from_object());
+            accel.push_instance(instance);
+        }
+        copy += 1;
+    }
+}
+
+/// World-space triangles whose resolved material emits light (from the scene's own instances).
+fn emissive_triangles(
+    scene: &Scene,
+    accel: &AccelScene,
+    sources: &[crate::extract::InstanceSource],
+) -> Vec<[Vec3A; 3]> {
+    let mut emitters = Vec::new();
+    for (instance, source) in accel.instances().iter().zip(sources) {
+        let geometry = &accel.blases[instance.blas as usize].geometry;
+        let asset = &scene.assets[source.asset];
+        let mut emissive_by_material = std::collections::HashMap::new();
+        for (triangle, &material) in geometry.materials.iter().enumerate() {
+            let emissive = *emissive_by_material.entry(material).or_insert_with(|| {
+                let index = (material != DEFAULT_MATERIAL).then_some(material as usize);
+                scene
+                    .resolved_material(source.entity, asset, index)
+                    .is_emissive()
+            });
+            if emissive {
+                emitters.push(
+                    geometry
+                        .triangle_vertices(triangle)
+                        .map(|v| instance.world_from_object().transform_point3a(v)),
+                );
+            }
+        }
+    }
+    emitters
+}
+
+/// A hash of (stream, index) to a uniform float in [0, 1) (a fixed integer hash so every
+/// run makes the same rays; the renderer's samplers come with the Renderer issue).
+fn uniform(stream: u32, index: u32) -> f32 {
+    let mut x = index.wrapping_mul(0x9e37_79b9) ^ stream.wrapping_mul(0x85eb_ca6b);
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    (x >> 8) as f32 / (1u32 << 24) as f32
+}
+
+/// Primary rays through pixel centres (DESIGN.md's camera), then per primary hit one shadow
+/// ray to a uniform point on the emitters (chosen by area) and one cosine-weighted bounce.
+fn make_rays(
+    accel: &AccelScene,
+    camera: &CameraPlacement,
+    emitters: &[[Vec3A; 3]],
+    size: u32,
+) -> RaySet {
+    let (_, rotation, position) = camera.world_from_camera.to_scale_rotation_translation();
+    let rotation = Mat3A::from_quat(rotation);
+    let tan_half = (camera.yfov * 0.5).tan();
+    let primary: Vec<Ray> = (0..size * size)
+        .map(|pixel| {
+            let (x, y) = (pixel % size, pixel / size);
+            let ndc = Vec2::new(
+                2.0 * (x as f32 + 0.5) / size as f32 - 1.0,
+                1.0 - 2.0 * (y as f32 + 0.5) / size as f32,
+            );
+            let direction = rotation * Vec3A::new(ndc.x * tan_half, ndc.y * tan_half, -1.0);
+            Ray::new(position.into(), direction.normalize())
+        })
+        .collect();
+
+    let mut cumulative_area = Vec::with_capacity(emitters.len());
+    let mut total = 0.0;
+    for [a, b, c] in emitters {
+        total += (*b - *a).cross(*c - *a).length() * 0.5;
+        cumulative_area.push(total);
+    }
+    let hits: Vec<Option<(u32, crate::accel::SurfaceHit, Vec3A)>> = primary
+        .par_iter()
+        .enumerate()
+        .map(|(pixel, ray)| {
+            accel
+                .intersect(ray, InstanceMask::ALL, &Opaque)
+                .map(|hit| (pixel as u32, accel.surface(&hit), ray.direction))
+        })
+        .collect();
+    let mut shadow = Vec::new();
+    let mut diffuse = Vec::new();
+    for (pixel, surface, incoming) in hits.into_iter().flatten() {
+        // The side the ray arrived on.
+        let normal = if surface.geometric_normal.dot(incoming) < 0.0 {
+            surface.geometric_normal
+        } else {
+            -surface.geometric_normal
+        };
+        if total > 0.0 {
+            let pick = uniform(1, pixel) * total;
+            let index = cumulative_area
+                .partition_point(|&c| c < pick)
+                .min(emitters.len() - 1);
+            let [a, b, c] = emitters[index];
+            let root = uniform(2, pixel).sqrt();
+            let (b1, b2) = (1.0 - root, uniform(3, pixel) * root);
+            let target = a * (1.0 - b1 - b2) + b * b1 + c * b2;
+            shadow.push(Ray::spawn_to(surface.position, normal, target));
+        }
+        // Cosine-weighted direction about the normal (Malley's method) in an orthonormal
+        // basis (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").
+        let (r1, r2) = (uniform(4, pixel), uniform(5, pixel));
+        let (sin_phi, cos_phi) = (std::f32::consts::TAU * r1).sin_cos();
+        let radius = r2.sqrt();
+        let sign = 1f32.copysign(normal.z);
+        let a = -1.0 / (sign + normal.z);
+        let b = normal.x * normal.y * a;
+        let tangent = Vec3A::new(
+            1.0 + sign * normal.x * normal.x * a,
+            sign * b,
+            -sign * normal.x,
+        );
+        let bitangent = Vec3A::new(b, sign + normal.y * normal.y * a, -normal.y);
+        let direction = tangent * (radius * cos_phi)
+            + bitangent * (radius * sin_phi)
+            + normal * (1.0 - r2).max(0.0).sqrt();
+        diffuse.push(Ray::spawn(surface.position, normal, direction.normalize()));
+    }
+    RaySet {
+        primary,
+        shadow,
+        diffuse,
+    }
+}
+
+/// Every instance's triangles in world space, for the flat baselines.
+fn flat_triangles(accel: &AccelScene) -> Vec<Triangle> {
+    let mut triangles = Vec::with_capacity(accel.instanced_triangle_count());
+    for instance in accel.instances() {
+        let geometry = &accel.blases[instance.blas as usize].geometry;
+        let to_world = instance.world_from_object();
+        for triangle in 0..geometry.triangles.len() {
+            let [v0, v1, v2] = geometry
+                .triangle_vertices(triangle)
+                .map(|v| to_world.transform_point3a(v));
+            triangles.push(Triangle { v0, v1, v2 });
+        }
+    }
+    triangles
+}
+
+/// Fraction of rays where gloam and a flat BVH agree on hit or miss and, for hits, on the
+/// distance within 1e-3 relative (the two trace in different spaces, so not bit for bit).
+fn agreement_with_flat(
+    accel: &AccelScene,
+    rays: &[Ray],
+    flat: impl Fn(&Ray) -> Option<f32> + Sync,
+) -> f64 {
+    if rays.is_empty() {
+        return 1.0;
+    }
+    let same: usize = rays
+        .par_iter()
+        .filter(|ray| {
+            match (
+                accel
+                    .intersect(ray, InstanceMask::ALL, &Opaque)
+                    .map(|h| h.t),
+                flat(ray),
+            ) {
+                (None, None) => true,
+                (Some(a), Some(b)) => (a - b).abs() <= 1e-3 * (1.0 + a.abs()),
+                _ => false,
+            }
+        })
+        .count();
+    same as f64 / rays.len() as f64
+}
+
+/// Deforms the grid for 30 frames (a travelling wave, computed outside the timing, as the
+/// animation step would) and times each refit.
+fn bench_refit(accel: &mut AccelScene, blas_index: usize, build_ms: f64) -> Value {
+    let rest = accel.blases[blas_index].geometry.positions.clone();
+    let frames = 30;
+    let mut times = Vec::with_capacity(frames);
+    let mut rebuilds = 0;
+    let mut moved = rest.clone();
+    for frame in 0..frames {
+        let phase = frame as f32 * 0.2;
+        for (target, p) in moved.iter_mut().zip(&rest) {
+            *target = *p + Vec3::Y * (0.3 * (1.1 * p.x + phase).sin() * (0.7 * p.z - phase).cos());
+        }
+        let start = Instant::now();
+        if accel.blases[blas_index].refit(&moved, None) == RefitOutcome::Rebuilt {
+            rebuilds += 1;
+        }
+        times.push(milliseconds(start));
+    }
+    let blas = &accel.blases[blas_index];
+    let fresh = Blas::build(blas.geometry.clone(), BlasKind::Deforming);
+    json!({
+        "triangles": blas.triangle_count(),
+        "frames": frames,
+        "refit_ms": round(median(times)),
+        "rebuilds": rebuilds,
+        "rebuild_ms": round(build_ms),
+        "sah_decay": round(blas.quality_decay() as f64),
+        "sah_vs_fresh_build": round((blas.sah_cost() / fresh.sah_cost()) as f64),
+    })
+}

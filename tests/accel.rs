@@ -1,0 +1,502 @@
+//! accel against brute force: every query on random instanced scenes (rotated, non-uniformly
+//! scaled and mirrored instances; degenerate and huge triangles; axis-parallel rays; rays
+//! leaving surfaces) must find what testing every triangle of every instance finds, before
+//! and after refitting deforming meshes.
+//!
+//! Brute force moves the ray into each instance's space exactly as accel does and runs the
+//! same triangle test, so closest-hit distances must agree bit for bit: any difference is a
+//! traversal bug, not rounding. A separate check compares with world-space triangles under a
+//! loose tolerance to cover the transforms themselves.
+
+use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
+use gloam::accel::{
+    AccelScene, Blas, BlasKind, Hit, Instance, InstanceMask, MeshGeometry, Opaque, Ray,
+    RefitOutcome,
+};
+use obvhs::ray::Ray as ObvhsRay;
+use obvhs::rt_triangle::RtTriangle;
+
+/// A small deterministic generator (SplitMix64), so failures reproduce from the seed.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    fn unit(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn range(&mut self, low: f32, high: f32) -> f32 {
+        low + (high - low) * self.unit()
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+    fn vec3(&mut self, low: f32, high: f32) -> Vec3 {
+        Vec3::new(
+            self.range(low, high),
+            self.range(low, high),
+            self.range(low, high),
+        )
+    }
+    fn direction(&mut self) -> Vec3 {
+        loop {
+            let v = self.vec3(-1.0, 1.0);
+            if v.length_squared() > 1e-4 && v.length_squared() <= 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+}
+
+/// A triangle soup in the unit cube with some degenerate and some huge triangles.
+fn random_mesh(rng: &mut Rng, triangles: usize) -> MeshGeometry {
+    let mut geometry = MeshGeometry::default();
+    for t in 0..triangles {
+        let centre = rng.vec3(-1.0, 1.0);
+        let size = if rng.unit() < 0.05 { 4.0 } else { 0.3 };
+        let mut corners = [
+            centre + rng.vec3(-size, size),
+            centre + rng.vec3(-size, size),
+            centre + rng.vec3(-size, size),
+        ];
+        match rng.below(20) {
+            0 => corners[1] = corners[0], // two equal vertices
+            1 => corners[2] = corners[0] + (corners[1] - corners[0]) * 0.5, // collinear
+            _ => {}
+        }
+        let base = geometry.positions.len() as u32;
+        geometry.positions.extend(corners);
+        geometry.triangles.push([base, base + 1, base + 2]);
+        geometry.materials.push(t as u32 % 3);
+    }
+    geometry
+}
+
+fn random_transform(rng: &mut Rng) -> Affine3A {
+    let mut scale = rng.vec3(0.3, 2.5);
+    if rng.unit() < 0.3 {
+        scale.x = -scale.x; // mirrored
+    }
+    let rotation = Quat::from_axis_angle(rng.direction(), rng.range(0.0, std::f32::consts::TAU));
+    Affine3A::from_scale_rotation_translation(scale, rotation, rng.vec3(-6.0, 6.0))
+}
+
+fn random_scene(seed: u64, kind: BlasKind) -> AccelScene {
+    let mut rng = Rng(seed);
+    let blases: Vec<Blas> = (0..4)
+        .map(|_| {
+            let triangles = 40 + rng.below(200);
+            Blas::build(random_mesh(&mut rng, triangles), kind)
+        })
+        .collect();
+    let instances = (0..30)
+        .map(|i| {
+            let mask = InstanceMask(1 << rng.below(3));
+            Instance::new(
+                rng.below(blases.len()) as u32,
+                random_transform(&mut rng),
+                mask,
+                1000 + i,
+            )
+        })
+        .collect();
+    AccelScene::new(blases, instances)
+}
+
+fn object_ray(instance: &Instance, ray: &Ray) -> ObvhsRay {
+    let to_object = instance.object_from_world();
+    ObvhsRay::new(
+        to_object.transform_point3a(ray.origin),
+        to_object.transform_vector3a(ray.direction),
+        ray.t_min,
+        ray.t_max,
+    )
+}
+
+/// Every hit (t, instance, triangle) of `ray` on instances in `mask`, by testing all.
+fn brute_hits(scene: &AccelScene, ray: &Ray, mask: InstanceMask) -> Vec<(f32, u32, u32)> {
+    let mut hits = Vec::new();
+    for (index, instance) in scene.instances().iter().enumerate() {
+        if !instance.mask.intersects(mask) {
+            continue;
+        }
+        let local = object_ray(instance, ray);
+        let geometry = &scene.blases[instance.blas as usize].geometry;
+        for triangle in 0..geometry.triangles.len() {
+            let [a, b, c] = geometry.triangle_vertices(triangle);
+            let t = RtTriangle::new(a, b, c).intersect(&local);
+            if t.is_finite() {
+                hits.push((t, index as u32, triangle as u32));
+            }
+        }
+    }
+    hits
+}
+
+fn assert_matches_brute_force(scene: &AccelScene, ray: &Ray, mask: InstanceMask, context: &str) {
+    let hits = brute_hits(scene, ray, mask);
+    let found = scene.intersect(ray, mask, &Opaque);
+    let nearest = hits.iter().map(|h| h.0).fold(f32::INFINITY, f32::min);
+    match found {
+        None => assert!(
+            hits.is_empty(),
+            "{context}: accel missed, brute force hit at t={nearest} ({ray:?})"
+        ),
+        Some(Hit {
+            t,
+            instance,
+            primitive,
+            barycentrics,
+        }) => {
+            assert_eq!(t, nearest, "{context}: closest t differs ({ray:?})");
+            assert!(
+                hits.iter()
+                    .any(|&(ht, hi, hp)| ht == t && hi == instance && hp == primitive),
+                "{context}: reported (instance {instance}, triangle {primitive}) is not a hit at t={t}"
+            );
+            assert!(
+                barycentrics.is_finite() && t.is_finite(),
+                "{context}: NaN in hit"
+            );
+        }
+    }
+    assert_eq!(
+        scene.occluded(ray, mask, &Opaque),
+        !hits.is_empty(),
+        "{context}: occluded disagrees ({ray:?})"
+    );
+}
+
+/// Random rays through the scene, plus axis-parallel ones.
+fn test_rays(rng: &mut Rng, count: usize) -> Vec<Ray> {
+    let mut rays = Vec::with_capacity(count);
+    for i in 0..count {
+        let origin = Vec3A::from(rng.vec3(-12.0, 12.0));
+        let direction = if i % 5 == 0 {
+            let mut axis = Vec3A::ZERO;
+            axis[rng.below(3)] = if rng.unit() < 0.5 { 1.0 } else { -1.0 };
+            axis
+        } else {
+            // Aim near the scene so most rays hit something.
+            (Vec3A::from(rng.vec3(-5.0, 5.0)) - origin).normalize()
+        };
+        let mut ray = Ray::new(origin, direction);
+        if i % 7 == 0 {
+            ray.t_max = rng.range(1.0, 20.0); // segments, as shadow rays are
+        }
+        rays.push(ray);
+    }
+    rays
+}
+
+#[test]
+fn closest_and_any_hit_match_brute_force() {
+    for seed in 0..6 {
+        let scene = random_scene(seed, BlasKind::Static);
+        let mut rng = Rng(seed + 100);
+        for (i, ray) in test_rays(&mut rng, 300).iter().enumerate() {
+            let mask = [InstanceMask::ALL, InstanceMask(1), InstanceMask(2 | 4)][i % 3];
+            assert_matches_brute_force(&scene, ray, mask, &format!("seed {seed} ray {i}"));
+        }
+    }
+}
+
+#[test]
+fn hits_agree_with_world_space_triangles() {
+    let scene = random_scene(42, BlasKind::Static);
+    let mut rng = Rng(7);
+    let mut checked = 0;
+    for ray in test_rays(&mut rng, 400) {
+        let Some(hit) = scene.intersect(&ray, InstanceMask::ALL, &Opaque) else {
+            continue;
+        };
+        let instance = &scene.instances()[hit.instance as usize];
+        let geometry = &scene.blases[instance.blas as usize].geometry;
+        let world = geometry
+            .triangle_vertices(hit.primitive as usize)
+            .map(|v| instance.world_from_object().transform_point3a(v));
+        let t_world = RtTriangle::new(world[0], world[1], world[2]).intersect(&ObvhsRay::new(
+            ray.origin,
+            ray.direction,
+            0.0,
+            f32::INFINITY,
+        ));
+        if t_world.is_finite() {
+            assert!(
+                (t_world - hit.t).abs() <= 1e-3 * (1.0 + hit.t),
+                "object-space t {} vs world-space t {t_world}",
+                hit.t
+            );
+            // The surface point lies on the ray.
+            let surface = scene.surface(&hit);
+            assert!((surface.position - ray.at(hit.t)).length() <= 1e-3 * (1.0 + hit.t));
+            checked += 1;
+        }
+    }
+    assert!(checked > 100, "too few hits checked: {checked}");
+}
+
+#[test]
+fn rays_leaving_surfaces_do_not_hit_their_own_triangle() {
+    let scene = random_scene(3, BlasKind::Static);
+    let mut rng = Rng(11);
+    let mut spawned = 0;
+    for _ in 0..500 {
+        // A random point on a random triangle of a random instance.
+        let index = rng.below(scene.instances().len()) as u32;
+        let instance = &scene.instances()[index as usize];
+        let geometry = &scene.blases[instance.blas as usize].geometry;
+        let primitive = rng.below(geometry.triangles.len()) as u32;
+        let [a, b, c] = geometry.triangle_vertices(primitive as usize);
+        if (b - a).cross(c - a).length() < 1e-4 {
+            continue; // degenerate: no surface to leave
+        }
+        let (mut b1, mut b2) = (rng.unit(), rng.unit());
+        if b1 + b2 > 1.0 {
+            (b1, b2) = (1.0 - b1, 1.0 - b2);
+        }
+        let surface = scene.surface(&Hit {
+            t: 0.0,
+            instance: index,
+            primitive,
+            barycentrics: Vec2::new(b1, b2),
+        });
+        let ray = Ray::spawn(
+            surface.position,
+            surface.geometric_normal,
+            Vec3A::from(rng.direction()),
+        );
+        if let Some(hit) = scene.intersect(&ray, InstanceMask::ALL, &Opaque) {
+            assert!(
+                !(hit.instance == index && hit.primitive == primitive),
+                "ray hit the triangle it left at t={}",
+                hit.t
+            );
+        }
+        assert_matches_brute_force(&scene, &ray, InstanceMask::ALL, "spawned ray");
+        spawned += 1;
+    }
+    assert!(spawned > 400);
+}
+
+/// A gently waved copy of `positions` (moderate deformation, as skinning produces).
+fn waved(positions: &[Vec3], phase: f32, amplitude: f32) -> Vec<Vec3> {
+    positions
+        .iter()
+        .map(|p| {
+            *p + Vec3::new(
+                (p.y * 3.0 + phase).sin(),
+                (p.z * 3.0 + phase).cos(),
+                (p.x * 3.0 + phase).sin(),
+            ) * amplitude
+        })
+        .collect()
+}
+
+#[test]
+fn refit_keeps_queries_exact_and_matches_a_rebuild() {
+    let mut scene = random_scene(9, BlasKind::Deforming);
+    let mut rng = Rng(99);
+    let rays = test_rays(&mut rng, 250);
+    for frame in 1..=4 {
+        for blas in &mut scene.blases {
+            let moved = waved(&blas.geometry.positions, frame as f32, 0.1);
+            assert_eq!(
+                blas.refit(&moved, None),
+                RefitOutcome::Refit,
+                "moderate motion should refit, not rebuild"
+            );
+        }
+        scene.rebuild_tlas();
+        // A fresh build of the same deformed meshes answers every query identically.
+        let rebuilt = AccelScene::new(
+            scene
+                .blases
+                .iter()
+                .map(|b| Blas::build(b.geometry.clone(), BlasKind::Deforming))
+                .collect(),
+            scene.instances().to_vec(),
+        );
+        for (i, ray) in rays.iter().enumerate() {
+            assert_matches_brute_force(
+                &scene,
+                ray,
+                InstanceMask::ALL,
+                &format!("frame {frame} ray {i}"),
+            );
+            let (a, b) = (
+                scene.intersect(ray, InstanceMask::ALL, &Opaque),
+                rebuilt.intersect(ray, InstanceMask::ALL, &Opaque),
+            );
+            assert_eq!(
+                a.map(|h| h.t),
+                b.map(|h| h.t),
+                "refit and rebuild disagree on ray {i}"
+            );
+        }
+    }
+}
+
+#[test]
+fn quality_decay_triggers_a_rebuild() {
+    let mut rng = Rng(5);
+    // A regular grid: a realistic deforming surface.
+    let mut geometry = MeshGeometry::default();
+    let n = 40;
+    for z in 0..=n {
+        for x in 0..=n {
+            geometry
+                .positions
+                .push(Vec3::new(x as f32 / n as f32, 0.0, z as f32 / n as f32));
+        }
+    }
+    for z in 0..n {
+        for x in 0..n {
+            let i = (z * (n + 1) + x) as u32;
+            let row = (n + 1) as u32;
+            geometry.triangles.push([i, i + row, i + 1]);
+            geometry.triangles.push([i + 1, i + row, i + row + 1]);
+        }
+    }
+    let mut blas = Blas::build(geometry, BlasKind::Deforming);
+    let rest = blas.geometry.positions.clone();
+    // A wave of a few percent of the size: the refit tree stays close to a fresh build.
+    let gentle = waved(&rest, 0.5, 0.03);
+    assert_eq!(blas.refit(&gentle, None), RefitOutcome::Refit);
+    let decay = blas.quality_decay();
+    let fresh = Blas::build(blas.geometry.clone(), BlasKind::Deforming);
+    assert!(decay < 1.2, "gentle wave decayed the tree by {decay}x");
+    assert!(
+        blas.sah_cost() <= 1.2 * fresh.sah_cost(),
+        "refit {} vs fresh {}",
+        blas.sah_cost(),
+        fresh.sah_cost()
+    );
+    // Scrambling the vertices (an explosion) ruins the refit tree: it must rebuild.
+    let scrambled: Vec<Vec3> = rest.iter().map(|_| rng.vec3(-1.0, 1.0)).collect();
+    assert_eq!(blas.refit(&scrambled, None), RefitOutcome::Rebuilt);
+    assert!(
+        blas.quality_decay() <= 1.0 + 1e-4,
+        "a rebuilt tree is its own reference"
+    );
+}
+
+#[test]
+fn alpha_masked_triangles_have_holes() {
+    // A unit quad at z = 0 facing +Z, UVs across it; texels with u < 0.5 are holes.
+    let geometry = MeshGeometry {
+        positions: vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ],
+        normals: Vec::new(),
+        uvs: vec![
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(0.0, 1.0),
+        ],
+        triangles: vec![[0, 1, 2], [0, 2, 3]],
+        materials: vec![7, 7],
+        alpha_tested: vec![true, true],
+    };
+    let scene = AccelScene::new(
+        vec![Blas::build(geometry, BlasKind::Static)],
+        vec![Instance::new(0, Affine3A::IDENTITY, InstanceMask::ALL, 0)],
+    );
+    let holes = |material: u32, uv: Vec2| {
+        assert_eq!(material, 7);
+        uv.x >= 0.5
+    };
+    let through_hole = Ray::new(Vec3A::new(0.25, 0.5, 1.0), Vec3A::NEG_Z);
+    let through_solid = Ray::new(Vec3A::new(0.75, 0.5, 1.0), Vec3A::NEG_Z);
+    assert!(
+        scene
+            .intersect(&through_hole, InstanceMask::ALL, &holes)
+            .is_none()
+    );
+    assert!(!scene.occluded(&through_hole, InstanceMask::ALL, &holes));
+    assert!(
+        scene
+            .intersect(&through_solid, InstanceMask::ALL, &holes)
+            .is_some()
+    );
+    assert!(scene.occluded(&through_solid, InstanceMask::ALL, &holes));
+    // Without the alpha test both rays hit.
+    assert!(
+        scene
+            .intersect(&through_hole, InstanceMask::ALL, &Opaque)
+            .is_some()
+    );
+}
+
+#[test]
+fn normals_face_outward_under_mirroring() {
+    // A closed cube with outward winding, drawn mirrored: the geometric normal at a hit
+    // from outside must still face the incoming ray.
+    let mut geometry = MeshGeometry::default();
+    let corners: Vec<Vec3> = (0..8)
+        .map(|i| {
+            Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32) * 2.0 - 1.0
+        })
+        .collect();
+    geometry.positions = corners;
+    // Faces as quads (outward, counter-clockwise seen from outside).
+    for [a, b, c, d] in [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ] {
+        geometry.triangles.push([a, b, c]);
+        geometry.triangles.push([a, c, d]);
+    }
+    let mirrored = Affine3A::from_scale(Vec3::new(-1.0, 2.0, 1.0));
+    let scene = AccelScene::new(
+        vec![Blas::build(geometry, BlasKind::Static)],
+        vec![Instance::new(0, mirrored, InstanceMask::ALL, 0)],
+    );
+    let mut rng = Rng(3);
+    for _ in 0..200 {
+        let origin = Vec3A::from(rng.direction() * 10.0);
+        let ray = Ray::new(
+            origin,
+            (Vec3A::from(rng.vec3(-0.5, 0.5)) - origin).normalize(),
+        );
+        let hit = scene
+            .intersect(&ray, InstanceMask::ALL, &Opaque)
+            .expect("aimed at the cube");
+        let surface = scene.surface(&hit);
+        assert!(
+            surface.geometric_normal.dot(ray.direction) < 0.0,
+            "normal faces inward under mirroring"
+        );
+        assert!((surface.geometric_normal.length() - 1.0).abs() < 1e-5);
+    }
+}
+
+#[test]
+fn empty_and_single_instance_scenes_work() {
+    let empty = AccelScene::new(Vec::new(), Vec::new());
+    let ray = Ray::new(Vec3A::ZERO, Vec3A::X);
+    assert!(empty.intersect(&ray, InstanceMask::ALL, &Opaque).is_none());
+    assert!(!empty.occluded(&ray, InstanceMask::ALL, &Opaque));
+
+    let mut rng = Rng(1);
+    let one = AccelScene::new(
+        vec![Blas::build(random_mesh(&mut rng, 50), BlasKind::Static)],
+        vec![Instance::new(0, Affine3A::IDENTITY, InstanceMask::ALL, 9)],
+    );
+    for ray in test_rays(&mut rng, 100) {
+        assert_matches_brute_force(&one, &ray, InstanceMask::ALL, "single instance");
+    }
+}
