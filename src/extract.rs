@@ -1,39 +1,28 @@
-//! Frame step `extract`: turns scene data into what `accel` (and later `render`) consume.
+//! Frame step `extract`: turns scene data into the `RenderScene` that `accel` and `render`
+//! consume.
 //!
-//! Today this is the headless path used by `gloam raybench`: a loaded `Scene` (a level or a
-//! bare glTF) becomes one BLAS per distinct glTF mesh and one instance per placement. The
-//! ECS path arrives with the real-time shell and will produce the same structures from
+//! Today this is the headless path used by `gloam render` and `gloam raybench`: a loaded
+//! `Scene` (a level or a bare glTF) becomes one BLAS per distinct glTF mesh, one instance
+//! per placement, the materials with each entity's level overrides applied, textures
+//! decoded to linear values, and the light set (emissive triangles and punctual lights).
+//! The ECS path arrives with the real-time shell and will produce the same structures from
 //! entities; both stay in this one module.
 
 use std::collections::HashMap;
 
-use glam::Affine3A;
+use glam::{Affine3A, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::accel::{AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry};
-use crate::scene::model::{AlphaMode, Asset};
-use crate::scene::world::Scene;
+use crate::render::light::{Light, LightSet, luminance};
+use crate::render::material::{RenderMaterial, Texture, TextureSlot};
+use crate::render::scene::{DEFAULT_MATERIAL, InstanceShading, RenderScene};
+use crate::scene::model::{AlphaMode, Asset, LightKind, Material, TextureRef};
+use crate::scene::world::{CameraPlacement, Scene};
 
-/// Material id for triangles with no material (glTF's default material).
-pub const DEFAULT_MATERIAL: u32 = u32::MAX;
-
-/// Where an instance came from, by index parallel to `AccelScene::instances`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct InstanceSource {
-    pub entity: usize,
-    pub asset: usize,
-    pub mesh: usize,
-}
-
-/// A static scene ready for ray queries.
-pub struct ExtractedScene {
-    pub accel: AccelScene,
-    pub sources: Vec<InstanceSource>,
-}
-
-/// All of a glTF mesh's primitives as one triangle soup; material ids are the asset's
-/// material indices (`DEFAULT_MATERIAL` for none).
-pub fn mesh_geometry(asset: &Asset, mesh: usize) -> MeshGeometry {
+/// All of a glTF mesh's primitives as one triangle soup; triangle material ids are
+/// `material_offset` + the asset's material index (`DEFAULT_MATERIAL` for none).
+pub fn mesh_geometry(asset: &Asset, mesh: usize, material_offset: u32) -> MeshGeometry {
     let mut geometry = MeshGeometry::default();
     let primitives = &asset.meshes[mesh].primitives;
     let has_uvs = primitives.iter().all(|p| !p.uv0.is_empty());
@@ -47,10 +36,12 @@ pub fn mesh_geometry(asset: &Asset, mesh: usize) -> MeshGeometry {
         geometry
             .triangles
             .extend(primitive.indices.iter().map(|t| t.map(|i| i + base)));
-        let material = primitive.material.map_or(DEFAULT_MATERIAL, |m| m as u32);
+        let material = primitive
+            .material
+            .map_or(DEFAULT_MATERIAL, |m| material_offset + m as u32);
         let alpha_tested = primitive
             .material
-            .is_some_and(|m| matches!(asset.materials[m].alpha_mode, AlphaMode::Mask { .. }));
+            .is_some_and(|m| !matches!(asset.materials[m].alpha_mode, AlphaMode::Opaque));
         geometry
             .materials
             .extend(std::iter::repeat_n(material, primitive.indices.len()));
@@ -64,9 +55,60 @@ pub fn mesh_geometry(asset: &Asset, mesh: usize) -> MeshGeometry {
     geometry
 }
 
-/// Builds static BLASes for every mesh the scene places (each distinct mesh once, in
-/// parallel) and an instance per placement, visible to every query.
-pub fn extract_static(scene: &Scene) -> ExtractedScene {
+/// Textures decoded once per (asset, glTF texture, colour encoding) actually used.
+struct TextureTable<'a> {
+    scene: &'a Scene,
+    index: HashMap<(usize, usize, bool), u32>,
+    textures: Vec<Texture>,
+}
+
+impl TextureTable<'_> {
+    fn slot(&mut self, asset: usize, reference: &Option<TextureRef>) -> Option<TextureSlot> {
+        let reference = reference.as_ref()?;
+        let key = (
+            asset,
+            reference.texture,
+            reference.encoding == crate::scene::model::ColorEncoding::Srgb,
+        );
+        let texture = *self.index.entry(key).or_insert_with(|| {
+            let source = &self.scene.assets[asset];
+            let gltf_texture = &source.textures[reference.texture];
+            let sampler = gltf_texture.sampler;
+            self.textures.push(Texture::from_image(
+                &source.images[gltf_texture.image],
+                reference.encoding,
+                sampler.wrap_u,
+                sampler.wrap_v,
+                sampler.magnify,
+            ));
+            self.textures.len() as u32 - 1
+        });
+        Some(TextureSlot {
+            texture,
+            uv_transform: reference.uv_transform,
+        })
+    }
+
+    fn material(&mut self, asset: usize, material: &Material) -> RenderMaterial {
+        RenderMaterial {
+            base_color: material.base_color,
+            base_color_texture: self.slot(asset, &material.base_color_texture),
+            metallic: material.metallic,
+            roughness: material.roughness,
+            metallic_roughness_texture: self.slot(asset, &material.metallic_roughness_texture),
+            emissive: material.emissive,
+            emissive_texture: self.slot(asset, &material.emissive_texture),
+            transmission: material.transmission,
+            ior: material.ior,
+            alpha_mode: material.alpha_mode,
+            double_sided: material.double_sided,
+        }
+    }
+}
+
+/// Builds everything `render` reads from a loaded scene: BLASes for every placed mesh (each
+/// distinct mesh once, in parallel), instances, materials, textures, lights and the camera.
+pub fn render_scene(scene: &Scene) -> RenderScene {
     // Zero-scale nodes (a common way to hide things in glTF) are invisible and singular.
     let placements: Vec<_> = scene
         .mesh_placements()
@@ -81,6 +123,22 @@ pub fn extract_static(scene: &Scene) -> ExtractedScene {
             .unwrap_or(0)
     };
 
+    // 1. Materials: every asset's table under a global offset, then the default material.
+    let mut textures = TextureTable {
+        scene,
+        index: HashMap::new(),
+        textures: Vec::new(),
+    };
+    let mut materials = Vec::new();
+    let mut asset_offsets = Vec::with_capacity(scene.assets.len());
+    for (index, asset) in scene.assets.iter().enumerate() {
+        asset_offsets.push(materials.len() as u32);
+        for material in &asset.materials {
+            materials.push(textures.material(index, material));
+        }
+    }
+
+    // 2. One BLAS per distinct (asset, mesh).
     let mut blas_of: HashMap<(usize, usize), u32> = HashMap::new();
     let mut meshes: Vec<(usize, usize)> = Vec::new();
     for placement in &placements {
@@ -93,28 +151,165 @@ pub fn extract_static(scene: &Scene) -> ExtractedScene {
     let blases: Vec<Blas> = meshes
         .par_iter()
         .map(|&(asset, mesh)| {
-            Blas::build(mesh_geometry(&scene.assets[asset], mesh), BlasKind::Static)
+            Blas::build(
+                mesh_geometry(&scene.assets[asset], mesh, asset_offsets[asset]),
+                BlasKind::Static,
+            )
         })
         .collect();
 
+    // 3. Instances, with a resolved material block for entities that override materials.
+    let mut override_blocks: HashMap<(usize, usize), u32> = HashMap::new();
     let mut instances = Vec::with_capacity(placements.len());
-    let mut sources = Vec::with_capacity(placements.len());
+    let mut instance_shading = Vec::with_capacity(placements.len());
     for placement in &placements {
         let asset = asset_index(placement.asset);
+        let overrides = scene.level.entities[placement.entity]
+            .instance
+            .as_ref()
+            .is_some_and(|i| !i.material_overrides.is_empty());
+        let material_base = if overrides {
+            *override_blocks
+                .entry((placement.entity, asset))
+                .or_insert_with(|| {
+                    let base = materials.len() as u32;
+                    for local in 0..scene.assets[asset].materials.len() {
+                        let resolved = scene.resolved_material(
+                            placement.entity,
+                            &scene.assets[asset],
+                            Some(local),
+                        );
+                        materials.push(textures.material(asset, &resolved));
+                    }
+                    base
+                })
+        } else {
+            asset_offsets[asset]
+        };
+        instance_shading.push(InstanceShading {
+            material_base,
+            asset_offset: asset_offsets[asset],
+        });
         instances.push(Instance::new(
             blas_of[&(asset, placement.mesh)],
             Affine3A::from_mat4(placement.world_from_mesh),
             InstanceMask::ALL,
             placement.entity as u64,
         ));
-        sources.push(InstanceSource {
-            entity: placement.entity,
-            asset,
-            mesh: placement.mesh,
-        });
     }
-    ExtractedScene {
-        accel: AccelScene::new(blases, instances),
-        sources,
+    let default_material = materials.len() as u32;
+    materials.push(textures.material(0, &Material::default()));
+    let accel = AccelScene::new(blases, instances);
+
+    let mut render = RenderScene {
+        accel,
+        materials,
+        instance_shading,
+        default_material,
+        textures: textures.textures,
+        lights: LightSet::default(),
+        sky: scene.level.environment.sky,
+        camera: CameraPlacement::framing(Vec3::ZERO, Vec3::ONE),
+    };
+    let bounds = render.accel.bounds();
+    render.camera = scene
+        .camera()
+        .unwrap_or_else(|| CameraPlacement::framing(bounds.min.into(), bounds.max.into()));
+    render.lights = light_set(scene, &render, (bounds.max - bounds.min).length() * 0.5);
+    render
+}
+
+/// Emissive triangles (in world space) and punctual lights, weighted by estimated power.
+fn light_set(scene: &Scene, render: &RenderScene, scene_radius: f32) -> LightSet {
+    let mut lights = Vec::new();
+    let mut weights = Vec::new();
+    let mut keys = Vec::new();
+    for (instance_index, instance) in render.accel.instances().iter().enumerate() {
+        let geometry = &render.accel.blases[instance.blas as usize].geometry;
+        let to_world = instance.world_from_object();
+        let mirrored = to_world.matrix3.determinant() < 0.0;
+        for (triangle, &id) in geometry.materials.iter().enumerate() {
+            let material_index = render.material_index(instance_index as u32, id);
+            let material = &render.materials[material_index as usize];
+            if !material.is_emissive() {
+                continue;
+            }
+            let vertices = geometry
+                .triangle_vertices(triangle)
+                .map(|v| to_world.transform_point3a(v));
+            let cross = (vertices[1] - vertices[0]).cross(vertices[2] - vertices[0]);
+            let area = cross.length() * 0.5;
+            if area <= 0.0 {
+                continue;
+            }
+            // The front side is the one the winding faces in object space; a mirroring
+            // transform flips the world-space winding, so flip the normal back.
+            let normal = if mirrored {
+                -cross / (2.0 * area)
+            } else {
+                cross / (2.0 * area)
+            };
+            let uvs = if geometry.uvs.is_empty() {
+                [glam::Vec2::ZERO; 3]
+            } else {
+                geometry.triangles[triangle].map(|i| geometry.uvs[i as usize])
+            };
+            let sides = if material.double_sided { 2.0 } else { 1.0 };
+            keys.push((
+                (instance_index as u32, triangle as u32),
+                lights.len() as u32,
+            ));
+            weights.push(luminance(material.emissive) * area * std::f32::consts::PI * sides);
+            lights.push(Light::Triangle {
+                vertices,
+                uvs,
+                normal,
+                area,
+                material: material_index,
+                double_sided: material.double_sided,
+            });
+        }
     }
+    for (light, transform) in scene.punctual_lights() {
+        let position = Vec3A::from(transform.w_axis.truncate());
+        let direction =
+            Vec3A::from(transform.transform_vector3(Vec3::NEG_Z)).normalize_or(Vec3A::NEG_Y);
+        let intensity = light.color * light.intensity;
+        let (light, power) = match light.kind {
+            LightKind::Point => (
+                Light::Point {
+                    position,
+                    intensity,
+                },
+                4.0 * std::f32::consts::PI * luminance(intensity),
+            ),
+            LightKind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => {
+                let (cos_inner, cos_outer) = (inner_cone_angle.cos(), outer_cone_angle.cos());
+                let solid_angle = std::f32::consts::TAU * (1.0 - 0.5 * (cos_inner + cos_outer));
+                (
+                    Light::Spot {
+                        position,
+                        direction,
+                        intensity,
+                        cos_inner,
+                        cos_outer,
+                    },
+                    solid_angle * luminance(intensity),
+                )
+            }
+            LightKind::Directional => (
+                Light::Directional {
+                    direction,
+                    irradiance: intensity,
+                },
+                std::f32::consts::PI * scene_radius * scene_radius * luminance(intensity),
+            ),
+        };
+        weights.push(power);
+        lights.push(light);
+    }
+    LightSet::new(lights, &weights, keys)
 }

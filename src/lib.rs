@@ -4,11 +4,14 @@
 //! extract -> accel -> render -> film -> present. This crate grows one module per step;
 //! what exists today:
 //! - `scene`: load time — glTF import, the level format, validation, asset generators.
-//! - `extract`: scene data to accel inputs (headless path today; the ECS path later).
+//! - `extract`: scene data to the `RenderScene` (headless path today; the ECS path later).
 //! - `accel`: BLAS per mesh (refit when deforming), TLAS rebuilt per frame, ray queries.
-//! - `cli`: the `gloam` command line (`main.rs` only calls `cli::main`), with `raybench`.
+//! - `render`: camera, samplers, BSDFs, lights, path and reference integrators, film.
+//! - `cli`: the `gloam` command line (`main.rs` only calls `cli::main`), with `raybench`
+//!   and `convergence`.
 
 pub mod accel;
 pub mod cli;
 pub mod extract;
+pub mod render;
 pub mod scene;

@@ -243,3 +243,82 @@ fn raybench_bad_input_is_one_line() {
         assert!(!stderr.contains("panicked"));
     }
 }
+
+#[test]
+fn render_writes_png_and_exr_and_refuses_bad_output() {
+    let dir = common::scratch_dir("cli-render");
+    for name in ["cornell.png", "cornell.exr"] {
+        let out = dir.join(name);
+        let output = gloam(&[
+            "render",
+            "levels/cornell.ron",
+            "--out",
+            out.to_str().unwrap(),
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--spp",
+            "4",
+        ]);
+        assert!(
+            output.status.success(),
+            "{}{}",
+            text(&output.stdout),
+            text(&output.stderr)
+        );
+        let image = image::open(&out).unwrap();
+        assert_eq!((image.width(), image.height()), (32, 24));
+    }
+    // The EXR holds linear radiance: the Cornell light (17, 12, 4) is seen directly near
+    // the top centre, so some pixel is brighter than any PNG could store.
+    let exr = image::open(dir.join("cornell.exr")).unwrap().into_rgb32f();
+    assert!(
+        exr.pixels().any(|p| p.0[0] > 2.0),
+        "no super-white radiance in the EXR"
+    );
+    // Bad output names fail fast with one line, and nothing is written.
+    let bad = dir.join("cornell.jpg");
+    let output = gloam(&[
+        "render",
+        "levels/cornell.ron",
+        "--out",
+        bad.to_str().unwrap(),
+    ]);
+    assert_eq!(output.status.code(), Some(1));
+    assert_eq!(
+        text(&output.stderr).trim_end().lines().count(),
+        1,
+        "{}",
+        text(&output.stderr)
+    );
+    assert!(!bad.exists());
+    let output = gloam(&[
+        "render",
+        "levels/missing.ron",
+        "--out",
+        dir.join("x.png").to_str().unwrap(),
+    ]);
+    assert_eq!(output.status.code(), Some(1));
+}
+
+#[test]
+fn generate_assets_reproduces_the_committed_assets() {
+    let dir = common::scratch_dir("cli-generate");
+    let output = gloam(&["generate", "assets", "--out", dir.to_str().unwrap()]);
+    assert!(output.status.success(), "{}", text(&output.stderr));
+    for relative in [
+        "cornell/cornell-box.gltf",
+        "cornell/cornell-box.bin",
+        "kit/floor.glb",
+        "kit/shard.glb",
+        "blue-noise/blue-noise-128.png",
+    ] {
+        let generated = std::fs::read(dir.join(relative)).unwrap();
+        let committed = std::fs::read(common::repo().join("assets").join(relative)).unwrap();
+        assert!(
+            generated == committed,
+            "{relative} differs from the committed asset"
+        );
+    }
+}

@@ -29,7 +29,8 @@ use serde_json::{Value, json};
 use crate::accel::{
     AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry, Opaque, Ray, RefitOutcome,
 };
-use crate::extract::{DEFAULT_MATERIAL, ExtractedScene, extract_static};
+use crate::extract::render_scene;
+use crate::render::light::Light;
 use crate::scene::files::write_atomically;
 use crate::scene::world::{CameraPlacement, Scene};
 
@@ -88,17 +89,24 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     // 1. Load and extract.
     let scene = Scene::load(&options.scene)?;
     let start = Instant::now();
-    let ExtractedScene { mut accel, sources } = extract_static(&scene);
+    let render = render_scene(&scene);
     let blas_build_ms = milliseconds(start);
+    let emitters: Vec<[Vec3A; 3]> = render
+        .lights
+        .lights
+        .iter()
+        .filter_map(|light| match light {
+            Light::Triangle { vertices, .. } => Some(*vertices),
+            _ => None,
+        })
+        .collect();
+    let camera = render.camera.clone();
+    let mut accel = render.accel;
     let scene_instances = accel.instances().len();
     if scene_instances == 0 {
         bail!("{name}: the scene places no triangles, so there is nothing to trace");
     }
-    let emitters = emissive_triangles(&scene, &accel, &sources);
     let bounds = accel.bounds();
-    let camera = scene
-        .camera()
-        .unwrap_or_else(|| CameraPlacement::framing(bounds.min.into(), bounds.max.into()));
 
     // 2. Replicas and the deforming grid.
     if let Some(wanted) = options.instances {
@@ -249,7 +257,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     // Report.
     print_table(&layouts, &thread_counts);
     println!(
-        "builds: static BLASes {blas_build_ms:.1} ms (all meshes, parallel); TLAS rebuild {tlas_build_ms:.3} ms for {} instances ({} threads)",
+        "builds: scene extraction with static BLASes {blas_build_ms:.1} ms (all meshes, parallel); TLAS rebuild {tlas_build_ms:.3} ms for {} instances ({} threads)",
         accel.instances().len(),
         options.threads
     );
@@ -405,36 +413,6 @@ fn replicate_instances(accel: &mut AccelScene, scene_instances: usize, wanted: u
         }
         copy += 1;
     }
-}
-
-/// World-space triangles whose resolved material emits light (from the scene's own instances).
-fn emissive_triangles(
-    scene: &Scene,
-    accel: &AccelScene,
-    sources: &[crate::extract::InstanceSource],
-) -> Vec<[Vec3A; 3]> {
-    let mut emitters = Vec::new();
-    for (instance, source) in accel.instances().iter().zip(sources) {
-        let geometry = &accel.blases[instance.blas as usize].geometry;
-        let asset = &scene.assets[source.asset];
-        let mut emissive_by_material = std::collections::HashMap::new();
-        for (triangle, &material) in geometry.materials.iter().enumerate() {
-            let emissive = *emissive_by_material.entry(material).or_insert_with(|| {
-                let index = (material != DEFAULT_MATERIAL).then_some(material as usize);
-                scene
-                    .resolved_material(source.entity, asset, index)
-                    .is_emissive()
-            });
-            if emissive {
-                emitters.push(
-                    geometry
-                        .triangle_vertices(triangle)
-                        .map(|v| instance.world_from_object().transform_point3a(v)),
-                );
-            }
-        }
-    }
-    emitters
 }
 
 /// A hash of (stream, index) to a uniform float in [0, 1) (a fixed integer hash so every

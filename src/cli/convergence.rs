@@ -1,0 +1,128 @@
+//! `gloam convergence`: how fast each sampler and integrator approaches the converged image.
+//!
+//! A measurement tool over `render`, outside the frame. Renders a converged image (path
+//! integrator, blue noise, `--reference-spp`), then prints the RMSE against it of:
+//! 1. the path integrator at 1, 4 and 16 spp with the white, stratified and blue samplers;
+//! 2. path (16 spp, stratified and blue) against reference (white) given the same
+//!    wall-clock time, the reference's sample count calibrated from a timed trial.
+
+use std::path::PathBuf;
+
+use crate::render::{
+    Camera, Film, IntegratorKind, RenderScene, RenderSettings, SamplerKind, render,
+};
+use crate::scene::world::Scene;
+
+pub struct Options {
+    pub scene: PathBuf,
+    pub width: u32,
+    pub height: u32,
+    pub reference_spp: u32,
+    pub max_depth: u32,
+}
+
+fn timed(scene: &RenderScene, camera: &Camera, settings: &RenderSettings) -> (Film, f64, f64) {
+    let output = render(scene, camera, settings, &|_| {});
+    let mrays = output.mrays_per_second();
+    (output.film, output.seconds, mrays)
+}
+
+pub fn run(options: &Options) -> anyhow::Result<()> {
+    if options.width == 0 || options.height == 0 || options.reference_spp == 0 {
+        anyhow::bail!("--width, --height and --reference-spp must be at least 1");
+    }
+    let scene = Scene::load(&options.scene)?;
+    let render_scene = crate::extract::render_scene(&scene);
+    let camera = Camera::new(&render_scene.camera, options.width, options.height);
+    let settings =
+        |spp: u32, integrator: IntegratorKind, sampler: SamplerKind, seed: u32| RenderSettings {
+            width: options.width,
+            height: options.height,
+            spp,
+            seed,
+            frame: 0,
+            integrator,
+            sampler,
+            max_depth: options.max_depth,
+        };
+    let (converged, seconds, _) = timed(
+        &render_scene,
+        &camera,
+        &settings(
+            options.reference_spp,
+            IntegratorKind::Path,
+            SamplerKind::BlueNoise,
+            1000,
+        ),
+    );
+    println!(
+        "gloam convergence {}: {}x{}, max depth {}; converged image: path, blue, {} spp ({seconds:.1} s)",
+        options.scene.display(),
+        options.width,
+        options.height,
+        options.max_depth,
+        options.reference_spp
+    );
+    println!("RMSE against it (path integrator):");
+    println!(
+        "{:<12} {:>10} {:>10} {:>10}",
+        "sampler", "1 spp", "4 spp", "16 spp"
+    );
+    for sampler in [
+        SamplerKind::White,
+        SamplerKind::Stratified,
+        SamplerKind::BlueNoise,
+    ] {
+        let row: Vec<String> = [1, 4, 16]
+            .iter()
+            .map(|&spp| {
+                format!(
+                    "{:>10.5}",
+                    timed(
+                        &render_scene,
+                        &camera,
+                        &settings(spp, IntegratorKind::Path, sampler, 1)
+                    )
+                    .0
+                    .rmse(&converged)
+                )
+            })
+            .collect();
+        println!("{:<12} {}", sampler.name(), row.join(" "));
+    }
+
+    // Equal time: path with each structured sampler against the reference integrator with
+    // white noise, its sample count calibrated to the path render's time from a trial.
+    let (_, trial_seconds, _) = timed(
+        &render_scene,
+        &camera,
+        &settings(16, IntegratorKind::Reference, SamplerKind::White, 1),
+    );
+    println!("equal time (path at 16 spp against the reference given the same seconds):");
+    for sampler in [SamplerKind::Stratified, SamplerKind::BlueNoise] {
+        let (path_film, path_seconds, path_mrays) = timed(
+            &render_scene,
+            &camera,
+            &settings(16, IntegratorKind::Path, sampler, 1),
+        );
+        let reference_spp = ((16.0 * path_seconds / trial_seconds.max(1e-9)).round() as u32).max(1);
+        let (reference_film, reference_seconds, reference_mrays) = timed(
+            &render_scene,
+            &camera,
+            &settings(
+                reference_spp,
+                IntegratorKind::Reference,
+                SamplerKind::White,
+                1,
+            ),
+        );
+        let (path_rmse, reference_rmse) =
+            (path_film.rmse(&converged), reference_film.rmse(&converged));
+        println!(
+            "  path 16 spp ({:<10}) {path_seconds:6.2} s {path_mrays:6.2} Mrays/s RMSE {path_rmse:.5} | reference {reference_spp:4} spp (white) {reference_seconds:6.2} s {reference_mrays:6.2} Mrays/s RMSE {reference_rmse:.5} | ratio {:.3}",
+            sampler.name(),
+            path_rmse / reference_rmse.max(1e-12)
+        );
+    }
+    Ok(())
+}

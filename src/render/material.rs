@@ -1,0 +1,169 @@
+//! Frame step `render`: materials and textures as the integrator reads them.
+//!
+//! glTF metallic-roughness per DESIGN.md: the base colour is the albedo; metallic 0 and
+//! transmission 0 is Lambertian; metallic 1 is a conductor (perfect mirror at roughness 0,
+//! GGX otherwise, alpha = roughness^2); transmission 1 is a smooth dielectric with the
+//! material's ior. In-between values are a mixture of those lobes; one lobe is chosen per
+//! hit with probability equal to its weight, which is an unbiased estimate of the mixture.
+
+use glam::{Affine2, Vec2, Vec3, Vec4};
+
+use super::bsdf::Bsdf;
+use crate::scene::model::{AlphaMode, ColorEncoding, Filter, Image, Wrap};
+
+/// A decoded texture: linear RGBA texels (sRGB already removed for colour slots), sampled
+/// bilinearly with glTF's wrap modes.
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<Vec4>,
+    pub wrap_u: Wrap,
+    pub wrap_v: Wrap,
+    pub filter: Filter,
+}
+
+impl Texture {
+    pub fn from_image(
+        image: &Image,
+        encoding: ColorEncoding,
+        wrap_u: Wrap,
+        wrap_v: Wrap,
+        filter: Filter,
+    ) -> Texture {
+        let texels = (0..image.height)
+            .flat_map(|y| (0..image.width).map(move |x| (x, y)))
+            .map(|(x, y)| image.texel_linear(x, y, encoding))
+            .collect();
+        Texture {
+            width: image.width.max(1),
+            height: image.height.max(1),
+            texels,
+            wrap_u,
+            wrap_v,
+            filter,
+        }
+    }
+
+    /// The filtered value at `uv` (glTF: (0, 0) is the image's top-left).
+    pub fn sample(&self, uv: Vec2) -> Vec4 {
+        if self.texels.is_empty() {
+            return Vec4::ONE;
+        }
+        let x = uv.x * self.width as f32 - 0.5;
+        let y = uv.y * self.height as f32 - 0.5;
+        if self.filter == Filter::Nearest {
+            return self.texel((x + 0.5).floor() as i64, (y + 0.5).floor() as i64);
+        }
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let top = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
+        let bottom = self.texel(x0, y0 + 1).lerp(self.texel(x0 + 1, y0 + 1), fx);
+        top.lerp(bottom, fy)
+    }
+
+    fn texel(&self, x: i64, y: i64) -> Vec4 {
+        let x = wrap(x, self.width as i64, self.wrap_u);
+        let y = wrap(y, self.height as i64, self.wrap_v);
+        self.texels[(y * self.width as i64 + x) as usize]
+    }
+}
+
+fn wrap(i: i64, n: i64, mode: Wrap) -> i64 {
+    match mode {
+        Wrap::ClampToEdge => i.clamp(0, n - 1),
+        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::MirroredRepeat => {
+            let period = i.rem_euclid(2 * n);
+            if period < n {
+                period
+            } else {
+                2 * n - 1 - period
+            }
+        }
+    }
+}
+
+/// A material's use of a texture, resolved to an index into `RenderScene::textures`.
+#[derive(Clone, Copy, Debug)]
+pub struct TextureSlot {
+    pub texture: u32,
+    pub uv_transform: Affine2,
+}
+
+/// A material ready for shading (level overrides already applied).
+#[derive(Clone, Debug)]
+pub struct RenderMaterial {
+    pub base_color: Vec4,
+    pub base_color_texture: Option<TextureSlot>,
+    pub metallic: f32,
+    pub roughness: f32,
+    pub metallic_roughness_texture: Option<TextureSlot>,
+    /// Radiance in W/(sr m^2).
+    pub emissive: Vec3,
+    pub emissive_texture: Option<TextureSlot>,
+    pub transmission: f32,
+    pub ior: f32,
+    pub alpha_mode: AlphaMode,
+    pub double_sided: bool,
+}
+
+impl RenderMaterial {
+    pub fn is_emissive(&self) -> bool {
+        self.emissive.max_element() > 0.0
+    }
+
+    fn sample(slot: Option<TextureSlot>, textures: &[Texture], uv: Vec2) -> Vec4 {
+        match slot {
+            Some(slot) => {
+                textures[slot.texture as usize].sample(slot.uv_transform.transform_point2(uv))
+            }
+            None => Vec4::ONE,
+        }
+    }
+
+    /// Base colour and coverage at `uv`.
+    pub fn base_color_at(&self, textures: &[Texture], uv: Vec2) -> Vec4 {
+        self.base_color * Self::sample(self.base_color_texture, textures, uv)
+    }
+
+    /// Emitted radiance at `uv` from the front (and from the back when double-sided).
+    pub fn emission_at(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
+        if !self.is_emissive() {
+            return Vec3::ZERO;
+        }
+        self.emissive * Self::sample(self.emissive_texture, textures, uv).truncate()
+    }
+
+    /// Is the point solid for rays (alpha mask)? Blend is treated as a mask at 0.5.
+    pub fn is_opaque_at(&self, textures: &[Texture], uv: Vec2) -> bool {
+        match self.alpha_mode {
+            AlphaMode::Opaque => true,
+            AlphaMode::Mask { cutoff } => self.base_color_at(textures, uv).w >= cutoff,
+            AlphaMode::Blend => self.base_color_at(textures, uv).w >= 0.5,
+        }
+    }
+
+    /// The BSDF lobe to use at `uv`: one of the mixture's lobes, chosen with `u_lobe` with
+    /// probability equal to its weight. `entering` says `wo` is on the front side.
+    pub fn bsdf_at(&self, textures: &[Texture], uv: Vec2, u_lobe: f32, entering: bool) -> Bsdf {
+        let base = self.base_color_at(textures, uv).truncate();
+        let metal_rough = Self::sample(self.metallic_roughness_texture, textures, uv);
+        let metallic = (self.metallic * metal_rough.z).clamp(0.0, 1.0);
+        let roughness = (self.roughness * metal_rough.y).clamp(0.0, 1.0);
+        if u_lobe < metallic {
+            return Bsdf::Conductor {
+                f0: base,
+                alpha: roughness * roughness,
+            };
+        }
+        // Rescale the remaining interval to choose between glass and diffuse.
+        let u = (u_lobe - metallic) / (1.0 - metallic).max(f32::MIN_POSITIVE);
+        if u < self.transmission {
+            let eta = if entering { self.ior } else { 1.0 / self.ior };
+            return Bsdf::Dielectric { eta };
+        }
+        Bsdf::Lambertian { albedo: base }
+    }
+}
