@@ -12,8 +12,8 @@ use glam::{Vec2, Vec3, Vec3A};
 use super::bsdf::Bsdf;
 use super::sampler::PixelSampler;
 use super::sampling::{Frame, power_heuristic};
-use super::scene::RenderScene;
-use crate::accel::{InstanceMask, Ray, SurfaceHit};
+use super::scene::{RenderScene, SceneAlpha};
+use crate::accel::{Hit, InstanceMask, Ray, SurfaceHit};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IntegratorKind {
@@ -53,6 +53,36 @@ struct Vertex {
     bsdf: Bsdf,
     /// wo in the local frame.
     wo: Vec3A,
+}
+
+/// The next surface along a ray, and the light it emits back along the ray (zero unless
+/// the material is emissive and the ray meets its emitting side).
+struct NextHit {
+    hit: Hit,
+    surface: SurfaceHit,
+    /// Unit direction back along the ray.
+    wo_world: Vec3A,
+    emitted: Vec3,
+}
+
+/// Both integrators' first step at every vertex: None when the ray leaves the scene.
+fn next_hit(scene: &RenderScene, ray: &Ray, alpha: &SceneAlpha) -> Option<NextHit> {
+    let hit = scene.accel.intersect(ray, InstanceMask::CAMERA, alpha)?;
+    let surface = scene.accel.surface(&hit);
+    let wo_world = -ray.direction.normalize();
+    let material = scene.material(hit.instance, surface.material);
+    let front = surface.geometric_normal.dot(wo_world) > 0.0;
+    let emitted = if material.is_emissive() && (front || material.double_sided) {
+        material.emission_at(&scene.textures, surface.uv)
+    } else {
+        Vec3::ZERO
+    };
+    Some(NextHit {
+        hit,
+        surface,
+        wo_world,
+        emitted,
+    })
 }
 
 /// Shades the hit: picks the material lobe and builds the local frame, with the shading
@@ -114,19 +144,20 @@ pub fn path_radiance(
     let mut depth = 0;
     loop {
         // 1. Find the next vertex; escaping rays see the sky.
-        let Some(hit) = scene.accel.intersect(&ray, InstanceMask::CAMERA, &alpha) else {
+        let Some(NextHit {
+            hit,
+            surface,
+            wo_world,
+            emitted,
+        }) = next_hit(scene, &ray, &alpha)
+        else {
             radiance += beta * scene.sky;
             break;
         };
-        let surface = scene.accel.surface(&hit);
-        let wo_world = -ray.direction.normalize();
-        let material = scene.material(hit.instance, surface.material);
 
         // 2. Emission at the hit: in full after the camera or a specular bounce, else
         //    weighted against the light-sampling strategy that could also have found it.
-        let front = surface.geometric_normal.dot(wo_world) > 0.0;
-        if material.is_emissive() && (front || material.double_sided) {
-            let emitted = material.emission_at(&scene.textures, surface.uv);
+        if emitted != Vec3::ZERO {
             if specular_bounce {
                 radiance += beta * emitted;
             } else if let Some(light) = scene.lights.triangle_light(hit.instance, hit.primitive) {
@@ -215,17 +246,17 @@ pub fn reference_radiance(
     counts.camera += 1;
     let mut depth = 0;
     loop {
-        let Some(hit) = scene.accel.intersect(&ray, InstanceMask::CAMERA, &alpha) else {
+        let Some(NextHit {
+            hit,
+            surface,
+            wo_world,
+            emitted,
+        }) = next_hit(scene, &ray, &alpha)
+        else {
             radiance += beta * scene.sky;
             break;
         };
-        let surface = scene.accel.surface(&hit);
-        let wo_world = -ray.direction.normalize();
-        let material = scene.material(hit.instance, surface.material);
-        let front = surface.geometric_normal.dot(wo_world) > 0.0;
-        if material.is_emissive() && (front || material.double_sided) {
-            radiance += beta * material.emission_at(&scene.textures, surface.uv);
-        }
+        radiance += beta * emitted;
         if depth == max_depth {
             break;
         }
