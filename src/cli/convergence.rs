@@ -18,7 +18,20 @@ pub struct Options {
     pub width: u32,
     pub height: u32,
     pub reference_spp: u32,
+    /// RMSE is averaged (as mean squared error) over this many seeds: one seed's figure
+    /// swings by 30% with the few brightest samples.
+    pub seeds: u32,
     pub max_depth: u32,
+}
+
+/// Root of the mean over seeds 1..=seeds of each render's squared RMSE.
+fn mean_rmse(seeds: u32, rmse_of_seed: impl Fn(u32) -> f32) -> f32 {
+    let seeds = seeds.max(1);
+    ((1..=seeds)
+        .map(|seed| rmse_of_seed(seed).powi(2) as f64)
+        .sum::<f64>()
+        / seeds as f64)
+        .sqrt() as f32
 }
 
 fn timed(scene: &RenderScene, camera: &Camera, settings: &RenderSettings) -> (Film, f64, f64) {
@@ -63,7 +76,10 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         options.max_depth,
         options.reference_spp
     );
-    println!("RMSE against it (path integrator):");
+    println!(
+        "RMSE against it (path integrator), over {} seeds:",
+        options.seeds
+    );
     println!(
         "{:<12} {:>10} {:>10} {:>10}",
         "sampler", "1 spp", "4 spp", "16 spp"
@@ -78,13 +94,13 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             .map(|&spp| {
                 format!(
                     "{:>10.5}",
-                    timed(
+                    mean_rmse(options.seeds, |seed| timed(
                         &render_scene,
                         &camera,
-                        &settings(spp, IntegratorKind::Path, sampler, 1)
+                        &settings(spp, IntegratorKind::Path, sampler, seed)
                     )
                     .0
-                    .rmse(&converged)
+                    .rmse(&converged))
                 )
             })
             .collect();
@@ -100,13 +116,13 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     );
     println!("equal time (path at 16 spp against the reference given the same seconds):");
     for sampler in [SamplerKind::Stratified, SamplerKind::BlueNoise] {
-        let (path_film, path_seconds, path_mrays) = timed(
+        let (_, path_seconds, path_mrays) = timed(
             &render_scene,
             &camera,
             &settings(16, IntegratorKind::Path, sampler, 1),
         );
         let reference_spp = ((16.0 * path_seconds / trial_seconds.max(1e-9)).round() as u32).max(1);
-        let (reference_film, reference_seconds, reference_mrays) = timed(
+        let (_, reference_seconds, reference_mrays) = timed(
             &render_scene,
             &camera,
             &settings(
@@ -116,8 +132,29 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
                 1,
             ),
         );
-        let (path_rmse, reference_rmse) =
-            (path_film.rmse(&converged), reference_film.rmse(&converged));
+        let path_rmse = mean_rmse(options.seeds, |seed| {
+            timed(
+                &render_scene,
+                &camera,
+                &settings(16, IntegratorKind::Path, sampler, seed),
+            )
+            .0
+            .rmse(&converged)
+        });
+        let reference_rmse = mean_rmse(options.seeds, |seed| {
+            timed(
+                &render_scene,
+                &camera,
+                &settings(
+                    reference_spp,
+                    IntegratorKind::Reference,
+                    SamplerKind::White,
+                    seed,
+                ),
+            )
+            .0
+            .rmse(&converged)
+        });
         println!(
             "  path 16 spp ({:<10}) {path_seconds:6.2} s {path_mrays:6.2} Mrays/s RMSE {path_rmse:.5} | reference {reference_spp:4} spp (white) {reference_seconds:6.2} s {reference_mrays:6.2} Mrays/s RMSE {reference_rmse:.5} | ratio {:.3}",
             sampler.name(),

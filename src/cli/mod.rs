@@ -79,6 +79,9 @@ pub enum Command {
         /// Samples per pixel of the converged image.
         #[arg(long, default_value_t = 4096)]
         reference_spp: u32,
+        /// Seeds each RMSE is averaged over.
+        #[arg(long, default_value_t = 8)]
+        seeds: u32,
         #[arg(long, default_value_t = 8)]
         max_depth: u32,
     },
@@ -232,6 +235,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             width,
             height,
             reference_spp,
+            seeds,
             max_depth,
         } => {
             convergence::run(&convergence::Options {
@@ -239,6 +243,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 width,
                 height,
                 reference_spp,
+                seeds,
                 max_depth,
             })?;
             Ok(ExitCode::SUCCESS)
