@@ -20,6 +20,12 @@ use crate::render::scene::{DEFAULT_MATERIAL, InstanceShading, RenderScene};
 use crate::scene::model::{AlphaMode, Asset, LightKind, Material, TextureRef};
 use crate::scene::world::{CameraPlacement, Scene};
 
+/// The accel `user_id` of the instance drawing asset node `node` of level entity `entity`:
+/// the game finds its ECS entity's instance by it.
+pub fn instance_user_id(entity: usize, node: usize) -> u64 {
+    ((entity as u64) << 32) | node as u64
+}
+
 /// All of a glTF mesh's primitives as one triangle soup; triangle material ids are
 /// `material_offset` + the asset's material index (`DEFAULT_MATERIAL` for none).
 pub fn mesh_geometry(asset: &Asset, mesh: usize, material_offset: u32) -> MeshGeometry {
@@ -194,7 +200,7 @@ pub fn render_scene(scene: &Scene) -> RenderScene {
             blas_of[&(asset, placement.mesh)],
             Affine3A::from_mat4(placement.world_from_mesh),
             InstanceMask::ALL,
-            placement.entity as u64,
+            instance_user_id(placement.entity, placement.node),
         ));
     }
     let default_material = materials.len() as u32;

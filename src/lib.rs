@@ -3,6 +3,7 @@
 //! The frame, left to right (see DESIGN.md): winit events -> input -> game schedule ->
 //! extract -> accel -> render -> film -> present. This crate grows one module per step;
 //! what exists today:
+//! - `game`: ECS components, transforms, the fixed-step and frame schedules (headless).
 //! - `scene`: load time — glTF import, the level format, validation, asset generators.
 //! - `extract`: scene data to the `RenderScene` (headless path today; the ECS path later).
 //! - `accel`: BLAS per mesh (refit when deforming), TLAS rebuilt per frame, ray queries.
@@ -13,5 +14,6 @@
 pub mod accel;
 pub mod cli;
 pub mod extract;
+pub mod game;
 pub mod render;
 pub mod scene;

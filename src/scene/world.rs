@@ -30,6 +30,8 @@ pub struct Scene {
 pub struct MeshPlacement<'a> {
     pub entity: usize,
     pub asset: &'a Asset,
+    /// The asset node that carries the mesh.
+    pub node: usize,
     pub mesh: usize,
     pub world_from_mesh: Mat4,
 }
@@ -224,6 +226,7 @@ impl Scene {
                     placements.push(MeshPlacement {
                         entity: entity_index,
                         asset,
+                        node,
                         mesh,
                         world_from_mesh: world,
                     });

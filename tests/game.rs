@@ -1,0 +1,147 @@
+//! The headless game loop: the ECS places things where the static loader does, frames
+//! accumulate into the same image a multi-sample render gives, and any change restarts it.
+
+mod common;
+
+use glam::Vec3;
+use gloam::game::{
+    Accumulation, Engine, GlobalTransform, LevelEntity, RenderInstance, RenderState, Transform,
+};
+use gloam::render::{Camera, IntegratorKind, RenderSettings, SamplerKind, render};
+use gloam::scene::world::Scene;
+
+fn settings(spp: u32) -> RenderSettings {
+    RenderSettings {
+        width: 24,
+        height: 16,
+        spp,
+        seed: 3,
+        frame: 0,
+        integrator: IntegratorKind::Path,
+        sampler: SamplerKind::White,
+        max_depth: 4,
+    }
+}
+
+fn level(name: &str) -> Scene {
+    Scene::load(&common::repo().join("levels").join(name)).unwrap()
+}
+
+#[test]
+fn propagated_transforms_match_the_static_placements() {
+    for name in ["first-light.ron", "cornell.ron"] {
+        let mut engine = Engine::new(&level(name), settings(1));
+        let mut query = engine.world.query::<(&RenderInstance, &GlobalTransform)>();
+        let placed: Vec<(u32, GlobalTransform)> =
+            query.iter(&engine.world).map(|(i, g)| (i.0, *g)).collect();
+        let state = engine.world.resource::<RenderState>();
+        assert_eq!(
+            placed.len(),
+            state.scene.accel.instances().len(),
+            "{name}: every instance has an entity"
+        );
+        for (instance, global) in placed {
+            let expected = state.scene.accel.instances()[instance as usize].world_from_object();
+            assert!(
+                global.0.abs_diff_eq(expected, 1e-5),
+                "{name}: instance {instance}: {global:?} vs {expected:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn still_frames_accumulate_into_the_multi_sample_image() {
+    let scene = level("cornell.ron");
+    let mut engine = Engine::new(&scene, settings(1));
+    for _ in 0..4 {
+        engine.advance(0.0);
+    }
+    assert_eq!(engine.world.resource::<Accumulation>().frames, 4);
+    // Four frames of one white-noise sample each are the four samples of a 4-spp render.
+    let render_scene = gloam::extract::render_scene(&scene);
+    let camera = Camera::new(&render_scene.camera, 24, 16);
+    let four = render(&render_scene, &camera, &settings(4), &|_| {}).film;
+    let accumulated = engine.image();
+    let worst = four
+        .pixels
+        .iter()
+        .zip(&accumulated.pixels)
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .fold(0.0, f32::max);
+    // The view is rebuilt from the ECS transform, so rays differ in the last bits.
+    assert!(
+        worst < 1e-3,
+        "accumulated frames differ from a 4-spp render by {worst}"
+    );
+}
+
+#[test]
+fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
+    let scene = level("first-light.ron");
+    let mut engine = Engine::new(&scene, settings(1));
+    engine.advance(0.0);
+    engine.advance(0.0);
+    assert_eq!(engine.world.resource::<Accumulation>().frames, 2);
+    let before = engine.image();
+
+    // Lift "pillar 1" (level entity) by a metre.
+    let pillar = scene
+        .level
+        .entities
+        .iter()
+        .position(|e| e.name == "pillar 1")
+        .unwrap();
+    let mut roots = engine.world.query::<(&LevelEntity, &mut Transform)>();
+    for (level_entity, mut transform) in roots.iter_mut(&mut engine.world) {
+        if level_entity.0 == pillar {
+            transform.translation += Vec3::Y;
+        }
+    }
+    engine.advance(1.0 / 60.0);
+    let accumulation = engine.world.resource::<Accumulation>();
+    assert_eq!(accumulation.frames, 1, "a change restarts accumulation");
+    assert_ne!(engine.image(), before);
+
+    // The pillar's instance moved with it, and the TLAS knows.
+    let state = engine.world.resource::<RenderState>();
+    let moved = state
+        .scene
+        .accel
+        .instances()
+        .iter()
+        .find(|i| i.user_id >> 32 == pillar as u64)
+        .expect("pillar instance");
+    assert!((moved.world_from_object().translation.y - 1.0).abs() < 1e-6);
+    let ray = gloam::accel::Ray::new(glam::Vec3A::new(-2.0, 3.5, 5.0), glam::Vec3A::NEG_Z);
+    let hit =
+        state
+            .scene
+            .accel
+            .intersect(&ray, gloam::accel::InstanceMask::ALL, &gloam::accel::Opaque);
+    assert_eq!(
+        hit.map(|h| state.scene.accel.instances()[h.instance as usize].user_id >> 32),
+        Some(pillar as u64),
+        "the lifted pillar now reaches y = 3.5"
+    );
+}
+
+#[test]
+fn the_simulation_runs_at_a_fixed_sixty_hertz() {
+    let mut engine = Engine::new(
+        &level("cornell.ron"),
+        RenderSettings {
+            width: 4,
+            height: 4,
+            ..settings(1)
+        },
+    );
+    engine.advance(0.05); // 3 steps owed
+    assert_eq!(engine.steps, 3);
+    engine.advance(0.01); // 0.01 carried: 0.6 of a step
+    assert_eq!(engine.steps, 3);
+    engine.advance(0.01); // 1.2 steps owed
+    assert_eq!(engine.steps, 4);
+    engine.advance(1.0);
+    assert_eq!(engine.steps, 64);
+}
