@@ -3,6 +3,7 @@
 //! The frame, left to right (see DESIGN.md): winit events -> input -> game schedule ->
 //! extract -> accel -> render -> film -> present. This crate grows one module per step;
 //! what exists today:
+//! - `app`: the window (winit + pixels), input bindings, HUD, presenting.
 //! - `game`: ECS components, transforms, the fixed-step and frame schedules (headless).
 //! - `scene`: load time — glTF import, the level format, validation, asset generators.
 //! - `extract`: scene data to the `RenderScene` (headless path today; the ECS path later).
@@ -12,6 +13,7 @@
 //!   and `convergence`.
 
 pub mod accel;
+pub mod app;
 pub mod cli;
 pub mod extract;
 pub mod game;

@@ -20,14 +20,29 @@ use crate::scene::world::Scene;
     about = "A first-person stealth game path traced on the CPU, and its engine"
 )]
 pub struct Cli {
-    /// Without a command, `gloam` will play the default level once the real-time shell
-    /// lands; today it prints this help.
+    /// Without a command, `gloam` plays the default level (levels/first-light.ron).
     #[command(subcommand)]
     pub command: Option<Command>,
 }
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Play a level in a window (default: levels/first-light.ron). W A S D fly, mouse looks
+    /// after a click, Esc pauses, Q quits, F11 fullscreen, V vsync.
+    Play {
+        level: Option<PathBuf>,
+        /// Internal render resolution; the window scales it.
+        #[arg(long, default_value_t = 480)]
+        width: u32,
+        #[arg(long, default_value_t = 270)]
+        height: u32,
+        /// Render this many frames, then keep showing the image and print `ready`.
+        #[arg(long)]
+        frames: Option<u32>,
+        /// With --frames: quit this many seconds after the last frame.
+        #[arg(long, default_value_t = 0.0)]
+        linger_seconds: f64,
+    },
     /// Validate a level (.ron) or glTF file: prints `file:line:column: message` per problem,
     /// exit 1 when there are any; otherwise a summary and the load time.
     Check {
@@ -132,6 +147,16 @@ pub enum SamplerArg {
     White,
 }
 
+/// levels/first-light.ron under the working folder, else in the source tree it was built from.
+fn default_level() -> PathBuf {
+    let relative = PathBuf::from("levels/first-light.ron");
+    if relative.exists() {
+        relative
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
+    }
+}
+
 fn default_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
@@ -174,11 +199,13 @@ pub fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let Some(command) = cli.command else {
-        use clap::CommandFactory as _;
-        let _ = Cli::command().print_help();
-        return ExitCode::SUCCESS;
-    };
+    let command = cli.command.unwrap_or(Command::Play {
+        level: None,
+        width: 480,
+        height: 270,
+        frames: None,
+        linger_seconds: 0.0,
+    });
     match run(command) {
         Ok(code) => code,
         Err(error) => {
@@ -190,6 +217,26 @@ pub fn main() -> ExitCode {
 
 fn run(command: Command) -> anyhow::Result<ExitCode> {
     match command {
+        Command::Play {
+            level,
+            width,
+            height,
+            frames,
+            linger_seconds,
+        } => {
+            if width == 0 || height == 0 {
+                anyhow::bail!("--width and --height must be at least 1");
+            }
+            let level = level.unwrap_or_else(default_level);
+            crate::app::play(crate::app::PlayOptions {
+                level,
+                width,
+                height,
+                frames,
+                linger: std::time::Duration::from_secs_f64(linger_seconds.max(0.0)),
+            })?;
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Check { path } => Ok(check(&path)),
         Command::Generate(Generate::Assets { out }) => {
             let mut files = crate::scene::kit::generate_assets(&out)

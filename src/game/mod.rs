@@ -2,8 +2,8 @@
 //!
 //! One displayed frame, headless (the window shell drives the same `Engine`):
 //! 1. `Engine::advance(dt)`: the simulation clock accumulates real time and runs the
-//!    fixed-step schedule at 60 Hz as many times as it owes (gameplay systems join
-//!    it as the game grows; the last step is `propagate_transforms`);
+//!    fixed-step schedule at 60 Hz as many times as it owes: `fly_camera` (input), then
+//!    gameplay systems as the game grows, and last `propagate_transforms`;
 //! 2. the frame schedule, chained: `extract_instances` (moved entities -> accel instance
 //!    transforms) -> `update_acceleration` (TLAS rebuild when anything moved) ->
 //!    `render_frame` (one frame of samples) -> film accumulation: while nothing moves,
@@ -12,11 +12,13 @@
 //! Render and accel never see this module: the `RenderScene` sits in a resource and the
 //! systems here call into them with plain data.
 
+pub mod input;
 pub mod transform;
 
 use bevy_ecs::prelude::*;
 use glam::Vec3;
 
+pub use input::{Action, Input, fly_camera};
 pub use transform::{GlobalTransform, Transform, propagate_transforms};
 
 use crate::extract::{instance_user_id, render_scene};
@@ -159,6 +161,7 @@ impl Engine {
             ));
         }
         let pixels = (settings.width * settings.height) as usize;
+        world.insert_resource(Input::default());
         world.insert_resource(RenderState {
             scene: render,
             tlas_stale: false,
@@ -171,7 +174,7 @@ impl Engine {
         });
 
         let mut fixed_step = Schedule::default();
-        fixed_step.add_systems(propagate_transforms);
+        fixed_step.add_systems((fly_camera, propagate_transforms).chain());
         let mut frame = Schedule::default();
         frame.add_systems((extract_instances, update_acceleration, render_frame).chain());
         let mut engine = Engine {

@@ -1,0 +1,345 @@
+//! The window shell: the only code that knows winit and pixels.
+//!
+//! Per displayed frame (winit 0.30 `ApplicationHandler`):
+//! 1. window and device events -> the key-binding table -> the game's `Input` resource;
+//! 2. `RedrawRequested`: the engine advances by the real time since the last frame (fixed
+//!    60 Hz simulation, then extract -> accel -> render -> film accumulation);
+//! 3. present: the accumulated image is tone mapped (the film's tone mapper) into pixels'
+//!    frame buffer at the internal render resolution, the HUD is drawn over it, and pixels
+//!    scales it to the window.
+//!
+//! Keys: W A S D fly, Space / C up and down, mouse looks once captured (click), Esc pauses
+//! (and releases the mouse), Q quits, F11 toggles fullscreen, V toggles vsync.
+
+mod hud;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, anyhow};
+use glam::Vec2;
+use pixels::{Pixels, PixelsBuilder, SurfaceTexture};
+use winit::application::ApplicationHandler;
+use winit::dpi::LogicalSize;
+use winit::event::{DeviceEvent, DeviceId, ElementState, MouseButton, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
+
+use crate::game::{Accumulation, Action, Engine, Input};
+use crate::render::film::tone_map;
+use crate::render::{IntegratorKind, RenderSettings, SamplerKind};
+use crate::scene::world::Scene;
+
+pub struct PlayOptions {
+    pub level: PathBuf,
+    /// Internal render resolution (pixels scales it to the window).
+    pub width: u32,
+    pub height: u32,
+    /// Stop rendering after this many frames and keep showing the image (for tests and
+    /// screenshots); print `ready` once shown.
+    pub frames: Option<u32>,
+    /// With `frames`: quit this long after the last frame.
+    pub linger: Duration,
+}
+
+/// What a key does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Binding {
+    Game(Action),
+    Pause,
+    Quit,
+    Fullscreen,
+    Vsync,
+}
+
+/// The one key-binding table.
+const BINDINGS: &[(KeyCode, Binding)] = &[
+    (KeyCode::KeyW, Binding::Game(Action::MoveForward)),
+    (KeyCode::KeyS, Binding::Game(Action::MoveBack)),
+    (KeyCode::KeyA, Binding::Game(Action::MoveLeft)),
+    (KeyCode::KeyD, Binding::Game(Action::MoveRight)),
+    (KeyCode::Space, Binding::Game(Action::MoveUp)),
+    (KeyCode::KeyC, Binding::Game(Action::MoveDown)),
+    (KeyCode::Escape, Binding::Pause),
+    (KeyCode::KeyQ, Binding::Quit),
+    (KeyCode::F11, Binding::Fullscreen),
+    (KeyCode::KeyV, Binding::Vsync),
+];
+
+/// Radians of view turn per pixel of mouse motion.
+const MOUSE_SENSITIVITY: f32 = 0.0025;
+
+/// Opens the window and plays `options.level` until the player quits.
+pub fn play(options: PlayOptions) -> anyhow::Result<()> {
+    if cfg!(target_os = "linux")
+        && std::env::var_os("DISPLAY").is_none()
+        && std::env::var_os("WAYLAND_DISPLAY").is_none()
+    {
+        return Err(anyhow!(
+            "no display to open a window on (DISPLAY and WAYLAND_DISPLAY are unset); `gloam render` and `gloam raybench` work without one"
+        ));
+    }
+    let scene = Scene::load(&options.level)?;
+    let settings = RenderSettings {
+        width: options.width,
+        height: options.height,
+        spp: 1,
+        seed: 0,
+        frame: 0,
+        integrator: IntegratorKind::Path,
+        sampler: SamplerKind::BlueNoise,
+        max_depth: 4,
+    };
+    let title = format!(
+        "Gloam - {}",
+        if scene.level.name.is_empty() {
+            options.level.display().to_string()
+        } else {
+            scene.level.name.clone()
+        }
+    );
+    let event_loop = EventLoop::new().map_err(|error| {
+        anyhow!("cannot open a window ({error}); `gloam render` and `gloam raybench` work without a display")
+    })?;
+    let mut app = App {
+        engine: Engine::new(&scene, settings),
+        options,
+        title,
+        window: None,
+        pixels: None,
+        last_frame: Instant::now(),
+        frame_ms: Vec::new(),
+        paused: false,
+        vsync: true,
+        captured: false,
+        rendered: 0,
+        done_at: None,
+        error: None,
+    };
+    event_loop
+        .run_app(&mut app)
+        .context("running the window's event loop")?;
+    match app.error {
+        Some(error) => Err(error),
+        None => Ok(()),
+    }
+}
+
+struct App {
+    engine: Engine,
+    options: PlayOptions,
+    title: String,
+    window: Option<Arc<Window>>,
+    pixels: Option<Pixels<'static>>,
+    last_frame: Instant,
+    /// Recent frame times for the HUD.
+    frame_ms: Vec<f32>,
+    paused: bool,
+    vsync: bool,
+    captured: bool,
+    /// Frames rendered (not counting repeats of a held image).
+    rendered: u32,
+    /// With `--frames`: when to quit.
+    done_at: Option<Instant>,
+    error: Option<anyhow::Error>,
+}
+
+impl App {
+    fn fail(&mut self, event_loop: &ActiveEventLoop, error: anyhow::Error) {
+        self.error = Some(error);
+        event_loop.exit();
+    }
+
+    fn set_capture(&mut self, capture: bool) {
+        let Some(window) = &self.window else { return };
+        if capture {
+            let grabbed = window
+                .set_cursor_grab(CursorGrabMode::Locked)
+                .or_else(|_| window.set_cursor_grab(CursorGrabMode::Confined));
+            self.captured = grabbed.is_ok();
+        } else {
+            let _ = window.set_cursor_grab(CursorGrabMode::None);
+            self.captured = false;
+        }
+        window.set_cursor_visible(!self.captured);
+    }
+
+    fn key(&mut self, event_loop: &ActiveEventLoop, code: KeyCode, state: ElementState) {
+        let Some(&(_, binding)) = BINDINGS.iter().find(|(key, _)| *key == code) else {
+            return;
+        };
+        let pressed = state == ElementState::Pressed;
+        match binding {
+            Binding::Game(action) => {
+                let mut input = self.engine.world.resource_mut::<Input>();
+                if pressed && !self.paused {
+                    input.held.insert(action);
+                } else {
+                    input.held.remove(&action);
+                }
+            }
+            Binding::Pause if pressed => {
+                self.paused = !self.paused;
+                self.engine.world.resource_mut::<Input>().held.clear();
+                self.set_capture(false);
+            }
+            Binding::Quit if pressed => event_loop.exit(),
+            Binding::Fullscreen if pressed => {
+                if let Some(window) = &self.window {
+                    let fullscreen = window
+                        .fullscreen()
+                        .is_none()
+                        .then_some(Fullscreen::Borderless(None));
+                    window.set_fullscreen(fullscreen);
+                }
+            }
+            Binding::Vsync if pressed => {
+                self.vsync = !self.vsync;
+                if let Some(pixels) = &mut self.pixels {
+                    pixels.enable_vsync(self.vsync);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn redraw(&mut self, event_loop: &ActiveEventLoop) {
+        let now = Instant::now();
+        let elapsed = now - self.last_frame;
+        self.last_frame = now;
+        let holding = self
+            .options
+            .frames
+            .is_some_and(|limit| self.rendered >= limit);
+        if !self.paused && !holding {
+            self.engine.advance(elapsed.as_secs_f64());
+            self.rendered += 1;
+            self.frame_ms.push(elapsed.as_secs_f32() * 1e3);
+            if self.frame_ms.len() > 60 {
+                self.frame_ms.remove(0);
+            }
+        }
+        let Some(pixels) = &mut self.pixels else {
+            return;
+        };
+        let accumulation = self.engine.world.resource::<Accumulation>();
+        let (width, height) = (accumulation.settings.width, accumulation.settings.height);
+        let image = accumulation.image();
+        let frame = pixels.frame_mut();
+        for (rgba, radiance) in frame.chunks_exact_mut(4).zip(&image.pixels) {
+            let [r, g, b] = tone_map(*radiance, 1.0);
+            rgba.copy_from_slice(&[r, g, b, 255]);
+        }
+        let mean_ms = self.frame_ms.iter().sum::<f32>() / self.frame_ms.len().max(1) as f32;
+        let status = format!(
+            "{:.1} fps {:.1} ms {}x{} {} spp{}",
+            1000.0 / mean_ms.max(1e-3),
+            mean_ms,
+            width,
+            height,
+            accumulation.frames,
+            if self.vsync { "" } else { " novsync" }
+        );
+        hud::draw_text(frame, width, height, 2, 2, &status);
+        if self.paused {
+            hud::draw_text(frame, width, height, 2, 22, "PAUSED  Esc resume  Q quit");
+        }
+        if let Err(error) = pixels.render() {
+            return self.fail(event_loop, anyhow!("presenting the frame: {error}"));
+        }
+        if holding && self.done_at.is_none() {
+            println!("ready: {} frames shown", self.rendered);
+            self.done_at = Some(now + self.options.linger);
+        }
+        if self.done_at.is_some_and(|at| now >= at) {
+            event_loop.exit();
+        }
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.window.is_some() {
+            return;
+        }
+        let (width, height) = (self.options.width, self.options.height);
+        let attributes = Window::default_attributes()
+            .with_title(self.title.clone())
+            .with_inner_size(LogicalSize::new(width * 2, height * 2));
+        let window = match event_loop.create_window(attributes) {
+            Ok(window) => Arc::new(window),
+            Err(error) => {
+                return self.fail(event_loop, anyhow!("cannot create the window: {error}"));
+            }
+        };
+        let size = window.inner_size();
+        let surface =
+            SurfaceTexture::new(size.width.max(1), size.height.max(1), Arc::clone(&window));
+        match PixelsBuilder::new(width, height, surface)
+            .enable_vsync(self.vsync)
+            .build()
+        {
+            Ok(pixels) => self.pixels = Some(pixels),
+            Err(error) => {
+                return self.fail(
+                    event_loop,
+                    anyhow!("cannot start the renderer's window surface: {error}"),
+                );
+            }
+        }
+        self.window = Some(window);
+        self.last_frame = Instant::now();
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                if let Some(pixels) = &mut self.pixels
+                    && size.width > 0
+                    && size.height > 0
+                    && let Err(error) = pixels.resize_surface(size.width, size.height)
+                {
+                    self.fail(event_loop, anyhow!("resizing the window surface: {error}"));
+                }
+            }
+            WindowEvent::KeyboardInput { event, .. } => {
+                if let PhysicalKey::Code(code) = event.physical_key
+                    && !event.repeat
+                {
+                    self.key(event_loop, code, event.state);
+                }
+            }
+            WindowEvent::MouseInput {
+                state: ElementState::Pressed,
+                button: MouseButton::Left,
+                ..
+            } if !self.paused => {
+                self.set_capture(true);
+            }
+            WindowEvent::Focused(false) => self.set_capture(false),
+            WindowEvent::RedrawRequested => self.redraw(event_loop),
+            _ => {}
+        }
+    }
+
+    fn device_event(&mut self, _: &ActiveEventLoop, _: DeviceId, event: DeviceEvent) {
+        if let DeviceEvent::MouseMotion { delta } = event
+            && self.captured
+            && !self.paused
+        {
+            self.engine.world.resource_mut::<Input>().look +=
+                Vec2::new(delta.0 as f32, delta.1 as f32)
+                    * MOUSE_SENSITIVITY
+                    * Vec2::new(1.0, -1.0);
+        }
+    }
+
+    fn about_to_wait(&mut self, _: &ActiveEventLoop) {
+        if let Some(window) = &self.window {
+            window.request_redraw();
+        }
+    }
+}

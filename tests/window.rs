@@ -1,0 +1,243 @@
+//! The real window: `gloam play` under Xvfb with Mesa's software Vulkan (lavapipe), a
+//! screenshot of the X display, and the same frames rendered headless for comparison.
+//!
+//! Needs `Xvfb`, ImageMagick's `import` and `xdotool` (.ci/run installs them). Without them
+//! the test skips with a notice, except under CI, where it fails.
+
+mod common;
+
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use gloam::game::Engine;
+use gloam::render::film::tone_map;
+use gloam::render::{IntegratorKind, RenderSettings, SamplerKind};
+use gloam::scene::world::Scene;
+
+const WIDTH: u32 = 128;
+const HEIGHT: u32 = 128;
+const FRAMES: u32 = 6;
+
+fn have(program: &str) -> bool {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("command -v {program}"))
+        .stdout(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// Kills the child when dropped, so a failing assertion leaves no Xvfb or window behind.
+struct Reaped(Child);
+
+impl Drop for Reaped {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn gloam() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_gloam"))
+}
+
+#[test]
+fn play_without_a_display_is_one_line_pointing_to_headless_commands() {
+    let output = gloam()
+        .arg("play")
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .current_dir(common::repo())
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("gloam render"), "{stderr}");
+}
+
+#[test]
+fn the_window_shows_the_headless_frame() {
+    let missing: Vec<&str> = ["Xvfb", "import", "xdotool"]
+        .into_iter()
+        .filter(|p| !have(p))
+        .collect();
+    if !missing.is_empty() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI must install {missing:?} (.ci/run does)"
+        );
+        println!("notice: skipping the window test, {missing:?} not installed");
+        return;
+    }
+    let dir = common::scratch_dir("window");
+    let runtime = dir.join("runtime");
+    std::fs::create_dir_all(&runtime).unwrap();
+    std::fs::set_permissions(
+        &runtime,
+        std::os::unix::fs::PermissionsExt::from_mode(0o700),
+    )
+    .unwrap();
+    let number = 70 + std::process::id() % 20;
+    let display = format!(":{number}");
+    let _xvfb = Reaped(
+        Command::new("Xvfb")
+            .args([
+                display.as_str(),
+                "-screen",
+                "0",
+                "640x480x24",
+                "-nolisten",
+                "tcp",
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start Xvfb"),
+    );
+    let socket = format!("/tmp/.X11-unix/X{number}");
+    let start = Instant::now();
+    while !Path::new(&socket).exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "Xvfb did not start"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
+    let mut window = Reaped(
+        gloam()
+            .args([
+                "play",
+                "levels/cornell.ron",
+                "--width",
+                &WIDTH.to_string(),
+                "--height",
+                &HEIGHT.to_string(),
+            ])
+            .args(["--frames", &FRAMES.to_string(), "--linger-seconds", "60"])
+            .env("DISPLAY", &display)
+            .env("XDG_RUNTIME_DIR", &runtime)
+            .env_remove("WAYLAND_DISPLAY")
+            .current_dir(common::repo())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start gloam play"),
+    );
+    // Wait for `ready` (the frames are rendered and on screen).
+    let stdout = window.0.stdout.take().unwrap();
+    let (sender, receiver) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            let _ = sender.send(line);
+        }
+    });
+    let ready = receiver.recv_timeout(Duration::from_secs(180));
+    if !matches!(&ready, Ok(line) if line.starts_with("ready")) {
+        let _ = window.0.kill();
+        let output = window.0.wait_with_output_or_stderr();
+        panic!("the window never became ready ({ready:?}); stderr: {output}");
+    }
+    // Let the compositor-less X server catch the latest present, then take the shot.
+    std::thread::sleep(Duration::from_millis(500));
+    let id = Command::new("xdotool")
+        .args(["search", "--name", "Gloam"])
+        .env("DISPLAY", &display)
+        .output()
+        .unwrap();
+    let id = String::from_utf8_lossy(&id.stdout)
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .trim()
+        .to_owned();
+    assert!(!id.is_empty(), "no window named Gloam on the display");
+    let shot = dir.join("window.png");
+    let status = Command::new("import")
+        .args(["-window", &id, shot.to_str().unwrap()])
+        .env("DISPLAY", &display)
+        .status()
+        .unwrap();
+    assert!(status.success(), "import failed");
+    drop(window);
+
+    // The same frames, headless.
+    let scene = Scene::load(&common::repo().join("levels/cornell.ron")).unwrap();
+    let settings = RenderSettings {
+        width: WIDTH,
+        height: HEIGHT,
+        spp: 1,
+        seed: 0,
+        frame: 0,
+        integrator: IntegratorKind::Path,
+        sampler: SamplerKind::BlueNoise,
+        max_depth: 4,
+    };
+    let mut engine = Engine::new(&scene, settings);
+    for _ in 0..FRAMES {
+        engine.advance(0.0);
+    }
+    let expected: Vec<[u8; 3]> = engine
+        .image()
+        .pixels
+        .iter()
+        .map(|p| tone_map(*p, 1.0))
+        .collect();
+
+    // The window is the buffer scaled up; sample the screenshot at each buffer pixel's
+    // centre. The HUD covers the top 20 rows: compare below it.
+    let screenshot = image::open(&shot).unwrap().into_rgb8();
+    let (shot_width, shot_height) = screenshot.dimensions();
+    let scale = (shot_width / WIDTH).min(shot_height / HEIGHT).max(1);
+    let (offset_x, offset_y) = (
+        (shot_width - WIDTH * scale) / 2,
+        (shot_height - HEIGHT * scale) / 2,
+    );
+    let (mut difference, mut brightness, mut count) = (0.0f64, 0.0f64, 0.0f64);
+    for y in 20..HEIGHT {
+        for x in 0..WIDTH {
+            let shown = screenshot
+                .get_pixel(
+                    offset_x + x * scale + scale / 2,
+                    offset_y + y * scale + scale / 2,
+                )
+                .0;
+            let wanted = expected[(y * WIDTH + x) as usize];
+            for channel in 0..3 {
+                difference += (shown[channel] as f64 - wanted[channel] as f64).abs();
+                brightness += shown[channel] as f64;
+                count += 1.0;
+            }
+        }
+    }
+    let (difference, brightness) = (difference / count, brightness / count);
+    println!(
+        "window {shot_width}x{shot_height} (scale {scale}): mean |difference| {difference:.2} of 255, mean level {brightness:.1}"
+    );
+    assert!(
+        brightness > 20.0,
+        "the window is (nearly) black: {brightness}"
+    );
+    assert!(
+        difference < 4.0,
+        "the window differs from the headless frame by {difference} of 255 on average"
+    );
+}
+
+trait WaitOutput {
+    fn wait_with_output_or_stderr(&mut self) -> String;
+}
+
+impl WaitOutput for Child {
+    fn wait_with_output_or_stderr(&mut self) -> String {
+        let _ = self.wait();
+        let mut text = String::new();
+        if let Some(stderr) = self.stderr.as_mut() {
+            let _ = std::io::Read::read_to_string(stderr, &mut text);
+        }
+        text
+    }
+}
