@@ -98,6 +98,10 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
             transform.translation += Vec3::Y;
         }
     }
+    // Rendering interpolates between the last two steps: the step that moves the pillar
+    // shows it where it was (alpha 0); the next one shows it lifted.
+    engine.advance(1.0 / 60.0);
+    assert_eq!(engine.world.resource::<Accumulation>().frames, 3);
     engine.advance(1.0 / 60.0);
     let accumulation = engine.world.resource::<Accumulation>();
     assert_eq!(accumulation.frames, 1, "a change restarts accumulation");
@@ -144,4 +148,48 @@ fn the_simulation_runs_at_a_fixed_sixty_hertz() {
     assert_eq!(engine.steps, 4);
     engine.advance(1.0);
     assert_eq!(engine.steps, 64);
+}
+
+#[test]
+fn rendering_interpolates_between_simulation_steps() {
+    let scene = level("first-light.ron");
+    let mut engine = Engine::new(
+        &scene,
+        RenderSettings {
+            width: 4,
+            height: 4,
+            ..settings(1)
+        },
+    );
+    let pillar = scene
+        .level
+        .entities
+        .iter()
+        .position(|e| e.name == "pillar 2")
+        .unwrap();
+    let mut roots = engine.world.query::<(&LevelEntity, &mut Transform)>();
+    for (level_entity, mut transform) in roots.iter_mut(&mut engine.world) {
+        if level_entity.0 == pillar {
+            transform.translation.y += 1.0;
+        }
+    }
+    let height = |engine: &Engine| {
+        let state = engine.world.resource::<RenderState>();
+        state
+            .scene
+            .accel
+            .instances()
+            .iter()
+            .find(|i| i.user_id >> 32 == pillar as u64)
+            .unwrap()
+            .world_from_object()
+            .translation
+            .y
+    };
+    engine.advance(1.0 / 60.0); // the step that moves it: shown where it was
+    assert!(height(&engine).abs() < 1e-6);
+    engine.advance(0.5 / 60.0); // half-way into the next step
+    assert!((height(&engine) - 0.5).abs() < 1e-4, "{}", height(&engine));
+    engine.advance(0.5 / 60.0); // the next step: where the simulation put it
+    assert!((height(&engine) - 1.0).abs() < 1e-6);
 }

@@ -27,7 +27,7 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 
-use crate::game::{Accumulation, Action, Engine, Input};
+use crate::game::{Accumulation, Action, Engine, Input, StageTimes};
 use crate::render::film::tone_map;
 use crate::render::{IntegratorKind, RenderSettings, SamplerKind};
 use crate::scene::world::Scene;
@@ -42,6 +42,48 @@ pub struct PlayOptions {
     pub frames: Option<u32>,
     /// With `frames`: quit this long after the last frame.
     pub linger: Duration,
+    /// Run the same frame loop without a window (`frames` frames, default 60) and print
+    /// the stage times.
+    pub headless: bool,
+}
+
+/// Per-frame stage times, for the table printed when a `--frames` run ends.
+#[derive(Default)]
+struct StageLog {
+    rows: Vec<[f64; 7]>,
+}
+
+impl StageLog {
+    const NAMES: [&'static str; 7] = [
+        "simulate", "extract", "accel", "render", "film", "present", "frame",
+    ];
+
+    fn push(&mut self, times: &StageTimes, present: f64, frame: f64) {
+        self.rows.push([
+            times.simulate,
+            times.extract,
+            times.accel,
+            times.render,
+            times.film,
+            present,
+            frame,
+        ]);
+    }
+
+    /// Median of each stage, in milliseconds.
+    fn print(&self, label: &str) {
+        let mut line = format!(
+            "stage medians over {} frames, {label} (ms):",
+            self.rows.len()
+        );
+        for (column, name) in Self::NAMES.iter().enumerate() {
+            let mut values: Vec<f64> = self.rows.iter().map(|row| row[column]).collect();
+            values.sort_by(f64::total_cmp);
+            let median = values.get(values.len() / 2).copied().unwrap_or(0.0);
+            line += &format!(" {name} {median:.2}");
+        }
+        println!("{line}");
+    }
 }
 
 /// What a key does.
@@ -73,6 +115,9 @@ const MOUSE_SENSITIVITY: f32 = 0.0025;
 
 /// Opens the window and plays `options.level` until the player quits.
 pub fn play(options: PlayOptions) -> anyhow::Result<()> {
+    if options.headless {
+        return play_headless(options);
+    }
     if cfg!(target_os = "linux")
         && std::env::var_os("DISPLAY").is_none()
         && std::env::var_os("WAYLAND_DISPLAY").is_none()
@@ -82,16 +127,7 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         ));
     }
     let scene = Scene::load(&options.level)?;
-    let settings = RenderSettings {
-        width: options.width,
-        height: options.height,
-        spp: 1,
-        seed: 0,
-        frame: 0,
-        integrator: IntegratorKind::Path,
-        sampler: SamplerKind::BlueNoise,
-        max_depth: 4,
-    };
+    let settings = frame_settings(&options);
     let title = format!(
         "Gloam - {}",
         if scene.level.name.is_empty() {
@@ -117,14 +153,56 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         rendered: 0,
         done_at: None,
         error: None,
+        log: StageLog::default(),
     };
     event_loop
         .run_app(&mut app)
         .context("running the window's event loop")?;
+    if app.options.frames.is_some() {
+        app.log.print(&format!(
+            "windowed {}x{}",
+            app.options.width, app.options.height
+        ));
+    }
     match app.error {
         Some(error) => Err(error),
         None => Ok(()),
     }
+}
+
+/// One blue-noise sample per pixel per frame, four bounces: the real-time settings.
+fn frame_settings(options: &PlayOptions) -> RenderSettings {
+    RenderSettings {
+        width: options.width,
+        height: options.height,
+        spp: 1,
+        seed: 0,
+        frame: 0,
+        integrator: IntegratorKind::Path,
+        sampler: SamplerKind::BlueNoise,
+        max_depth: 4,
+    }
+}
+
+/// The same frame loop with no window: real time drives the simulation as in `play`, and
+/// present costs nothing.
+fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
+    let scene = Scene::load(&options.level)?;
+    let mut engine = Engine::new(&scene, frame_settings(&options));
+    let mut log = StageLog::default();
+    let mut last = Instant::now();
+    for _ in 0..options.frames.unwrap_or(60) {
+        let now = Instant::now();
+        engine.advance((now - last).as_secs_f64());
+        last = now;
+        log.push(
+            engine.world.resource::<StageTimes>(),
+            0.0,
+            now.elapsed().as_secs_f64() * 1e3,
+        );
+    }
+    log.print(&format!("headless {}x{}", options.width, options.height));
+    Ok(())
 }
 
 struct App {
@@ -144,6 +222,7 @@ struct App {
     /// With `--frames`: when to quit.
     done_at: Option<Instant>,
     error: Option<anyhow::Error>,
+    log: StageLog,
 }
 
 impl App {
@@ -213,7 +292,8 @@ impl App {
             .options
             .frames
             .is_some_and(|limit| self.rendered >= limit);
-        if !self.paused && !holding {
+        let advanced = !self.paused && !holding;
+        if advanced {
             self.engine.advance(elapsed.as_secs_f64());
             self.rendered += 1;
             self.frame_ms.push(elapsed.as_secs_f32() * 1e3);
@@ -221,6 +301,7 @@ impl App {
                 self.frame_ms.remove(0);
             }
         }
+        let present_start = Instant::now();
         let Some(pixels) = &mut self.pixels else {
             return;
         };
@@ -248,6 +329,12 @@ impl App {
         }
         if let Err(error) = pixels.render() {
             return self.fail(event_loop, anyhow!("presenting the frame: {error}"));
+        }
+        if advanced {
+            let times = *self.engine.world.resource::<StageTimes>();
+            let present = present_start.elapsed().as_secs_f64() * 1e3;
+            self.log
+                .push(&times, present, now.elapsed().as_secs_f64() * 1e3);
         }
         if holding && self.done_at.is_none() {
             println!("ready: {} frames shown", self.rendered);

@@ -42,6 +42,10 @@ pub enum Command {
         /// With --frames: quit this many seconds after the last frame.
         #[arg(long, default_value_t = 0.0)]
         linger_seconds: f64,
+        /// The same frame loop without a window (for --frames frames, default 60); prints
+        /// the median time of each stage.
+        #[arg(long)]
+        headless: bool,
     },
     /// Validate a level (.ron) or glTF file: prints `file:line:column: message` per problem,
     /// exit 1 when there are any; otherwise a summary and the load time.
@@ -205,6 +209,7 @@ pub fn main() -> ExitCode {
         height: 270,
         frames: None,
         linger_seconds: 0.0,
+        headless: false,
     });
     match run(command) {
         Ok(code) => code,
@@ -223,6 +228,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             height,
             frames,
             linger_seconds,
+            headless,
         } => {
             if width == 0 || height == 0 {
                 anyhow::bail!("--width and --height must be at least 1");
@@ -234,6 +240,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 height,
                 frames,
                 linger: std::time::Duration::from_secs_f64(linger_seconds.max(0.0)),
+                headless,
             })?;
             Ok(ExitCode::SUCCESS)
         }

@@ -5,9 +5,12 @@
 //!    fixed-step schedule at 60 Hz as many times as it owes: `fly_camera` (input), then
 //!    gameplay systems as the game grows, and last `propagate_transforms`;
 //! 2. the frame schedule, chained: `extract_instances` (moved entities -> accel instance
-//!    transforms) -> `update_acceleration` (TLAS rebuild when anything moved) ->
-//!    `render_frame` (one frame of samples) -> film accumulation: while nothing moves,
-//!    frames add up into a converging image; any change starts it again.
+//!    transforms, interpolated between the last two simulation steps by how far real time
+//!    has run into the next one) -> `update_acceleration` (TLAS rebuild when anything
+//!    moved) -> `render_frame` (one frame of samples) -> film accumulation: while nothing
+//!    moves, frames add up into a converging image; any change starts it again.
+//!
+//! Each stage's time lands in the `StageTimes` resource (the profiler issue builds on it).
 //!
 //! Render and accel never see this module: the `RenderScene` sits in a resource and the
 //! systems here call into them with plain data.
@@ -19,7 +22,10 @@ use bevy_ecs::prelude::*;
 use glam::Vec3;
 
 pub use input::{Action, Input, fly_camera};
-pub use transform::{GlobalTransform, Transform, propagate_transforms};
+pub use transform::{
+    GlobalTransform, PreviousGlobalTransform, Transform, interpolate, propagate_transforms,
+    remember_transforms,
+};
 
 use crate::extract::{instance_user_id, render_scene};
 use crate::render::{Camera, Film, RenderScene, RenderSettings, render};
@@ -59,6 +65,32 @@ pub struct Accumulation {
     pub frames: u32,
     /// Set by extract when anything visible moved: the next frame starts a new sum.
     pub reset: bool,
+    /// The view the sum was rendered from.
+    view: Option<glam::Affine3A>,
+}
+
+/// How far real time has run past the last simulation step, in steps (0..1): rendering
+/// interpolates between the previous and the current step by this much.
+#[derive(Resource, Default, Clone, Copy, Debug)]
+pub struct SimulationClock {
+    pub alpha: f32,
+}
+
+/// Milliseconds each stage of the last frame took.
+#[derive(Resource, Default, Clone, Copy, Debug)]
+pub struct StageTimes {
+    /// All fixed steps run for this frame (input, gameplay, transforms).
+    pub simulate: f64,
+    pub extract: f64,
+    /// TLAS rebuild (and BLAS refits, with deforming meshes).
+    pub accel: f64,
+    pub render: f64,
+    /// Adding the frame into the accumulated image.
+    pub film: f64,
+}
+
+fn since(start: std::time::Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
 }
 
 impl Accumulation {
@@ -109,6 +141,7 @@ impl Engine {
                         scale: entity.transform.scale,
                     },
                     GlobalTransform::default(),
+                    PreviousGlobalTransform::default(),
                 ))
                 .id();
             if let Some(level_camera) = &entity.camera {
@@ -135,8 +168,12 @@ impl Engine {
                     },
                     NodeTransform::Matrix(matrix) => Transform::from_matrix(matrix),
                 };
-                let mut spawned =
-                    world.spawn((transform, GlobalTransform::default(), ChildOf(parent)));
+                let mut spawned = world.spawn((
+                    transform,
+                    GlobalTransform::default(),
+                    PreviousGlobalTransform::default(),
+                    ChildOf(parent),
+                ));
                 if let Some(&instance) = instance_of.get(&instance_user_id(index, node)) {
                     spawned.insert(RenderInstance(instance));
                 }
@@ -157,16 +194,20 @@ impl Engine {
             world.spawn((
                 Transform::from_matrix(camera.world_from_camera),
                 GlobalTransform::default(),
+                PreviousGlobalTransform::default(),
                 ViewCamera { yfov: camera.yfov },
             ));
         }
         let pixels = (settings.width * settings.height) as usize;
         world.insert_resource(Input::default());
+        world.insert_resource(SimulationClock::default());
+        world.insert_resource(StageTimes::default());
         world.insert_resource(RenderState {
             scene: render,
             tlas_stale: false,
         });
         world.insert_resource(Accumulation {
+            view: None,
             settings,
             sum: vec![Vec3::ZERO; pixels],
             frames: 0,
@@ -174,7 +215,7 @@ impl Engine {
         });
 
         let mut fixed_step = Schedule::default();
-        fixed_step.add_systems((fly_camera, propagate_transforms).chain());
+        fixed_step.add_systems((remember_transforms, fly_camera, propagate_transforms).chain());
         let mut frame = Schedule::default();
         frame.add_systems((extract_instances, update_acceleration, render_frame).chain());
         let mut engine = Engine {
@@ -184,14 +225,22 @@ impl Engine {
             owed: 0.0,
             steps: 0,
         };
-        // Settle the hierarchy once so the first frame sees world transforms.
+        // Settle the hierarchy once so the first frame sees world transforms, with nothing
+        // to interpolate from.
         engine.fixed_step.run(&mut engine.world);
+        let mut settle = engine
+            .world
+            .query::<(&GlobalTransform, &mut PreviousGlobalTransform)>();
+        for (global, mut previous) in settle.iter_mut(&mut engine.world) {
+            previous.0 = global.0;
+        }
         engine
     }
 
     /// Simulates `seconds` of real time in fixed 1/60 s steps (the remainder carries
     /// over), then renders and accumulates one frame.
     pub fn advance(&mut self, seconds: f64) {
+        let start = std::time::Instant::now();
         self.owed += seconds.max(0.0);
         let step = 1.0 / SIMULATION_HZ;
         while self.owed >= step {
@@ -199,6 +248,8 @@ impl Engine {
             self.owed -= step;
             self.steps += 1;
         }
+        self.world.resource_mut::<StageTimes>().simulate = since(start);
+        self.world.resource_mut::<SimulationClock>().alpha = (self.owed / step) as f32;
         self.frame.run(&mut self.world);
     }
 
@@ -208,47 +259,72 @@ impl Engine {
     }
 }
 
-/// Extract: copies moved entities' world transforms into their accel instances.
+/// Extract: gives each instance its entity's world transform, interpolated between the
+/// last two simulation steps; only instances whose transform changes are touched.
 pub fn extract_instances(
-    moved: Query<(&RenderInstance, &GlobalTransform), Changed<GlobalTransform>>,
-    moved_views: Query<(), (With<ViewCamera>, Changed<GlobalTransform>)>,
+    instances: Query<(&RenderInstance, &GlobalTransform, &PreviousGlobalTransform)>,
+    clock: Res<SimulationClock>,
     mut state: ResMut<RenderState>,
     mut accumulation: ResMut<Accumulation>,
+    mut times: ResMut<StageTimes>,
 ) {
-    for (instance, global) in &moved {
-        state.scene.accel.instances_mut()[instance.0 as usize].set_transform(global.0);
-        state.tlas_stale = true;
+    let start = std::time::Instant::now();
+    for (instance, global, previous) in &instances {
+        let shown = if previous.0 == global.0 {
+            global.0
+        } else {
+            interpolate(previous.0, global.0, clock.alpha)
+        };
+        let target = &mut state.scene.accel.instances_mut()[instance.0 as usize];
+        if target.world_from_object() != shown {
+            target.set_transform(shown);
+            state.tlas_stale = true;
+        }
     }
-    if state.tlas_stale || !moved_views.is_empty() {
+    if state.tlas_stale {
         accumulation.reset = true;
     }
+    times.extract = since(start);
 }
 
 /// Accel: rebuilds the TLAS when any instance moved.
-pub fn update_acceleration(mut state: ResMut<RenderState>) {
+pub fn update_acceleration(mut state: ResMut<RenderState>, mut times: ResMut<StageTimes>) {
+    let start = std::time::Instant::now();
     if state.tlas_stale {
         state.scene.accel.rebuild_tlas();
         state.tlas_stale = false;
     }
+    times.accel = since(start);
 }
 
 /// Render and film: one frame of samples from the view, added to the running sum (or
 /// starting it again after a change).
 pub fn render_frame(
     state: Res<RenderState>,
-    views: Query<(&GlobalTransform, &ViewCamera)>,
+    views: Query<(&GlobalTransform, &PreviousGlobalTransform, &ViewCamera)>,
+    clock: Res<SimulationClock>,
     mut accumulation: ResMut<Accumulation>,
+    mut times: ResMut<StageTimes>,
 ) {
-    let Some((global, view)) = views.iter().next() else {
+    let Some((global, previous, view)) = views.iter().next() else {
         return;
+    };
+    let shown = if previous.0 == global.0 {
+        global.0
+    } else {
+        interpolate(previous.0, global.0, clock.alpha)
     };
     let placement = crate::scene::world::CameraPlacement {
         name: String::new(),
         yfov: view.yfov,
         znear: 0.01,
-        world_from_camera: glam::Mat4::from(global.0),
+        world_from_camera: glam::Mat4::from(shown),
     };
     let accumulation = &mut *accumulation;
+    if accumulation.view != Some(shown) {
+        accumulation.view = Some(shown);
+        accumulation.reset = true;
+    }
     if accumulation.reset {
         accumulation.sum.iter_mut().for_each(|p| *p = Vec3::ZERO);
         accumulation.frames = 0;
@@ -257,9 +333,13 @@ pub fn render_frame(
     let mut settings = accumulation.settings.clone();
     settings.frame = accumulation.frames;
     let camera = Camera::new(&placement, settings.width, settings.height);
+    let start = std::time::Instant::now();
     let output = render(&state.scene, &camera, &settings, &|_| {});
+    times.render = since(start);
+    let start = std::time::Instant::now();
     for (sum, pixel) in accumulation.sum.iter_mut().zip(&output.film.pixels) {
         *sum += *pixel;
     }
     accumulation.frames += 1;
+    times.film = since(start);
 }

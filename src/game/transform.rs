@@ -46,6 +46,29 @@ impl Transform {
 #[derive(Component, Clone, Copy, Debug, PartialEq, Default)]
 pub struct GlobalTransform(pub Affine3A);
 
+/// `GlobalTransform` as of the previous simulation step, for interpolated rendering.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Default)]
+pub struct PreviousGlobalTransform(pub Affine3A);
+
+/// First fixed step: remember where everything was before this step moves it.
+pub fn remember_transforms(mut query: Query<(&GlobalTransform, &mut PreviousGlobalTransform)>) {
+    for (global, mut previous) in &mut query {
+        previous.set_if_neq(PreviousGlobalTransform(global.0));
+    }
+}
+
+/// The transform a fraction `t` (0..1) of the way from `from` to `to`: translation and
+/// scale interpolated linearly, rotation spherically.
+pub fn interpolate(from: Affine3A, to: Affine3A, t: f32) -> Affine3A {
+    let (scale_a, rotation_a, translation_a) = from.to_scale_rotation_translation();
+    let (scale_b, rotation_b, translation_b) = to.to_scale_rotation_translation();
+    Affine3A::from_scale_rotation_translation(
+        scale_a.lerp(scale_b, t),
+        rotation_a.slerp(rotation_b, t),
+        translation_a.lerp(translation_b, t),
+    )
+}
+
 /// Recomputes every `GlobalTransform` from the roots down. Values are written only when
 /// they change, so `Changed<GlobalTransform>` tells extract exactly what moved.
 pub fn propagate_transforms(
