@@ -7,13 +7,12 @@
 mod common;
 
 use std::io::{BufRead, BufReader};
-use std::path::Path;
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gloam::game::Engine;
+use gloam::render::RenderSettings;
 use gloam::render::film::tone_map;
-use gloam::render::{IntegratorKind, RenderSettings, SamplerKind};
 use gloam::scene::world::Scene;
 
 const WIDTH: u32 = 128;
@@ -33,7 +32,17 @@ fn have(program: &str) -> bool {
 struct Reaped(Child);
 
 impl Drop for Reaped {
+    /// SIGTERM first, so Xvfb removes its socket and lock files; SIGKILL if it lingers.
     fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.0.id().to_string()])
+            .status();
+        for _ in 0..50 {
+            if matches!(self.0.try_wait(), Ok(Some(_))) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
@@ -80,32 +89,29 @@ fn the_window_shows_the_headless_frame() {
         std::os::unix::fs::PermissionsExt::from_mode(0o700),
     )
     .unwrap();
-    let number = 70 + std::process::id() % 20;
-    let display = format!(":{number}");
-    let _xvfb = Reaped(
-        Command::new("Xvfb")
-            .args([
-                display.as_str(),
-                "-screen",
-                "0",
-                "640x480x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start Xvfb"),
-    );
-    let socket = format!("/tmp/.X11-unix/X{number}");
-    let start = Instant::now();
-    while !Path::new(&socket).exists() {
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "Xvfb did not start"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    // Xvfb picks a free display and writes its number to stdout once it accepts clients
+    // (-displayfd), so no guessing at numbers or polling for sockets.
+    let mut xvfb = Command::new("Xvfb")
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "640x480x24",
+            "-nolisten",
+            "tcp",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start Xvfb");
+    let mut announced = String::new();
+    BufReader::new(xvfb.stdout.take().unwrap())
+        .read_line(&mut announced)
+        .expect("Xvfb display number");
+    let _xvfb = Reaped(xvfb);
+    let display = format!(":{}", announced.trim());
+    assert!(display.len() > 1, "Xvfb did not announce a display");
 
     let mut window = Reaped(
         gloam()
@@ -166,17 +172,7 @@ fn the_window_shows_the_headless_frame() {
 
     // The same frames, headless.
     let scene = Scene::load(&common::repo().join("levels/cornell.ron")).unwrap();
-    let settings = RenderSettings {
-        width: WIDTH,
-        height: HEIGHT,
-        spp: 1,
-        seed: 0,
-        frame: 0,
-        integrator: IntegratorKind::Path,
-        sampler: SamplerKind::BlueNoise,
-        max_depth: 4,
-    };
-    let mut engine = Engine::new(&scene, settings);
+    let mut engine = Engine::new(&scene, RenderSettings::real_time(WIDTH, HEIGHT));
     for _ in 0..FRAMES {
         engine.advance(0.0);
     }

@@ -28,8 +28,8 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 
 use crate::game::{Accumulation, Action, Engine, Input, StageTimes};
+use crate::render::RenderSettings;
 use crate::render::film::tone_map;
-use crate::render::{IntegratorKind, RenderSettings, SamplerKind};
 use crate::scene::world::Scene;
 
 pub struct PlayOptions {
@@ -170,18 +170,8 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
     }
 }
 
-/// One blue-noise sample per pixel per frame, four bounces: the real-time settings.
 fn frame_settings(options: &PlayOptions) -> RenderSettings {
-    RenderSettings {
-        width: options.width,
-        height: options.height,
-        spp: 1,
-        seed: 0,
-        frame: 0,
-        integrator: IntegratorKind::Path,
-        sampler: SamplerKind::BlueNoise,
-        max_depth: 4,
-    }
+    RenderSettings::real_time(options.width, options.height)
 }
 
 /// The same frame loop with no window: real time drives the simulation as in `play`, and

@@ -54,6 +54,23 @@ pub struct RenderSettings {
     pub max_depth: u32,
 }
 
+impl RenderSettings {
+    /// What the window renders each frame: one blue-noise sample per pixel, the path
+    /// integrator, four bounces (frames accumulate while the view is still).
+    pub fn real_time(width: u32, height: u32) -> RenderSettings {
+        RenderSettings {
+            width,
+            height,
+            spp: 1,
+            seed: 0,
+            frame: 0,
+            integrator: IntegratorKind::Path,
+            sampler: SamplerKind::BlueNoise,
+            max_depth: 4,
+        }
+    }
+}
+
 impl Default for RenderSettings {
     fn default() -> Self {
         RenderSettings {
