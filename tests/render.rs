@@ -71,6 +71,13 @@ fn add_camera(document: &mut GltfDocument, position: Vec3, rotation: Quat, yfov_
     document.roots.push(document.nodes.len() - 1);
 }
 
+/// A 20 x 20 m floor at y = 0 facing up.
+fn floor() -> MeshData {
+    let corners = [(-10.0, 10.0), (10.0, 10.0), (10.0, -10.0), (-10.0, -10.0)]
+        .map(|(x, z)| Vec3::new(x, 0.0, z));
+    MeshData::quad("floor", corners, 0)
+}
+
 fn write(name: &str, document: &GltfDocument) -> PathBuf {
     let path = common::scratch_dir(name).join(format!("{name}.glb"));
     write_gltf(document, &path).unwrap();
@@ -154,16 +161,7 @@ fn direct_light_from_a_small_area_light_matches_lamberts_formula() {
         .collect();
     let mut document = GltfDocument::default();
     document.add_mesh_node(
-        MeshData::quad(
-            "floor",
-            [
-                Vec3::new(-10.0, 0.0, 10.0),
-                Vec3::new(10.0, 0.0, 10.0),
-                Vec3::new(10.0, 0.0, -10.0),
-                Vec3::new(-10.0, 0.0, -10.0),
-            ],
-            0,
-        ),
+        floor(),
         MaterialData::lambertian("grey", Vec3::splat(albedo)),
     );
     document.add_mesh_node(
@@ -365,19 +363,7 @@ fn one_sample_blue_noise_error_has_less_low_frequency_power_than_white() {
     // A floor lit by a large area light: at 1 spp the error comes from the light sample
     // and the pixel jitter, both driven by the sampler under test.
     let mut document = GltfDocument::default();
-    document.add_mesh_node(
-        MeshData::quad(
-            "floor",
-            [
-                Vec3::new(-10.0, 0.0, 10.0),
-                Vec3::new(10.0, 0.0, 10.0),
-                Vec3::new(10.0, 0.0, -10.0),
-                Vec3::new(-10.0, 0.0, -10.0),
-            ],
-            0,
-        ),
-        MaterialData::lambertian("grey", Vec3::splat(0.5)),
-    );
+    document.add_mesh_node(floor(), MaterialData::lambertian("grey", Vec3::splat(0.5)));
     document.add_mesh_node(
         MeshData::quad(
             "light",

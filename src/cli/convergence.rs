@@ -13,14 +13,21 @@ use crate::render::{
 };
 use crate::scene::world::Scene;
 
+#[derive(Debug, clap::Args)]
 pub struct Options {
+    /// Level or glTF/GLB file.
     pub scene: PathBuf,
+    #[arg(long, default_value_t = 128)]
     pub width: u32,
+    #[arg(long, default_value_t = 128)]
     pub height: u32,
+    /// Samples per pixel of the converged image.
+    #[arg(long, default_value_t = 4096)]
     pub reference_spp: u32,
-    /// RMSE is averaged (as mean squared error) over this many seeds: one seed's figure
-    /// swings by 30% with the few brightest samples.
+    /// Seeds each RMSE is averaged over.
+    #[arg(long, default_value_t = 8)]
     pub seeds: u32,
+    #[arg(long, default_value_t = 8)]
     pub max_depth: u32,
 }
 

@@ -58,52 +58,10 @@ pub enum Command {
     Generate(Generate),
     /// Render a level or glTF file to .exr (linear mean radiance per pixel) or .png (tone
     /// mapped), from the level's camera, the file's first camera, or a view framing it.
-    Render {
-        /// Level or glTF/GLB file.
-        scene: PathBuf,
-        /// Output .exr or .png.
-        #[arg(long)]
-        out: PathBuf,
-        #[arg(long, default_value_t = 640)]
-        width: u32,
-        #[arg(long, default_value_t = 360)]
-        height: u32,
-        /// Samples per pixel.
-        #[arg(long, default_value_t = 64)]
-        spp: u32,
-        #[arg(long, default_value_t = 0)]
-        seed: u32,
-        #[arg(long, value_enum, default_value_t = IntegratorArg::Path)]
-        integrator: IntegratorArg,
-        /// Stratified by default: at 4 spp and more it has the lowest RMSE of the three
-        /// (`gloam convergence`); blue noise pays off at 1-2 spp, where its error is blue.
-        #[arg(long, value_enum, default_value_t = SamplerArg::Stratified)]
-        sampler: SamplerArg,
-        /// Bounces at most (0: emitters only, 1: direct lighting, ...).
-        #[arg(long, default_value_t = 8)]
-        max_depth: u32,
-        /// Exposure multiplier for .png output (ignored for .exr).
-        #[arg(long, default_value_t = 1.0)]
-        exposure: f32,
-    },
+    Render(RenderCommand),
     /// RMSE against a converged render at 1/4/16 spp for the white, stratified and blue
     /// samplers, and path against reference integrator at equal time.
-    Convergence {
-        /// Level or glTF/GLB file.
-        scene: PathBuf,
-        #[arg(long, default_value_t = 128)]
-        width: u32,
-        #[arg(long, default_value_t = 128)]
-        height: u32,
-        /// Samples per pixel of the converged image.
-        #[arg(long, default_value_t = 4096)]
-        reference_spp: u32,
-        /// Seeds each RMSE is averaged over.
-        #[arg(long, default_value_t = 8)]
-        seeds: u32,
-        #[arg(long, default_value_t = 8)]
-        max_depth: u32,
-    },
+    Convergence(convergence::Options),
     /// Compare two .exr renders of the same size: mean radiance of each, RMSE, and the
     /// ratio of their means over a 4 x 4 grid of regions (a local bias shows there).
     Compare {
@@ -114,28 +72,7 @@ pub enum Command {
     },
     /// Ray throughput (primary, shadow, diffuse bounce) through gloam's TLAS -> BLAS and
     /// through obvhs's flat BVH2 and CWBVH on the same rays; BLAS, TLAS and refit times.
-    Raybench {
-        /// Level or glTF/GLB file (its camera; emissive triangles are the shadow-ray targets).
-        scene: PathBuf,
-        /// Repeat the scene's instances in a grid until there are N.
-        #[arg(long)]
-        instances: Option<usize>,
-        /// Add a deforming grid of at least M triangles and time its per-frame refit.
-        #[arg(long, default_value_t = 0)]
-        deforming_triangles: usize,
-        /// Threads for the multi-threaded measurement (one thread is always measured).
-        #[arg(long, default_value_t = default_threads())]
-        threads: usize,
-        /// Primary rays per side (size x size).
-        #[arg(long, default_value_t = 512)]
-        size: u32,
-        /// Timed runs per measurement; medians are reported.
-        #[arg(long, default_value_t = 5)]
-        repeats: usize,
-        /// Write the report as JSON.
-        #[arg(long)]
-        json: Option<PathBuf>,
-    },
+    Raybench(raybench::Options),
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -161,7 +98,7 @@ fn default_level() -> PathBuf {
     }
 }
 
-fn default_threads() -> usize {
+pub(crate) fn default_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
@@ -258,72 +195,20 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        Command::Render {
-            scene,
-            out,
-            width,
-            height,
-            spp,
-            seed,
-            integrator,
-            sampler,
-            max_depth,
-            exposure,
-        } => {
-            render_command(RenderCommand {
-                scene,
-                out,
-                width,
-                height,
-                spp,
-                seed,
-                integrator,
-                sampler,
-                max_depth,
-                exposure,
-            })?;
+        Command::Render(command) => {
+            render_command(command)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Convergence {
-            scene,
-            width,
-            height,
-            reference_spp,
-            seeds,
-            max_depth,
-        } => {
-            convergence::run(&convergence::Options {
-                scene,
-                width,
-                height,
-                reference_spp,
-                seeds,
-                max_depth,
-            })?;
+        Command::Convergence(options) => {
+            convergence::run(&options)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Compare { image, reference } => {
             compare(&image, &reference)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Raybench {
-            scene,
-            instances,
-            deforming_triangles,
-            threads,
-            size,
-            repeats,
-            json,
-        } => {
-            raybench::run(&raybench::Options {
-                scene,
-                instances,
-                deforming_triangles,
-                threads,
-                size,
-                repeats,
-                json,
-            })?;
+        Command::Raybench(options) => {
+            raybench::run(&options)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Generate(Generate::Stress { triangles, out }) => {
@@ -377,17 +262,35 @@ fn check(path: &Path) -> ExitCode {
     }
 }
 
-struct RenderCommand {
-    scene: PathBuf,
-    out: PathBuf,
-    width: u32,
-    height: u32,
-    spp: u32,
-    seed: u32,
-    integrator: IntegratorArg,
-    sampler: SamplerArg,
-    max_depth: u32,
-    exposure: f32,
+/// `gloam render`'s flags.
+#[derive(Debug, clap::Args)]
+pub struct RenderCommand {
+    /// Level or glTF/GLB file.
+    pub scene: PathBuf,
+    /// Output .exr or .png.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 640)]
+    pub width: u32,
+    #[arg(long, default_value_t = 360)]
+    pub height: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u32,
+    #[arg(long, value_enum, default_value_t = IntegratorArg::Path)]
+    pub integrator: IntegratorArg,
+    /// Stratified by default: at 4 spp and more it has the lowest RMSE of the three
+    /// (`gloam convergence`); blue noise pays off at 1-2 spp, where its error is blue.
+    #[arg(long, value_enum, default_value_t = SamplerArg::Stratified)]
+    pub sampler: SamplerArg,
+    /// Bounces at most (0: emitters only, 1: direct lighting, ...).
+    #[arg(long, default_value_t = 8)]
+    pub max_depth: u32,
+    /// Exposure multiplier for .png output (ignored for .exr).
+    #[arg(long, default_value_t = 1.0)]
+    pub exposure: f32,
 }
 
 /// `gloam render`: load, extract, render with a progress bar on a terminal, write.

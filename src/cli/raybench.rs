@@ -37,13 +37,27 @@ use crate::scene::world::{CameraPlacement, Scene};
 /// Flattening more world-space triangles than this for the baseline would need gigabytes.
 const MAX_FLAT_TRIANGLES: usize = 5_000_000;
 
+#[derive(Debug, clap::Args)]
 pub struct Options {
+    /// Level or glTF/GLB file (its camera; emissive triangles are the shadow-ray targets).
     pub scene: PathBuf,
+    /// Repeat the scene's instances in a grid until there are N.
+    #[arg(long)]
     pub instances: Option<usize>,
+    /// Add a deforming grid of at least M triangles and time its per-frame refit.
+    #[arg(long, default_value_t = 0)]
     pub deforming_triangles: usize,
+    /// Threads for the multi-threaded measurement (one thread is always measured).
+    #[arg(long, default_value_t = super::default_threads())]
     pub threads: usize,
+    /// Primary rays per side (size x size).
+    #[arg(long, default_value_t = 512)]
     pub size: u32,
+    /// Timed runs per measurement; medians are reported.
+    #[arg(long, default_value_t = 5)]
     pub repeats: usize,
+    /// Write the report as JSON.
+    #[arg(long)]
     pub json: Option<PathBuf>,
 }
 
