@@ -144,22 +144,35 @@ pub fn render_scene(scene: &Scene) -> RenderScene {
         }
     }
 
-    // 2. One BLAS per distinct (asset, mesh).
-    let mut blas_of: HashMap<(usize, usize), u32> = HashMap::new();
-    let mut meshes: Vec<(usize, usize)> = Vec::new();
-    for placement in &placements {
-        let key = (asset_index(placement.asset), placement.mesh);
+    // 2. One BLAS per distinct (asset, mesh) that keeps its shape; each deforming placement
+    //    gets its own, refit as it moves.
+    let mut blas_of: HashMap<(usize, usize, Option<usize>), u32> = HashMap::new();
+    let mut meshes: Vec<(usize, usize, BlasKind)> = Vec::new();
+    let blas_key = |index: usize, placement: &crate::scene::world::MeshPlacement| {
+        (
+            asset_index(placement.asset),
+            placement.mesh,
+            placement.deforms.then_some(index),
+        )
+    };
+    for (index, placement) in placements.iter().enumerate() {
+        let key = blas_key(index, placement);
         blas_of.entry(key).or_insert_with(|| {
-            meshes.push(key);
+            let kind = if placement.deforms {
+                BlasKind::Deforming
+            } else {
+                BlasKind::Static
+            };
+            meshes.push((key.0, key.1, kind));
             meshes.len() as u32 - 1
         });
     }
     let blases: Vec<Blas> = meshes
         .par_iter()
-        .map(|&(asset, mesh)| {
+        .map(|&(asset, mesh, kind)| {
             Blas::build(
                 mesh_geometry(&scene.assets[asset], mesh, asset_offsets[asset]),
-                BlasKind::Static,
+                kind,
             )
         })
         .collect();
@@ -168,7 +181,7 @@ pub fn render_scene(scene: &Scene) -> RenderScene {
     let mut override_blocks: HashMap<(usize, usize), u32> = HashMap::new();
     let mut instances = Vec::with_capacity(placements.len());
     let mut instance_shading = Vec::with_capacity(placements.len());
-    for placement in &placements {
+    for (index, placement) in placements.iter().enumerate() {
         let asset = asset_index(placement.asset);
         let overrides = scene.level.entities[placement.entity]
             .instance
@@ -197,7 +210,7 @@ pub fn render_scene(scene: &Scene) -> RenderScene {
             asset_offset: asset_offsets[asset],
         });
         instances.push(Instance::new(
-            blas_of[&(asset, placement.mesh)],
+            blas_of[&blas_key(index, placement)],
             Affine3A::from_mat4(placement.world_from_mesh),
             InstanceMask::ALL,
             instance_user_id(placement.entity, placement.node),
@@ -225,6 +238,48 @@ pub fn render_scene(scene: &Scene) -> RenderScene {
     render
 }
 
+/// An emissive triangle's front normal and area. The front side is the one the winding faces
+/// in object space; a mirroring transform flips the world-space winding, so the normal is
+/// flipped back.
+fn emitter_frame(vertices: &[Vec3A; 3], mirrored: bool) -> (Vec3A, f32) {
+    let cross = (vertices[1] - vertices[0]).cross(vertices[2] - vertices[0]);
+    let area = cross.length() * 0.5;
+    if area <= 0.0 {
+        return (Vec3A::Y, 0.0);
+    }
+    let normal = cross / (2.0 * area);
+    (if mirrored { -normal } else { normal }, area)
+}
+
+/// Moves the emissive triangles of the instances flagged in `moved` (by instance index) to
+/// where their instance's transform and BLAS vertices now put them. Selection weights stay
+/// as built: light picking remains unbiased, only less well matched to power.
+pub fn refresh_triangle_lights(render: &mut RenderScene, moved: &[bool]) {
+    let RenderScene { accel, lights, .. } = render;
+    for ((instance_index, triangle), light) in lights.triangle_lights() {
+        if !moved.get(instance_index as usize).copied().unwrap_or(false) {
+            continue;
+        }
+        let instance = &accel.instances()[instance_index as usize];
+        let to_world = instance.world_from_object();
+        let mirrored = to_world.matrix3.determinant() < 0.0;
+        let new_vertices = accel.blases[instance.blas as usize]
+            .geometry
+            .triangle_vertices(triangle as usize)
+            .map(|v| to_world.transform_point3a(v));
+        if let Light::Triangle {
+            vertices,
+            normal,
+            area,
+            ..
+        } = &mut lights.lights[light as usize]
+        {
+            *vertices = new_vertices;
+            (*normal, *area) = emitter_frame(&new_vertices, mirrored);
+        }
+    }
+}
+
 /// Emissive triangles (in world space) and punctual lights, weighted by estimated power.
 fn light_set(scene: &Scene, render: &RenderScene, scene_radius: f32) -> LightSet {
     let mut lights = Vec::new();
@@ -243,18 +298,13 @@ fn light_set(scene: &Scene, render: &RenderScene, scene_radius: f32) -> LightSet
             let vertices = geometry
                 .triangle_vertices(triangle)
                 .map(|v| to_world.transform_point3a(v));
-            let cross = (vertices[1] - vertices[0]).cross(vertices[2] - vertices[0]);
-            let area = cross.length() * 0.5;
-            if area <= 0.0 {
+            let (normal, area) = emitter_frame(&vertices, mirrored);
+            // Degenerate emitters are kept only on meshes that deform (they may open up).
+            let deforming = render.accel.blases[instance.blas as usize].kind
+                == crate::accel::BlasKind::Deforming;
+            if area <= 0.0 && !deforming {
                 continue;
             }
-            // The front side is the one the winding faces in object space; a mirroring
-            // transform flips the world-space winding, so flip the normal back.
-            let normal = if mirrored {
-                -cross / (2.0 * area)
-            } else {
-                cross / (2.0 * area)
-            };
             let uvs = if geometry.uvs.is_empty() {
                 [glam::Vec2::ZERO; 3]
             } else {

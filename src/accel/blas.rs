@@ -200,6 +200,13 @@ impl Blas {
             self.geometry.normals.clear();
             self.geometry.normals.extend_from_slice(normals);
         }
+        self.refit_geometry()
+    }
+
+    /// As `refit`, for a caller that has already written the new vertices into
+    /// `geometry.positions` (and normals) in place: the deformers write straight into the
+    /// BLAS, saving a copy of every vertex per frame.
+    pub fn refit_geometry(&mut self) -> RefitOutcome {
         if self.bvh.nodes.is_empty() {
             return RefitOutcome::Refit;
         }

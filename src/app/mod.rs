@@ -50,19 +50,29 @@ pub struct PlayOptions {
 /// Per-frame stage times, for the table printed when a `--frames` run ends.
 #[derive(Default)]
 struct StageLog {
-    rows: Vec<[f64; 7]>,
+    rows: Vec<[f64; 9]>,
 }
 
 impl StageLog {
-    const NAMES: [&'static str; 7] = [
-        "simulate", "extract", "accel", "render", "film", "present", "frame",
+    const NAMES: [&'static str; 9] = [
+        "simulate",
+        "extract",
+        "animation",
+        "blas_refit",
+        "tlas_build",
+        "render",
+        "film",
+        "present",
+        "frame",
     ];
 
     fn push(&mut self, times: &StageTimes, present: f64, frame: f64) {
         self.rows.push([
             times.simulate,
             times.extract,
-            times.accel,
+            times.animation,
+            times.blas_refit,
+            times.tlas_build,
             times.render,
             times.film,
             present,

@@ -291,6 +291,9 @@ pub struct RenderCommand {
     /// Exposure multiplier for .png output (ignored for .exr).
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f32,
+    /// Seconds after level start: animation clips and deformers are posed there.
+    #[arg(long, default_value_t = 0.0)]
+    pub time: f64,
 }
 
 /// `gloam render`: load, extract, render with a progress bar on a terminal, write.
@@ -314,8 +317,10 @@ fn render_command(command: RenderCommand) -> anyhow::Result<()> {
             command.out.display()
         );
     }
+    if !command.time.is_finite() {
+        anyhow::bail!("--time must be a finite number of seconds");
+    }
     let scene = Scene::load(&command.scene)?;
-    let render_scene = crate::extract::render_scene(&scene);
     let settings = RenderSettings {
         width: command.width,
         height: command.height,
@@ -333,6 +338,10 @@ fn render_command(command: RenderCommand) -> anyhow::Result<()> {
         },
         max_depth: command.max_depth,
     };
+    // The game's own path to a posed scene: skinning, morphs and deformers at --time.
+    let mut engine = crate::game::Engine::new(&scene, RenderSettings::real_time(1, 1));
+    engine.pose_at(command.time);
+    let render_scene = engine.render_scene();
     let camera = Camera::new(&render_scene.camera, settings.width, settings.height);
     let show_progress = std::io::stderr().is_terminal();
     let last_percent = AtomicU32::new(0);
@@ -342,7 +351,7 @@ fn render_command(command: RenderCommand) -> anyhow::Result<()> {
             eprint!("\rrendering {percent:3}%");
         }
     };
-    let output = render(&render_scene, &camera, &settings, &progress);
+    let output = render(render_scene, &camera, &settings, &progress);
     if show_progress {
         eprintln!();
     }

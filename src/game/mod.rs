@@ -3,23 +3,37 @@
 //! One displayed frame, headless (the window shell drives the same `Engine`):
 //! 1. `Engine::advance(dt)`: the simulation clock accumulates real time and runs the
 //!    fixed-step schedule at 60 Hz as many times as it owes: `fly_camera` (input), then
-//!    gameplay systems as the game grows, and last `propagate_transforms`;
-//! 2. the frame schedule, chained: `extract_instances` (moved entities -> accel instance
+//!    gameplay systems as the game grows, then animation (`advance_animations` and `apply_animations` sample glTF clips into node transforms
+//!    and morph weights), and last `propagate_transforms`;
+//! 2. the prepare schedule, chained: `extract_instances` (moved entities -> accel instance
 //!    transforms, interpolated between the last two simulation steps by how far real time
-//!    has run into the next one) -> `update_acceleration` (TLAS rebuild when anything
-//!    moved) -> `render_frame` (one frame of samples) -> film accumulation: while nothing
-//!    moves, frames add up into a converging image; any change starts it again.
+//!    has run into the next one) -> `deform_meshes` (skinning, morph targets and deformers
+//!    for meshes whose pose changed, then their BLAS refits) -> `update_acceleration`
+//!    (emitters follow, TLAS rebuild when anything moved or deformed);
+//! 3. the frame schedule: `render_frame` (one frame of samples) -> film accumulation:
+//!    while nothing moves, frames add up into a converging image; any change starts it
+//!    again.
 //!
 //! Each stage's time lands in the `StageTimes` resource (the profiler issue builds on it).
 //!
 //! Render and accel never see this module: the `RenderScene` sits in a resource and the
 //! systems here call into them with plain data.
 
+pub mod animation;
+pub mod deform;
 pub mod input;
 pub mod transform;
 
+use std::collections::HashMap;
+use std::sync::Arc;
+
 use bevy_ecs::prelude::*;
 use glam::Vec3;
+
+pub use animation::{
+    AnimationLibrary, Animator, Deformer, MorphWeights, advance_animations, apply_animations,
+};
+pub use deform::{DeformSource, DeformStats, DeformedMesh, SkinBinding, deform_meshes};
 
 pub use input::{Action, Input, fly_camera};
 pub use transform::{
@@ -27,10 +41,11 @@ pub use transform::{
     remember_transforms,
 };
 
-use crate::extract::{instance_user_id, render_scene};
+use crate::accel::BlasKind;
+use crate::extract::{instance_user_id, refresh_triangle_lights, render_scene};
 use crate::render::{Camera, Film, RenderScene, RenderSettings, render};
 use crate::scene::model::NodeTransform;
-use crate::scene::world::Scene;
+use crate::scene::world::{CameraPlacement, Scene};
 
 /// Simulation steps per second (DESIGN.md: fixed timestep, 60 Hz).
 pub const SIMULATION_HZ: f64 = 60.0;
@@ -50,11 +65,13 @@ pub struct ViewCamera {
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LevelEntity(pub usize);
 
-/// The scene as the renderer reads it, and whether the TLAS is stale.
+/// The scene as the renderer reads it, and what changed in it this frame.
 #[derive(Resource)]
 pub struct RenderState {
     pub scene: RenderScene,
     pub tlas_stale: bool,
+    /// Per accel instance: moved or deformed this frame (its emissive triangles follow).
+    pub moved: Vec<bool>,
 }
 
 /// Frames accumulated since the last change, as a running sum of per-frame means.
@@ -79,17 +96,21 @@ pub struct SimulationClock {
 /// Milliseconds each stage of the last frame took.
 #[derive(Resource, Default, Clone, Copy, Debug)]
 pub struct StageTimes {
-    /// All fixed steps run for this frame (input, gameplay, transforms).
+    /// All fixed steps run for this frame (input, gameplay, clip sampling, transforms).
     pub simulate: f64,
     pub extract: f64,
-    /// TLAS rebuild (and BLAS refits, with deforming meshes).
-    pub accel: f64,
+    /// Deforming meshes: skinning, morph targets, procedural deformers.
+    pub animation: f64,
+    /// Refitting (or rebuilding) the deformed meshes' BLASes.
+    pub blas_refit: f64,
+    /// Rebuilding the TLAS and moving emissive triangles with their instances.
+    pub tlas_build: f64,
     pub render: f64,
     /// Adding the frame into the accumulated image.
     pub film: f64,
 }
 
-fn since(start: std::time::Instant) -> f64 {
+pub(crate) fn since(start: std::time::Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
 
@@ -105,10 +126,16 @@ impl Accumulation {
     }
 }
 
-/// The ECS world and its two schedules.
+/// The ECS world and its schedules.
 pub struct Engine {
     pub world: World,
+    /// One 1/60 s simulation step.
     fixed_step: Schedule,
+    /// Animation applied and transforms propagated, without moving any clock (posing).
+    pose: Schedule,
+    /// Extract, deform and refit, TLAS: the scene made ready to trace.
+    prepare: Schedule,
+    /// One frame of samples into the film.
     frame: Schedule,
     /// Real time not yet simulated, in seconds.
     owed: f64,
@@ -118,19 +145,24 @@ pub struct Engine {
 
 impl Engine {
     /// Spawns `scene` into a new world: one entity per level entity, with the glTF node
-    /// hierarchy of its asset as children; mesh nodes get their `RenderInstance`.
+    /// hierarchy of its asset as children; mesh nodes get their `RenderInstance`, and
+    /// meshes that change shape their `DeformedMesh` (with `MorphWeights`, a `Deformer`,
+    /// and the skin's joints as entities). Entities with a clip get an `Animator`. The
+    /// scene is posed at time 0 before this returns.
     pub fn new(scene: &Scene, settings: RenderSettings) -> Engine {
         let mut world = World::new();
         let render = render_scene(scene);
         // Map (level entity, node) -> accel instance.
-        let instance_of: std::collections::HashMap<u64, u32> = render
+        let instance_of: HashMap<u64, u32> = render
             .accel
             .instances()
             .iter()
             .enumerate()
             .map(|(i, instance)| (instance.user_id, i as u32))
             .collect();
-        let camera = render.camera.clone();
+        let mut library = AnimationLibrary::default();
+        let mut clip_of: HashMap<(usize, usize), usize> = HashMap::new();
+        let mut sources: HashMap<(usize, usize), Arc<DeformSource>> = HashMap::new();
         for (index, entity) in scene.level.entities.iter().enumerate() {
             let root = world
                 .spawn((
@@ -149,14 +181,22 @@ impl Engine {
                     yfov: level_camera.yfov_degrees.to_radians(),
                 });
             }
-            let Some(asset) = scene.entity_assets[index].map(|a| &scene.assets[a]) else {
+            let Some(asset_index) = scene.entity_assets[index] else {
                 continue;
             };
-            // The asset's nodes, parents before children.
+            let asset = &scene.assets[asset_index];
+            // The asset's nodes, parents before children. A skinned mesh's node hangs
+            // straight off the root with no transform of its own: glTF places skinned
+            // vertices by their joints alone.
+            let mut node_entities = vec![Entity::PLACEHOLDER; asset.nodes.len()];
+            let mut parent_node = vec![None; asset.nodes.len()];
             let mut stack: Vec<(usize, Entity)> =
                 asset.roots.iter().rev().map(|&node| (node, root)).collect();
             while let Some((node, parent)) = stack.pop() {
+                let skinned_mesh =
+                    asset.nodes[node].skin.is_some() && asset.nodes[node].mesh.is_some();
                 let transform = match asset.nodes[node].transform {
+                    _ if skinned_mesh => Transform::default(),
                     NodeTransform::Trs {
                         translation,
                         rotation,
@@ -172,12 +212,16 @@ impl Engine {
                     transform,
                     GlobalTransform::default(),
                     PreviousGlobalTransform::default(),
-                    ChildOf(parent),
+                    ChildOf(if skinned_mesh { root } else { parent }),
                 ));
                 if let Some(&instance) = instance_of.get(&instance_user_id(index, node)) {
                     spawned.insert(RenderInstance(instance));
                 }
                 let id = spawned.id();
+                node_entities[node] = id;
+                for &child in &asset.nodes[node].children {
+                    parent_node[child] = Some(node);
+                }
                 stack.extend(
                     asset.nodes[node]
                         .children
@@ -186,25 +230,93 @@ impl Engine {
                         .map(|&child| (child, id)),
                 );
             }
-        }
-        // The view: the level's camera entity if it has one, else a camera entity placed
-        // where extract's choice (an asset camera or a framing view) puts it.
-        let mut views = world.query_filtered::<Entity, With<ViewCamera>>();
-        if views.iter(&world).next().is_none() {
-            world.spawn((
-                Transform::from_matrix(camera.world_from_camera),
-                GlobalTransform::default(),
-                PreviousGlobalTransform::default(),
-                ViewCamera { yfov: camera.yfov },
-            ));
+
+            // Deforming meshes: their own BLAS, their source data, what drives them.
+            for (node_index, node) in asset.nodes.iter().enumerate() {
+                let (Some(mesh), Some(&instance)) = (
+                    node.mesh,
+                    instance_of.get(&instance_user_id(index, node_index)),
+                ) else {
+                    continue;
+                };
+                let blas = render.accel.instances()[instance as usize].blas;
+                if render.accel.blases[blas as usize].kind != BlasKind::Deforming {
+                    continue;
+                }
+                let source = sources
+                    .entry((asset_index, mesh))
+                    .or_insert_with(|| Arc::new(DeformSource::from_mesh(asset, mesh)))
+                    .clone();
+                let skin = node.skin.map(|skin| {
+                    let skin = &asset.skins[skin];
+                    // Joints and their ancestors below the root: what moves the pose.
+                    let mut watched = Vec::new();
+                    for &joint in &skin.joints {
+                        let mut current = Some(joint);
+                        while let Some(n) = current {
+                            if !watched.contains(&node_entities[n]) {
+                                watched.push(node_entities[n]);
+                            }
+                            current = parent_node[n];
+                        }
+                    }
+                    SkinBinding {
+                        root,
+                        joints: skin.joints.iter().map(|&j| node_entities[j]).collect(),
+                        inverse_bind_matrices: skin.inverse_bind_matrices.clone(),
+                        watched,
+                    }
+                });
+                let mut entity_mut = world.entity_mut(node_entities[node_index]);
+                let targets = source.morph_positions.len();
+                if targets > 0 {
+                    let weights = node
+                        .morph_weights
+                        .clone()
+                        .or_else(|| {
+                            let defaults = &asset.meshes[mesh].morph_weights;
+                            (!defaults.is_empty()).then(|| defaults.clone())
+                        })
+                        .unwrap_or_else(|| vec![0.0; targets]);
+                    entity_mut.insert(MorphWeights(weights));
+                }
+                if let Some(kind) = &entity.deformer {
+                    entity_mut.insert(Deformer {
+                        kind: kind.clone(),
+                        time: 0.0,
+                    });
+                }
+                entity_mut.insert(DeformedMesh::new(blas, instance, source, skin));
+            }
+
+            if let Some(animation) = &entity.animation
+                && let Some(clip) = asset.animation_by_name(&animation.clip)
+            {
+                let clip = *clip_of.entry((asset_index, clip)).or_insert_with(|| {
+                    library.clips.push(asset.animations[clip].clone());
+                    library.clips.len() - 1
+                });
+                world.entity_mut(root).insert(Animator {
+                    clip,
+                    elapsed: animation.start as f64,
+                    start: animation.start as f64,
+                    speed: animation.speed,
+                    playback: animation.playback,
+                    nodes: node_entities,
+                });
+            }
         }
         let pixels = (settings.width * settings.height) as usize;
+        let instances = render.accel.instances().len();
         world.insert_resource(Input::default());
         world.insert_resource(SimulationClock::default());
         world.insert_resource(StageTimes::default());
+        world.insert_resource(DeformStats::default());
+        world.insert_resource(library);
         world.insert_resource(RenderState {
             scene: render,
             tlas_stale: false,
+            moved: vec![false; instances],
         });
         world.insert_resource(Accumulation {
             view: None,
@@ -215,26 +327,88 @@ impl Engine {
         });
 
         let mut fixed_step = Schedule::default();
-        fixed_step.add_systems((remember_transforms, fly_camera, propagate_transforms).chain());
+        fixed_step.add_systems(
+            (
+                remember_transforms,
+                fly_camera,
+                advance_animations,
+                apply_animations,
+                propagate_transforms,
+            )
+                .chain(),
+        );
+        let mut pose = Schedule::default();
+        pose.add_systems((apply_animations, propagate_transforms).chain());
+        let mut prepare = Schedule::default();
+        prepare.add_systems((extract_instances, deform_meshes, update_acceleration).chain());
         let mut frame = Schedule::default();
-        frame.add_systems((extract_instances, update_acceleration, render_frame).chain());
+        frame.add_systems(render_frame);
         let mut engine = Engine {
             world,
             fixed_step,
+            pose,
+            prepare,
             frame,
             owed: 0.0,
             steps: 0,
         };
-        // Settle the hierarchy once so the first frame sees world transforms, with nothing
-        // to interpolate from.
-        engine.fixed_step.run(&mut engine.world);
-        let mut settle = engine
-            .world
-            .query::<(&GlobalTransform, &mut PreviousGlobalTransform)>();
-        for (global, mut previous) in settle.iter_mut(&mut engine.world) {
-            previous.0 = global.0;
+        engine.settle();
+        // The view: the level's camera entity if it has one, else an asset's camera, else
+        // a view framing the posed scene (a skinned file's rest vertices may lie anywhere).
+        let mut views = engine.world.query_filtered::<Entity, With<ViewCamera>>();
+        if views.iter(&engine.world).next().is_none() {
+            let mut state = engine.world.resource_mut::<RenderState>();
+            if scene.camera().is_none() {
+                let bounds = state.scene.accel.bounds();
+                state.scene.camera = CameraPlacement::framing(bounds.min.into(), bounds.max.into());
+            }
+            let camera = state.scene.camera.clone();
+            let placed = Transform::from_matrix(camera.world_from_camera);
+            engine.world.spawn((
+                placed,
+                GlobalTransform(placed.affine()),
+                PreviousGlobalTransform(placed.affine()),
+                ViewCamera { yfov: camera.yfov },
+            ));
         }
         engine
+    }
+
+    /// Poses the world as it stands (clips at their clocks, transforms propagated) with
+    /// nothing to interpolate from, and makes the scene ready to trace.
+    fn settle(&mut self) {
+        self.pose.run(&mut self.world);
+        let mut settle = self
+            .world
+            .query::<(&GlobalTransform, &mut PreviousGlobalTransform)>();
+        for (global, mut previous) in settle.iter_mut(&mut self.world) {
+            previous.0 = global.0;
+        }
+        self.prepare.run(&mut self.world);
+    }
+
+    /// Sets every clip and deformer clock to `seconds` after level start and poses the
+    /// scene there (for `gloam render --time` and tests); no simulation step runs.
+    pub fn pose_at(&mut self, seconds: f64) {
+        let mut animators = self.world.query::<&mut Animator>();
+        for mut animator in animators.iter_mut(&mut self.world) {
+            animator.elapsed = animator.start + seconds * animator.speed as f64;
+        }
+        let mut deformers = self.world.query::<&mut Deformer>();
+        for mut deformer in deformers.iter_mut(&mut self.world) {
+            deformer.time = seconds;
+        }
+        self.settle();
+    }
+
+    /// The scene as the renderer sees it now.
+    pub fn render_scene(&self) -> &RenderScene {
+        &self.world.resource::<RenderState>().scene
+    }
+
+    /// Deformation counts of the last prepared frame.
+    pub fn deform_stats(&self) -> DeformStats {
+        *self.world.resource::<DeformStats>()
     }
 
     /// Simulates `seconds` of real time in fixed 1/60 s steps (the remainder carries
@@ -250,6 +424,7 @@ impl Engine {
         }
         self.world.resource_mut::<StageTimes>().simulate = since(start);
         self.world.resource_mut::<SimulationClock>().alpha = (self.owed / step) as f32;
+        self.prepare.run(&mut self.world);
         self.frame.run(&mut self.world);
     }
 
@@ -265,10 +440,10 @@ pub fn extract_instances(
     instances: Query<(&RenderInstance, &GlobalTransform, &PreviousGlobalTransform)>,
     clock: Res<SimulationClock>,
     mut state: ResMut<RenderState>,
-    mut accumulation: ResMut<Accumulation>,
     mut times: ResMut<StageTimes>,
 ) {
     let start = std::time::Instant::now();
+    let state = &mut *state;
     for (instance, global, previous) in &instances {
         let shown = if previous.0 == global.0 {
             global.0
@@ -279,22 +454,31 @@ pub fn extract_instances(
         if target.world_from_object() != shown {
             target.set_transform(shown);
             state.tlas_stale = true;
+            state.moved[instance.0 as usize] = true;
         }
-    }
-    if state.tlas_stale {
-        accumulation.reset = true;
     }
     times.extract = since(start);
 }
 
-/// Accel: rebuilds the TLAS when any instance moved.
-pub fn update_acceleration(mut state: ResMut<RenderState>, mut times: ResMut<StageTimes>) {
+/// Accel: when any instance moved or deformed, its emissive triangles follow it and the
+/// TLAS is rebuilt over the new instance boxes; the accumulated image starts again.
+pub fn update_acceleration(
+    mut state: ResMut<RenderState>,
+    mut accumulation: ResMut<Accumulation>,
+    mut times: ResMut<StageTimes>,
+) {
     let start = std::time::Instant::now();
+    let state = &mut *state;
     if state.tlas_stale {
         state.scene.accel.rebuild_tlas();
         state.tlas_stale = false;
+        accumulation.reset = true;
+        if state.moved.contains(&true) {
+            refresh_triangle_lights(&mut state.scene, &state.moved);
+            state.moved.fill(false);
+        }
     }
-    times.accel = since(start);
+    times.tlas_build = since(start);
 }
 
 /// Render and film: one frame of samples from the view, added to the running sum (or

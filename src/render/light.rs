@@ -153,6 +153,15 @@ impl LightSet {
         self.table.is_empty()
     }
 
+    /// Every triangle light as ((instance, triangle), light index), in no particular order;
+    /// collected so the caller may then change `lights`.
+    pub fn triangle_lights(&self) -> Vec<((u32, u32), u32)> {
+        self.by_triangle
+            .iter()
+            .map(|(&key, &light)| (key, light))
+            .collect()
+    }
+
     /// The light of an emissive triangle, if it is one.
     pub fn triangle_light(&self, instance: u32, triangle: u32) -> Option<u32> {
         self.by_triangle.get(&(instance, triangle)).copied()

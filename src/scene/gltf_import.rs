@@ -233,6 +233,9 @@ impl Importer<'_> {
         part!(skins, self.skins());
         part!(animations, self.animations());
         if diagnostics.is_empty() {
+            diagnostics.extend(self.check_deformation(&asset));
+        }
+        if diagnostics.is_empty() {
             match self.roots(&asset.nodes) {
                 Ok(roots) => asset.roots = roots,
                 Err(diagnostic) => diagnostics.push(diagnostic),
@@ -703,6 +706,12 @@ impl Importer<'_> {
                 ));
             }
             let (joint_values, _) = self.read_accessor::<u32>(&joints)?;
+            if joint_values.iter().any(|&j| j > u16::MAX as u32) {
+                return Err(self.error(
+                    attribute_pointer(&joint_name),
+                    format!("{joint_name} holds a joint index above 65535"),
+                ));
+            }
             let weight_values = self.read_f32_elements(&weights, Dimensions::Vec4, &weight_name)?;
             check_count(joint_values.len() / 4, &joint_name)?;
             check_count(weight_values.len() / 4, &weight_name)?;
@@ -1066,6 +1075,113 @@ impl Importer<'_> {
                 })
             })
             .collect()
+    }
+
+    /// Cross-checks what skinning, morphing and animation will index, once every part has
+    /// loaded: each is then safe to evaluate without further checks.
+    fn check_deformation(&self, asset: &Asset) -> Option<Diagnostic> {
+        for (node_index, node) in asset.nodes.iter().enumerate() {
+            let Some(mesh_index) = node.mesh else {
+                continue;
+            };
+            let mesh = &asset.meshes[mesh_index];
+            let mesh_pointer = Pointer::root().key("meshes").index(mesh_index);
+            let targets = mesh.primitives.first().map_or(0, |p| p.morph_targets.len());
+            for (primitive_index, primitive) in mesh.primitives.iter().enumerate() {
+                let pointer = mesh_pointer.key("primitives").index(primitive_index);
+                if primitive.morph_targets.len() != targets {
+                    return Some(self.error(
+                        pointer.key("targets"),
+                        format!(
+                            "primitive has {} morph targets but the mesh's first has {targets} (glTF requires the same number)",
+                            primitive.morph_targets.len()
+                        ),
+                    ));
+                }
+                let Some(skin) = node.skin.map(|s| &asset.skins[s]) else {
+                    continue;
+                };
+                if primitive.skin_influences.is_empty() {
+                    return Some(self.error(
+                        pointer.key("attributes"),
+                        format!("node {node_index} skins this mesh but the primitive has no JOINTS_0/WEIGHTS_0"),
+                    ));
+                }
+                for (set, influences) in primitive.skin_influences.iter().enumerate() {
+                    if let Some(joint) = influences
+                        .joints
+                        .iter()
+                        .flatten()
+                        .find(|&&j| j as usize >= skin.joints.len())
+                    {
+                        return Some(self.error(
+                            pointer.key("attributes").key(&format!("JOINTS_{set}")),
+                            format!(
+                                "joint index {joint} is past the {} joints of skin '{}'",
+                                skin.joints.len(),
+                                skin.name
+                            ),
+                        ));
+                    }
+                }
+            }
+            for (weights, pointer) in [
+                (Some(&mesh.morph_weights), mesh_pointer.key("weights")),
+                (
+                    node.morph_weights.as_ref(),
+                    Pointer::root()
+                        .key("nodes")
+                        .index(node_index)
+                        .key("weights"),
+                ),
+            ] {
+                if let Some(weights) = weights.filter(|w| !w.is_empty() && w.len() != targets) {
+                    return Some(self.error(
+                        pointer,
+                        format!("{} weights for {targets} morph targets", weights.len()),
+                    ));
+                }
+            }
+        }
+        for (skin_index, skin) in asset.skins.iter().enumerate() {
+            if skin.joints.is_empty() || skin.inverse_bind_matrices.len() != skin.joints.len() {
+                return Some(self.error(
+                    Pointer::root().key("skins").index(skin_index),
+                    format!(
+                        "skin has {} joints and {} inverse bind matrices",
+                        skin.joints.len(),
+                        skin.inverse_bind_matrices.len()
+                    ),
+                ));
+            }
+        }
+        for (animation_index, animation) in asset.animations.iter().enumerate() {
+            for (channel_index, channel) in animation.channels.iter().enumerate() {
+                let sampler = &animation.samplers[channel.sampler];
+                let expected = match channel.property {
+                    AnimatedProperty::Translation | AnimatedProperty::Scale => 3,
+                    AnimatedProperty::Rotation => 4,
+                    AnimatedProperty::MorphWeights => asset.nodes[channel.node]
+                        .mesh
+                        .and_then(|m| asset.meshes[m].primitives.first())
+                        .map_or(0, |p| p.morph_targets.len()),
+                };
+                if sampler.components != expected || expected == 0 {
+                    return Some(self.error(
+                        Pointer::root()
+                            .key("animations")
+                            .index(animation_index)
+                            .key("channels")
+                            .index(channel_index),
+                        format!(
+                            "{:?} channel's sampler gives {} values per key, but node {} needs {expected}",
+                            channel.property, sampler.components, channel.node
+                        ),
+                    ));
+                }
+            }
+        }
+        None
     }
 
     fn animations(&self) -> Checked<Vec<Animation>> {

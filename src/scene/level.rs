@@ -21,6 +21,8 @@ use serde::{Deserialize, Serialize};
 use super::diagnostic::{Diagnostic, LoadError, Pointer};
 use super::model::Material;
 
+pub use super::animation::Playback;
+
 /// The level format version this build reads and writes.
 pub const LEVEL_VERSION: u32 = 1;
 
@@ -74,6 +76,12 @@ pub struct EntityDef {
     pub camera: Option<CameraDef>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub player_spawn: Option<PlayerSpawn>,
+    /// Play one of the instanced asset's glTF animation clips.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub animation: Option<AnimationDef>,
+    /// Deform every mesh of the instance procedurally, every frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deformer: Option<DeformerDef>,
 }
 
 impl EntityDef {
@@ -86,6 +94,8 @@ impl EntityDef {
             light: None,
             camera: None,
             player_spawn: None,
+            animation: None,
+            deformer: None,
         }
     }
 }
@@ -192,6 +202,42 @@ impl MaterialOverride {
     }
 }
 
+/// Which clip of the instanced asset plays, and how.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnimationDef {
+    /// The glTF animation's name.
+    pub clip: String,
+    /// `Loop` (default) or `Once` (hold the last pose).
+    #[serde(default, skip_serializing_if = "is_default_playback")]
+    pub playback: Playback,
+    /// Playback rate; 1 is the authored speed, negative plays backwards.
+    #[serde(default = "default_speed", skip_serializing_if = "is_default_speed")]
+    pub speed: f32,
+    /// Seconds into the clip at level start (staggers a crowd of the same walk cycle).
+    #[serde(default, skip_serializing_if = "is_zero_f32")]
+    pub start: f32,
+}
+
+/// A procedural deformation of the entity's meshes, in each mesh's own space. Vertices move
+/// along their rest normals; shading normals are recomputed from the moved triangles.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum DeformerDef {
+    /// A travelling sine wave: offset = amplitude x sin(2 pi (d . p / wavelength - t / period)),
+    /// with d the unit `direction` (mesh space).
+    Wave {
+        amplitude: f32,
+        wavelength: f32,
+        period: f32,
+        #[serde(default = "default_wave_direction")]
+        direction: Vec3,
+    },
+    /// A blob that breathes and ripples: offset = amplitude x sin(2 pi t / period + 3 (x + y + z)
+    /// / size), where size is the mesh's bounding radius.
+    Wobble { amplitude: f32, period: f32 },
+}
+
 /// A punctual light at the entity (same units as KHR_lights_punctual).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -227,6 +273,21 @@ pub struct PlayerSpawn {
     pub eye_height: f32,
 }
 
+fn default_speed() -> f32 {
+    1.0
+}
+fn is_default_speed(value: &f32) -> bool {
+    *value == 1.0
+}
+fn is_zero_f32(value: &f32) -> bool {
+    *value == 0.0
+}
+fn is_default_playback(value: &Playback) -> bool {
+    *value == Playback::Loop
+}
+fn default_wave_direction() -> Vec3 {
+    Vec3::X
+}
 fn default_true() -> bool {
     true
 }
@@ -382,6 +443,73 @@ pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
                     &mut report,
                     at.key("instance").key("material_overrides").key(material),
                     change,
+                );
+            }
+        }
+
+        if let Some(animation) = &entity.animation {
+            let animation_at = at.key("animation");
+            if entity.instance.is_none() {
+                report(
+                    animation_at.clone(),
+                    "an animation needs an `instance` to animate".into(),
+                );
+            }
+            if !animation.speed.is_finite() {
+                report(
+                    animation_at.key("speed"),
+                    format!("speed must be finite (found {})", animation.speed),
+                );
+            }
+            if !(animation.start.is_finite() && animation.start >= 0.0) {
+                report(
+                    animation_at.key("start"),
+                    format!("start must be finite and >= 0 (found {})", animation.start),
+                );
+            }
+        }
+
+        if let Some(deformer) = &entity.deformer {
+            let deformer_at = at.key("deformer");
+            if entity.instance.is_none() {
+                report(
+                    deformer_at.clone(),
+                    "a deformer needs an `instance` to deform".into(),
+                );
+            }
+            let (amplitude, period) = match *deformer {
+                DeformerDef::Wave {
+                    amplitude,
+                    wavelength,
+                    period,
+                    direction,
+                } => {
+                    if !(wavelength.is_finite() && wavelength > 0.0) {
+                        report(
+                            deformer_at.key("wavelength"),
+                            format!("wavelength must be positive (found {wavelength})"),
+                        );
+                    }
+                    if !(direction.is_finite() && direction.length() > 1e-6) {
+                        report(
+                            deformer_at.key("direction"),
+                            format!("direction must be a non-zero vector (found {direction})"),
+                        );
+                    }
+                    (amplitude, period)
+                }
+                DeformerDef::Wobble { amplitude, period } => (amplitude, period),
+            };
+            if !amplitude.is_finite() {
+                report(
+                    deformer_at.key("amplitude"),
+                    format!("amplitude must be finite (found {amplitude})"),
+                );
+            }
+            if !(period.is_finite() && period > 0.0) {
+                report(
+                    deformer_at.key("period"),
+                    format!("period must be positive (found {period})"),
                 );
             }
         }

@@ -1,11 +1,13 @@
 //! Load time: everything that reads or writes asset and level files.
 //!
-//! Owns glTF import (`gltf_import`) into the asset model (`model`), the level format
+//! Owns glTF import (`gltf_import`) into the asset model (`model`), animation sampling over
+//! that model (`animation`), the level format
 //! (`level`), loading a level or a bare glTF into one `Scene` (`world`), validation with
 //! `file:line:column` diagnostics (`diagnostic`, `source_map`), and the generators that
 //! write Gloam's own assets (`gltf_export`, `kit`). The editor saves through this module;
 //! no other module touches asset or level files.
 
+pub mod animation;
 pub mod diagnostic;
 pub mod files;
 pub mod gltf_export;

@@ -38,6 +38,27 @@ impl Asset {
             .sum()
     }
 
+    /// Index of the animation clip called `name`, or written `#N` for the N-th clip (many
+    /// files leave clips unnamed).
+    pub fn animation_by_name(&self, name: &str) -> Option<usize> {
+        self.animations
+            .iter()
+            .position(|a| a.name == name)
+            .or_else(|| {
+                name.strip_prefix('#')
+                    .and_then(|n| n.parse::<usize>().ok())
+                    .filter(|&n| n < self.animations.len())
+            })
+    }
+
+    /// How a level names clip `index`: its name, or `#index` when it has none.
+    pub fn animation_label(&self, index: usize) -> String {
+        match self.animations[index].name.as_str() {
+            "" => format!("#{index}"),
+            name => name.to_owned(),
+        }
+    }
+
     /// Index of the material called `name`, if any.
     pub fn material_by_name(&self, name: &str) -> Option<usize> {
         self.materials.iter().position(|m| m.name == name)

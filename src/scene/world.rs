@@ -10,7 +10,9 @@ use rayon::prelude::*;
 
 use super::diagnostic::{Diagnostic, LoadError, Pointer};
 use super::gltf_import::import_gltf;
-use super::level::{EntityDef, InstanceDef, LEVEL_VERSION, Level, load_level};
+use super::level::{
+    AnimationDef, EntityDef, Environment, InstanceDef, LEVEL_VERSION, Level, Playback, load_level,
+};
 use super::model::{Asset, Camera, Light, Material, Projection};
 
 /// A loaded level (or a glTF file seen as a one-entity level) with its assets.
@@ -33,7 +35,13 @@ pub struct MeshPlacement<'a> {
     /// The asset node that carries the mesh.
     pub node: usize,
     pub mesh: usize,
+    /// Where the mesh's vertices go in the world. For a skinned mesh this is the entity's
+    /// transform: glTF places skinned vertices by their joints and ignores the mesh node's
+    /// own transform.
     pub world_from_mesh: Mat4,
+    /// The mesh changes shape at run time (skinned, morph targets, or a level deformer):
+    /// it gets its own refittable BLAS instead of sharing one.
+    pub deforms: bool,
 }
 
 /// A camera placed in the world.
@@ -99,11 +107,28 @@ impl Scene {
             asset: file_name,
             material_overrides: BTreeMap::new(),
         });
+        // A bare animated file shows its first clip, looping.
+        entity.animation = (!asset.animations.is_empty()).then(|| AnimationDef {
+            clip: asset.animation_label(0),
+            playback: Playback::Loop,
+            speed: 1.0,
+            start: 0.0,
+        });
         let level = Level {
             version: LEVEL_VERSION,
             name: stem,
             playable: false,
-            environment: Default::default(),
+            environment: Environment {
+                // A file with no light of its own would render black: show it under a
+                // uniform white sky instead.
+                sky: if asset.lights.is_empty()
+                    && asset.materials.iter().all(|m| m.emissive == Vec3::ZERO)
+                {
+                    Vec3::ONE
+                } else {
+                    Vec3::ZERO
+                },
+            },
             entities: vec![entity],
         };
         Ok(Scene {
@@ -202,6 +227,37 @@ impl Scene {
                 }
             }
         }
+        // Animation clips must be ones the asset has.
+        for (index, entity) in level.entities.iter().enumerate() {
+            let (Some(animation), Some(asset)) = (&entity.animation, entity_assets[index]) else {
+                continue;
+            };
+            if assets[asset].animation_by_name(&animation.clip).is_none() {
+                let known: Vec<String> = (0..assets[asset].animations.len())
+                    .map(|i| format!("'{}'", assets[asset].animation_label(i)))
+                    .collect();
+                let pointer = Pointer::root()
+                    .key("entities")
+                    .index(index)
+                    .key("animation")
+                    .key("clip");
+                let has = if known.is_empty() {
+                    "it has no animations".to_owned()
+                } else {
+                    format!("it has: {}", known.join(", "))
+                };
+                diagnostics.push(Diagnostic::at_pointer(
+                    path,
+                    &text(),
+                    &pointer,
+                    format!(
+                        "asset '{}' has no animation clip '{}' ({has})",
+                        entity.instance.as_ref().map_or("", |i| i.asset.as_str()),
+                        animation.clip
+                    ),
+                ));
+            }
+        }
         if !diagnostics.is_empty() {
             return Err(LoadError { diagnostics });
         }
@@ -221,14 +277,21 @@ impl Scene {
                 continue;
             };
             let asset = &self.assets[asset_index];
-            asset.visit_nodes(entity.transform.matrix(), |node, world| {
+            let entity_world = entity.transform.matrix();
+            asset.visit_nodes(entity_world, |node, world| {
                 if let Some(mesh) = asset.nodes[node].mesh {
+                    let skinned = asset.nodes[node].skin.is_some();
+                    let morphs = asset.meshes[mesh]
+                        .primitives
+                        .iter()
+                        .any(|p| !p.morph_targets.is_empty());
                     placements.push(MeshPlacement {
                         entity: entity_index,
                         asset,
                         node,
                         mesh,
-                        world_from_mesh: world,
+                        world_from_mesh: if skinned { entity_world } else { world },
+                        deforms: skinned || morphs || entity.deformer.is_some(),
                     });
                 }
             });

@@ -1,0 +1,475 @@
+//! Frame step "animation" (deformation) and "blas_refit": meshes that change shape.
+//!
+//! Per displayed frame, between `extract_instances` and `update_acceleration`:
+//! 1. change detection, per deforming mesh entity: skinned meshes re-pose when a
+//!    `Transform` of any joint, or of a node between the joints and the entity's root,
+//!    changed since the last frame; morphing meshes when their `MorphWeights` changed;
+//!    deformed meshes when their `Deformer` clock moved. Everything else is skipped;
+//! 2. deformation, in parallel over meshes and over each mesh's vertices, written straight
+//!    into the mesh's BLAS geometry: morph targets (glTF: weighted position and normal
+//!    deltas), then the procedural deformer, then linear blend skinning;
+//! 3. refit of each deformed BLAS, in parallel: `Blas::refit_geometry`, which rebuilds
+//!    instead when refitting has let the tree decay (the Acceleration issue's policy);
+//! 4. the instances' emissive triangles follow, and the TLAS is marked stale.
+//!
+//! Skinning is linear blend skinning as glTF specifies it: v' = sum_i w_i J_i IBM_i v over
+//! every JOINTS_n/WEIGHTS_n set, where J_i is joint i's world matrix and IBM_i its inverse
+//! bind matrix. Gloam evaluates it in the space of the level entity's root (the instance's
+//! object space) so that moving a warden moves only its instance, not its vertices. Normals
+//! are transformed by the cofactor matrix of the blended 3x3 (the inverse transpose up to a
+//! positive scale) and renormalised, which stays right under non-uniform joint scale.
+
+use std::sync::Arc;
+
+use bevy_ecs::prelude::*;
+use glam::{Mat3A, Mat4, Vec3, Vec3A};
+use rayon::prelude::*;
+
+use super::animation::{Deformer, MorphWeights};
+use super::{GlobalTransform, RenderState, StageTimes, Transform, since};
+use crate::accel::{Blas, RefitOutcome};
+use crate::scene::level::DeformerDef;
+use crate::scene::model::Asset;
+
+/// A mesh's rest geometry and deformation data, in the vertex order of
+/// `extract::mesh_geometry` (primitives concatenated): shared by every instance of the mesh.
+#[derive(Clone, Debug, Default)]
+pub struct DeformSource {
+    pub positions: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
+    /// Triangles (for recomputing normals after a procedural deformer).
+    pub triangles: Vec<[u32; 3]>,
+    /// Per vertex, up to `influences_per_vertex` (joint, weight) pairs, flattened; empty
+    /// for unskinned meshes. Zero weights are dropped; unused slots hold weight 0.
+    pub joints: Vec<u16>,
+    pub weights: Vec<f32>,
+    pub influences_per_vertex: usize,
+    /// Per morph target, per vertex position and normal deltas (normals may be empty).
+    pub morph_positions: Vec<Vec<Vec3>>,
+    pub morph_normals: Vec<Vec<Vec3>>,
+    /// Half the diagonal of the rest bounds (the wobble deformer's size).
+    pub radius: f32,
+}
+
+impl DeformSource {
+    /// Gathers mesh `mesh` of `asset`. Import has checked that every joint index is inside
+    /// the node's skin and that all primitives have the same number of morph targets.
+    pub fn from_mesh(asset: &Asset, mesh: usize) -> DeformSource {
+        let primitives = &asset.meshes[mesh].primitives;
+        let targets = primitives.first().map_or(0, |p| p.morph_targets.len());
+        let sets = primitives
+            .iter()
+            .map(|p| p.skin_influences.len())
+            .max()
+            .unwrap_or(0);
+        let mut source = DeformSource {
+            influences_per_vertex: 4 * sets,
+            morph_positions: vec![Vec::new(); targets],
+            morph_normals: vec![Vec::new(); targets],
+            ..DeformSource::default()
+        };
+        for primitive in primitives {
+            let base = source.positions.len() as u32;
+            let count = primitive.positions.len();
+            source.positions.extend_from_slice(&primitive.positions);
+            source.normals.extend_from_slice(&primitive.normals);
+            source
+                .triangles
+                .extend(primitive.indices.iter().map(|t| t.map(|i| i + base)));
+            for vertex in 0..count {
+                for slot in 0..sets {
+                    let set = primitive.skin_influences.get(slot);
+                    for k in 0..4 {
+                        let (joint, weight) = set.map_or((0, 0.0), |set| {
+                            (set.joints[vertex][k], set.weights[vertex][k])
+                        });
+                        source.joints.push(joint);
+                        source.weights.push(weight);
+                    }
+                }
+            }
+            for (target, morph) in primitive.morph_targets.iter().enumerate() {
+                let deltas = |values: &Vec<Vec3>| {
+                    if values.is_empty() {
+                        vec![Vec3::ZERO; count]
+                    } else {
+                        values.clone()
+                    }
+                };
+                source.morph_positions[target].extend(deltas(&morph.positions));
+                source.morph_normals[target].extend(deltas(&morph.normals));
+            }
+        }
+        if sets > 0 {
+            source.normalise_weights();
+        }
+        let (min, max) = source
+            .positions
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
+        source.radius = ((max - min).length() * 0.5).max(1e-6);
+        source
+    }
+
+    /// glTF asks exporters to normalise weights but files drift (quantised weights sum to
+    /// 0.996...); dividing by the sum keeps vertices from shrinking toward the root. A vertex
+    /// with no weight at all follows joint 0.
+    fn normalise_weights(&mut self) {
+        let per_vertex = self.influences_per_vertex;
+        for weights in self.weights.chunks_exact_mut(per_vertex) {
+            let sum: f32 = weights.iter().sum();
+            if sum > 0.0 && sum.is_finite() {
+                weights.iter_mut().for_each(|w| *w /= sum);
+            } else {
+                weights.fill(0.0);
+                weights[0] = 1.0;
+            }
+        }
+        // Joints with zero weight point at joint 0 so they cost nothing and index safely.
+        for (joint, &weight) in self.joints.iter_mut().zip(&self.weights) {
+            if weight == 0.0 {
+                *joint = 0;
+            }
+        }
+    }
+
+    pub fn is_skinned(&self) -> bool {
+        self.influences_per_vertex > 0
+    }
+}
+
+/// The pose a mesh is deformed into this frame.
+#[derive(Clone, Copy, Debug)]
+pub struct Pose<'a> {
+    /// Object-space skinning matrix per joint (root-from-joint x inverse bind), or empty.
+    pub joint_matrices: &'a [Mat4],
+    /// Morph target weights (empty: rest shape).
+    pub morph_weights: &'a [f32],
+    /// A procedural deformer and its clock.
+    pub deformer: Option<(&'a DeformerDef, f64)>,
+}
+
+/// Vertices per parallel task: big enough that rayon's per-task cost (~1 us) stays small
+/// next to 2,048 vertices x ~60 ns of skinning.
+const VERTICES_PER_TASK: usize = 2048;
+
+/// Writes `source` deformed by `pose` into `positions` and `normals` (each as long as the
+/// source's vertices; import gives every primitive normals).
+pub fn deform(source: &DeformSource, pose: &Pose, positions: &mut [Vec3], normals: &mut [Vec3]) {
+    assert!(
+        positions.len() == source.positions.len() && normals.len() == source.normals.len(),
+        "deform: output buffers must match the source's {} vertices",
+        source.positions.len()
+    );
+    let morphs: Vec<(usize, f32)> = pose
+        .morph_weights
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|&(target, w)| w != 0.0 && target < source.morph_positions.len())
+        .collect();
+    let skin = source.is_skinned() && !pose.joint_matrices.is_empty();
+    let per_vertex = source.influences_per_vertex;
+
+    // 1. Rest shape plus morph targets, then the deformer's offset along the normal.
+    positions
+        .par_chunks_mut(VERTICES_PER_TASK)
+        .zip(normals.par_chunks_mut(VERTICES_PER_TASK))
+        .enumerate()
+        .for_each(|(chunk, (positions, normals))| {
+            let first = chunk * VERTICES_PER_TASK;
+            for (offset, (position, normal)) in positions.iter_mut().zip(normals).enumerate() {
+                let v = first + offset;
+                let mut p = source.positions[v];
+                let mut n = source.normals[v];
+                for &(target, w) in &morphs {
+                    p += w * source.morph_positions[target][v];
+                    n += w * source.morph_normals[target][v];
+                }
+                if let Some((deformer, time)) = pose.deformer {
+                    p += n.normalize_or_zero() * deformer_offset(deformer, time, p, source.radius);
+                }
+                *position = p;
+                *normal = n;
+            }
+        });
+    if pose.deformer.is_some() {
+        recompute_normals(positions, &source.triangles, normals);
+    }
+
+    // 2. Linear blend skinning in place (or just renormalise morphed normals).
+    positions
+        .par_chunks_mut(VERTICES_PER_TASK)
+        .zip(normals.par_chunks_mut(VERTICES_PER_TASK))
+        .enumerate()
+        .for_each(|(chunk, (positions, normals))| {
+            let first = chunk * VERTICES_PER_TASK;
+            for (offset, (position, normal)) in positions.iter_mut().zip(normals).enumerate() {
+                if !skin {
+                    *normal = normal.normalize_or(Vec3::Y);
+                    continue;
+                }
+                let v = first + offset;
+                let range = v * per_vertex..(v + 1) * per_vertex;
+                let mut blended = Mat4::ZERO;
+                for (&joint, &weight) in source.joints[range.clone()]
+                    .iter()
+                    .zip(&source.weights[range])
+                {
+                    if weight != 0.0 {
+                        blended += pose.joint_matrices[joint as usize] * weight;
+                    }
+                }
+                *position = blended.transform_point3(*position);
+                *normal = Vec3::from(
+                    normal_matrix(&blended)
+                        .mul_vec3a(Vec3A::from(*normal))
+                        .normalize_or(Vec3A::Y),
+                );
+            }
+        });
+}
+
+/// The cofactor matrix of `m`'s 3x3 part, sign-corrected: the inverse transpose times
+/// |det|, so it turns normals the right way under any invertible (even mirroring) matrix
+/// without a division.
+#[inline]
+fn normal_matrix(m: &Mat4) -> Mat3A {
+    let (c0, c1, c2) = (
+        Vec3A::from(m.x_axis.truncate()),
+        Vec3A::from(m.y_axis.truncate()),
+        Vec3A::from(m.z_axis.truncate()),
+    );
+    let cofactor = Mat3A::from_cols(c1.cross(c2), c2.cross(c0), c0.cross(c1));
+    if c0.dot(c1.cross(c2)) < 0.0 {
+        -cofactor
+    } else {
+        cofactor
+    }
+}
+
+/// A procedural deformer's displacement (metres along the rest normal) at rest point `p`.
+pub fn deformer_offset(deformer: &DeformerDef, time: f64, p: Vec3, radius: f32) -> f32 {
+    use std::f64::consts::TAU;
+    match *deformer {
+        DeformerDef::Wave {
+            amplitude,
+            wavelength,
+            period,
+            direction,
+        } => {
+            let along = direction.normalize_or(Vec3::X).dot(p) as f64;
+            let phase = TAU * (along / wavelength as f64 - time / period as f64);
+            amplitude * phase.sin() as f32
+        }
+        DeformerDef::Wobble { amplitude, period } => {
+            let ripple = 3.0 * (p.x + p.y + p.z) as f64 / radius as f64;
+            let phase = TAU * time / period as f64 + ripple;
+            amplitude * phase.sin() as f32
+        }
+    }
+}
+
+/// Area-weighted vertex normals of the triangles (each vertex's normal is the normalised
+/// sum of its triangles' cross products), for shapes a deformer moved.
+pub fn recompute_normals(positions: &[Vec3], triangles: &[[u32; 3]], normals: &mut [Vec3]) {
+    normals.fill(Vec3::ZERO);
+    for triangle in triangles {
+        let [a, b, c] = triangle.map(|i| positions[i as usize]);
+        let cross = (b - a).cross(c - a);
+        for &i in triangle {
+            normals[i as usize] += cross;
+        }
+    }
+    for n in normals.iter_mut() {
+        *n = n.normalize_or(Vec3::Y);
+    }
+}
+
+/// A skinned mesh's joints as ECS entities.
+#[derive(Clone, Debug)]
+pub struct SkinBinding {
+    /// The level entity whose space the skinned vertices are computed in.
+    pub root: Entity,
+    /// The entity of each joint, in skin order.
+    pub joints: Vec<Entity>,
+    pub inverse_bind_matrices: Vec<Mat4>,
+    /// Joints and every node between them and `root`: a change to any of their
+    /// `Transform`s changes the pose.
+    pub watched: Vec<Entity>,
+}
+
+/// A mesh entity whose shape changes: its BLAS and what deforms it.
+#[derive(Component, Clone, Debug)]
+pub struct DeformedMesh {
+    /// Index of its own (deforming) BLAS in the accel scene.
+    pub blas: u32,
+    /// Its accel instance.
+    pub instance: u32,
+    pub source: Arc<DeformSource>,
+    pub skin: Option<SkinBinding>,
+    /// False until the first deformation (the import's rest shape is not yet posed).
+    pub posed: bool,
+    /// This frame's skinning matrices (reused allocation).
+    joint_matrices: Vec<Mat4>,
+}
+
+impl DeformedMesh {
+    pub fn new(
+        blas: u32,
+        instance: u32,
+        source: Arc<DeformSource>,
+        skin: Option<SkinBinding>,
+    ) -> Self {
+        DeformedMesh {
+            blas,
+            instance,
+            source,
+            skin,
+            posed: false,
+            joint_matrices: Vec::new(),
+        }
+    }
+}
+
+/// What deformation did in the last frame.
+#[derive(Resource, Default, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeformStats {
+    /// Deforming meshes whose shape changed this frame.
+    pub deformed: u32,
+    /// ... of which refit in place,
+    pub refits: u32,
+    /// ... and rebuilt because refitting had let their tree decay.
+    pub rebuilds: u32,
+    /// Deforming meshes left alone: nothing that shapes them changed.
+    pub skipped: u32,
+    /// Vertices written.
+    pub vertices: u64,
+}
+
+/// Frame step: deform what changed, refit its BLAS (or rebuild it), flag the TLAS stale.
+pub fn deform_meshes(
+    mut meshes: Query<(
+        &mut DeformedMesh,
+        Option<Ref<MorphWeights>>,
+        Option<Ref<Deformer>>,
+    )>,
+    transforms: Query<(Ref<Transform>, &GlobalTransform)>,
+    mut state: ResMut<RenderState>,
+    mut stats: ResMut<DeformStats>,
+    mut times: ResMut<StageTimes>,
+) {
+    let start = std::time::Instant::now();
+    *stats = DeformStats::default();
+
+    // 1. Change detection and this frame's inputs.
+    struct Job<'a> {
+        mesh: &'a DeformedMesh,
+        weights: Option<&'a [f32]>,
+        deformer: Option<(&'a DeformerDef, f64)>,
+    }
+    let mut jobs: Vec<Job> = Vec::new();
+    for (mesh, weights, deformer) in meshes.iter_mut() {
+        let skin_changed = mesh.skin.as_ref().is_some_and(|skin| {
+            skin.watched
+                .iter()
+                .any(|&e| transforms.get(e).is_ok_and(|(t, _)| t.is_changed()))
+        });
+        let changed = !mesh.posed
+            || skin_changed
+            || weights.as_ref().is_some_and(|w| w.is_changed())
+            || deformer.as_ref().is_some_and(|d| d.is_changed());
+        if !changed {
+            stats.skipped += 1;
+            continue;
+        }
+        let mesh = mesh.into_inner();
+        mesh.posed = true;
+        if let Some(skin) = &mesh.skin {
+            // Object space of the instance = the root entity's space.
+            let object_from_world = transforms
+                .get(skin.root)
+                .map_or(Mat4::IDENTITY, |(_, g)| Mat4::from(g.0.inverse()));
+            mesh.joint_matrices.clear();
+            for (&joint, inverse_bind) in skin.joints.iter().zip(&skin.inverse_bind_matrices) {
+                let world_from_joint = transforms
+                    .get(joint)
+                    .map_or(Mat4::IDENTITY, |(_, g)| Mat4::from(g.0));
+                mesh.joint_matrices
+                    .push(object_from_world * world_from_joint * *inverse_bind);
+            }
+        }
+        jobs.push(Job {
+            mesh,
+            weights: weights.map(|w| w.into_inner().0.as_slice()),
+            deformer: deformer.map(|d| {
+                let d = d.into_inner();
+                (&d.kind, d.time)
+            }),
+        });
+    }
+    if jobs.is_empty() {
+        times.animation = since(start);
+        times.blas_refit = 0.0;
+        return;
+    }
+
+    // Pair each job with its own BLAS (each deforming mesh has a distinct one).
+    let state = &mut *state;
+    let mut blases: Vec<Option<&mut Blas>> =
+        state.scene.accel.blases.iter_mut().map(Some).collect();
+    let mut work: Vec<(&Job, &mut Blas)> = Vec::with_capacity(jobs.len());
+    for job in &jobs {
+        if let Some(blas) = blases
+            .get_mut(job.mesh.blas as usize)
+            .and_then(Option::take)
+        {
+            work.push((job, blas));
+        }
+    }
+
+    // 2. Deform, straight into the BLAS geometry (parallel over meshes and vertices).
+    work.par_iter_mut().for_each(|(job, blas)| {
+        let pose = Pose {
+            joint_matrices: &job.mesh.joint_matrices,
+            morph_weights: job.weights.unwrap_or(&[]),
+            deformer: job.deformer,
+        };
+        let geometry = &mut blas.geometry;
+        deform(
+            &job.mesh.source,
+            &pose,
+            &mut geometry.positions,
+            &mut geometry.normals,
+        );
+    });
+    stats.deformed = work.len() as u32;
+    stats.vertices = work
+        .iter()
+        .map(|(job, _)| job.mesh.source.positions.len() as u64)
+        .sum();
+    times.animation = since(start);
+
+    // 3. Refit (or rebuild) each deformed BLAS.
+    let refit_start = std::time::Instant::now();
+    let outcomes: Vec<RefitOutcome> = work
+        .par_iter_mut()
+        .map(|(_, blas)| blas.refit_geometry())
+        .collect();
+    stats.rebuilds = outcomes
+        .iter()
+        .filter(|&&o| o == RefitOutcome::Rebuilt)
+        .count() as u32;
+    stats.refits = stats.deformed - stats.rebuilds;
+    times.blas_refit = since(refit_start);
+
+    // 4. Their emitters move with them; the TLAS must see their new bounds.
+    for (job, _) in &work {
+        if let Some(flag) = state.moved.get_mut(job.mesh.instance as usize) {
+            *flag = true;
+        }
+    }
+    state.tlas_stale = true;
+}
