@@ -479,3 +479,174 @@ fn duplicate_names_and_bad_lights_are_all_listed() {
         &["0 <= inner < outer <= 90"],
     );
 }
+
+#[test]
+fn unknown_animation_clip_is_reported_with_the_clips_there_are() {
+    let (path, text) = broken_level(
+        "clip",
+        "material_overrides: {\"white\": (roughness: 0.5)}),",
+        "material_overrides: {\"white\": (roughness: 0.5)}),\n            animation: (clip: \"walk\"),",
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "clip:")),
+        &["has no animation clip 'walk'", "it has no animations"],
+    );
+}
+
+#[test]
+fn bad_deformer_and_animation_values_are_all_listed() {
+    let (path, text) = broken_level(
+        "deformer",
+        "material_overrides: {\"white\": (roughness: 0.5)}),",
+        "material_overrides: {\"white\": (roughness: 0.5)}),\n            deformer: Wave(amplitude: 0.1,\n wavelength: -1.0,\n period: 0.0),",
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "wavelength")),
+        &["wavelength must be positive"],
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "period")),
+        &["period must be positive"],
+    );
+    let (path, text) = broken_level(
+        "speed",
+        "(name: \"start\", player_spawn: (eye_height: 1.6)),",
+        "(name: \"start\", player_spawn: (eye_height: 1.6),\n animation: (clip: \"x\", start: -1.0)),",
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "animation")),
+        &["needs an `instance`"],
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line_of(&text, "start:")),
+        &["start must be finite and >= 0"],
+    );
+}
+
+/// The triangle given a one-joint skin and an animation channel; `edit` breaks it.
+fn skinned_triangle(edit: impl FnOnce(&mut serde_json::Value)) -> String {
+    let mut bytes = Vec::new();
+    for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        bytes.extend(v.to_le_bytes());
+    }
+    for i in [0u16, 1, 2, 0] {
+        bytes.extend(i.to_le_bytes());
+    }
+    // JOINTS_0 (u16 x 4 per vertex), WEIGHTS_0 (f32 x 4), times, rotations.
+    for _ in 0..3 {
+        for j in [0u16, 0, 0, 0] {
+            bytes.extend(j.to_le_bytes());
+        }
+    }
+    for _ in 0..3 {
+        for w in [1.0f32, 0.0, 0.0, 0.0] {
+            bytes.extend(w.to_le_bytes());
+        }
+    }
+    for t in [0.0f32, 1.0] {
+        bytes.extend(t.to_le_bytes());
+    }
+    for q in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0] {
+        bytes.extend(q.to_le_bytes());
+    }
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bytes)
+    );
+    let mut json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"name": "body", "mesh": 0, "skin": 0}, {"name": "bone"}],
+        "skins": [{"joints": [1]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "JOINTS_0": 2, "WEIGHTS_0": 3}, "indices": 1}]}],
+        "animations": [{"name": "spin", "channels": [{"sampler": 0, "target": {"node": 1, "path": "rotation"}}],
+                        "samplers": [{"input": 4, "output": 5}]}],
+        "buffers": [{"byteLength": bytes.len(), "uri": uri}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 6},
+            {"buffer": 0, "byteOffset": 44, "byteLength": 24},
+            {"buffer": 0, "byteOffset": 68, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 116, "byteLength": 8},
+            {"buffer": 0, "byteOffset": 124, "byteLength": 32}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"},
+            {"bufferView": 2, "componentType": 5123, "count": 3, "type": "VEC4"},
+            {"bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC4"},
+            {"bufferView": 4, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0], "max": [1]},
+            {"bufferView": 5, "componentType": 5126, "count": 2, "type": "VEC4"}
+        ]
+    });
+    edit(&mut json);
+    serde_json::to_string_pretty(&json).unwrap()
+}
+
+#[test]
+fn broken_skins_and_channels_are_reported_at_their_place() {
+    let dir = common::scratch_dir("skins");
+    let good = common::write(&dir, "good.gltf", skinned_triangle(|_| {}));
+    let scene = Scene::load(&good).unwrap();
+    assert_eq!(
+        scene.level.entities[0].animation.as_ref().unwrap().clip,
+        "spin"
+    );
+    // The engine poses it without complaint.
+    let engine = gloam::game::Engine::new(&scene, gloam::render::RenderSettings::real_time(4, 4));
+    assert_eq!(engine.deform_stats().deformed, 1);
+
+    // A skin with no joints, which the vertices' joint 0 then falls outside of.
+    let path = common::write(
+        &dir,
+        "no-joints.gltf",
+        skinned_triangle(|json| json["skins"][0]["joints"] = serde_json::json!([])),
+    );
+    assert_reported(&path, "no-joints.gltf", None, &["JOINTS_0", "joint index 0 is past the 0 joints"]);
+    // A rotation channel whose sampler gives 3 values per key.
+    let path = common::write(
+        &dir,
+        "channel.gltf",
+        skinned_triangle(|json| {
+            json["animations"][0]["channels"][0]["target"]["path"] = "translation".into()
+        }),
+    );
+    assert_reported(
+        &path,
+        "channel.gltf",
+        None,
+        &[
+            "/animations/0/channels/0",
+            "gives 4 values per key",
+            "needs 3",
+        ],
+    );
+    // A skinned mesh without JOINTS_0.
+    let path = common::write(
+        &dir,
+        "unjointed.gltf",
+        skinned_triangle(|json| {
+            json["meshes"][0]["primitives"][0]["attributes"]
+                .as_object_mut()
+                .unwrap()
+                .retain(|k, _| k == "POSITION")
+        }),
+    );
+    assert_reported(
+        &path,
+        "unjointed.gltf",
+        None,
+        &["skins this mesh", "JOINTS_0"],
+    );
+}

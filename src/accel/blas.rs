@@ -210,32 +210,59 @@ impl Blas {
         if self.bvh.nodes.is_empty() {
             return RefitOutcome::Refit;
         }
-        // 1. Leaf-ordered triangles from the new positions (parallel).
+        // Rayon tasks of at least this many elements: a warden-sized mesh (5k triangles)
+        // refits in one task (meshes themselves refit in parallel), a 100k-triangle one
+        // spreads over the cores.
+        const MIN_TASK: usize = 4096;
+        // 1. Leaf-ordered triangles from the new positions.
         let geometry = &self.geometry;
         self.ordered
             .par_iter_mut()
             .zip(self.ordered_ids.par_iter())
+            .with_min_len(MIN_TASK)
             .for_each(|(triangle, &id)| {
                 let [a, b, c] = geometry.triangle_vertices(id as usize);
                 *triangle = RtTriangle::new(a, b, c);
             });
-        // 2. Leaf boxes (parallel), then 3. inner boxes in one reverse sweep.
+        // 2. Leaf boxes, summing their SAH terms (area x triangles) on the way.
         let ordered = &self.ordered;
-        self.bvh
+        let leaf_cost: f32 = self
+            .bvh
             .nodes
             .par_iter_mut()
+            .with_min_len(MIN_TASK)
             .filter(|node| node.is_leaf())
-            .for_each(|leaf| {
+            .map(|leaf| {
                 let first = leaf.first_index as usize;
                 let mut aabb = Aabb::empty();
                 for triangle in &ordered[first..first + leaf.prim_count as usize] {
                     aabb = aabb.union(&triangle.aabb());
                 }
                 leaf.set_aabb(aabb);
-            });
-        self.bvh.refit_all();
-        // 4. Rebuild when quality has decayed.
-        if self.quality_decay() > REBUILD_RATIO {
+                aabb.half_area() * leaf.prim_count as f32
+            })
+            .sum();
+        // 3. Inner boxes in one reverse sweep (the build ordered every child after its
+        //    parent), summing their SAH terms: the quality check costs no extra pass.
+        if !self.bvh.children_are_ordered_after_parents {
+            // A static BLAS refit for the first time: put it in that order once.
+            self.bvh.reorder_in_stack_traversal_order();
+        }
+        let nodes = &mut self.bvh.nodes;
+        let mut inner_cost = 0.0f32;
+        for index in (0..nodes.len()).rev() {
+            let node = &nodes[index];
+            if !node.is_leaf() {
+                let first = node.first_index as usize;
+                let aabb = nodes[first].aabb().union(nodes[first + 1].aabb());
+                inner_cost += aabb.half_area();
+                nodes[index].set_aabb(aabb);
+            }
+        }
+        // 4. Rebuild when quality has decayed (same cost as `sah_cost`).
+        let root_area = nodes[0].aabb().half_area().max(f32::MIN_POSITIVE);
+        let cost = (leaf_cost + inner_cost) / root_area;
+        if self.built_cost > 0.0 && cost / self.built_cost > REBUILD_RATIO {
             *self = Blas::build(std::mem::take(&mut self.geometry), self.kind);
             return RefitOutcome::Rebuilt;
         }

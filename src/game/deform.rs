@@ -172,6 +172,14 @@ pub fn deform(source: &DeformSource, pose: &Pose, positions: &mut [Vec3], normal
         .collect();
     let skin = source.is_skinned() && !pose.joint_matrices.is_empty();
     let per_vertex = source.influences_per_vertex;
+    // Joints as affine column sets: blending 12 floats per influence instead of a Mat4's 16.
+    let joints: Vec<[Vec3A; 4]> = pose
+        .joint_matrices
+        .iter()
+        .map(|m| {
+            [m.x_axis, m.y_axis, m.z_axis, m.w_axis].map(|column| Vec3A::from(column.truncate()))
+        })
+        .collect();
 
     // 1. Rest shape plus morph targets, then the deformer's offset along the normal.
     positions
@@ -213,18 +221,23 @@ pub fn deform(source: &DeformSource, pose: &Pose, positions: &mut [Vec3], normal
                 }
                 let v = first + offset;
                 let range = v * per_vertex..(v + 1) * per_vertex;
-                let mut blended = Mat4::ZERO;
+                let mut blended = [Vec3A::ZERO; 4];
                 for (&joint, &weight) in source.joints[range.clone()]
                     .iter()
                     .zip(&source.weights[range])
                 {
                     if weight != 0.0 {
-                        blended += pose.joint_matrices[joint as usize] * weight;
+                        let columns = &joints[joint as usize];
+                        for (sum, column) in blended.iter_mut().zip(columns) {
+                            *sum += *column * weight;
+                        }
                     }
                 }
-                *position = blended.transform_point3(*position);
+                let [x, y, z, translation] = blended;
+                let p = Vec3A::from(*position);
+                *position = Vec3::from(x * p.x + y * p.y + z * p.z + translation);
                 *normal = Vec3::from(
-                    normal_matrix(&blended)
+                    normal_matrix(x, y, z)
                         .mul_vec3a(Vec3A::from(*normal))
                         .normalize_or(Vec3A::Y),
                 );
@@ -232,16 +245,11 @@ pub fn deform(source: &DeformSource, pose: &Pose, positions: &mut [Vec3], normal
         });
 }
 
-/// The cofactor matrix of `m`'s 3x3 part, sign-corrected: the inverse transpose times
-/// |det|, so it turns normals the right way under any invertible (even mirroring) matrix
-/// without a division.
+/// The cofactor matrix of the 3x3 with columns `c0`, `c1`, `c2`, sign-corrected: the
+/// inverse transpose times |det|, so it turns normals the right way under any invertible
+/// (even mirroring) matrix without a division.
 #[inline]
-fn normal_matrix(m: &Mat4) -> Mat3A {
-    let (c0, c1, c2) = (
-        Vec3A::from(m.x_axis.truncate()),
-        Vec3A::from(m.y_axis.truncate()),
-        Vec3A::from(m.z_axis.truncate()),
-    );
+fn normal_matrix(c0: Vec3A, c1: Vec3A, c2: Vec3A) -> Mat3A {
     let cofactor = Mat3A::from_cols(c1.cross(c2), c2.cross(c0), c0.cross(c1));
     if c0.dot(c1.cross(c2)) < 0.0 {
         -cofactor
