@@ -251,6 +251,7 @@ fn cornell_box() -> anyhow::Result<GltfDocument> {
             znear: 0.01,
         }],
         nodes,
+        ..GltfDocument::default()
     })
 }
 
