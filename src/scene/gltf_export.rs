@@ -2,10 +2,15 @@
 //! used by the asset generators in `kit` and by tests that need glTF files.
 //!
 //! The data model is deliberately small: one triangle-list primitive per mesh (POSITION,
-//! NORMAL, optional TEXCOORD_0, u32 indices), metallic-roughness materials with emission,
-//! transmission and ior, PNG images (one texture per image, one linear/repeat sampler),
-//! perspective cameras and a TRS node tree. Output is byte-for-byte deterministic and
-//! every file is written atomically (temporary file in the same folder, then rename).
+//! NORMAL, optional TEXCOORD_0, optional JOINTS_0 + WEIGHTS_0 for skinning, optional morph
+//! targets with POSITION and NORMAL deltas, u32 indices; default morph weights as
+//! `mesh.weights` and target names as `mesh.extras.targetNames`), metallic-roughness
+//! materials with emission, transmission and ior, PNG images (one texture per image, one
+//! linear/repeat sampler), perspective cameras, a TRS node tree, skins (joints, inverse bind
+//! matrices, skeleton root) and animations (one sampler per channel: translation, rotation,
+//! scale or morph weights with LINEAR, STEP or CUBICSPLINE interpolation). Everything is
+//! validated before anything is written; output is byte-for-byte deterministic and every
+//! file is written atomically (temporary file in the same folder, then rename).
 //! `MeshData` also carries the shape builders the generators use (quad, box, cylinder,
 //! flat-shaded convex solid).
 
@@ -13,10 +18,11 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 use anyhow::{Context as _, bail, ensure};
-use glam::{Quat, Vec2, Vec3, Vec4};
+use glam::{Mat4, Quat, Vec2, Vec3, Vec4};
 use serde_json::{Map, Value, json};
 
 pub use super::files::write_atomically;
+use super::model::{AnimatedProperty, Interpolation};
 
 /// One mesh with a single triangle-list primitive. Attribute vectors have equal length
 /// (`uvs` may instead be empty); triangles are counter-clockwise seen from the front.
@@ -31,6 +37,27 @@ pub struct MeshData {
     pub indices: Vec<[u32; 3]>,
     /// Index into `GltfDocument::materials`.
     pub material: usize,
+    /// JOINTS_0: four indices into the joint list of the skin of every node showing this
+    /// mesh, one set per vertex; empty when the mesh is not skinned.
+    pub joints: Vec<[u16; 4]>,
+    /// WEIGHTS_0: the weights of `joints`, one set per vertex (each >= 0, summing to 1);
+    /// empty when the mesh is not skinned.
+    pub weights: Vec<[f32; 4]>,
+    /// Morph targets, all with one delta per vertex.
+    pub morph_targets: Vec<MorphTargetData>,
+    /// Default morph weights (glTF `mesh.weights`), one per morph target.
+    pub morph_weights: Vec<f32>,
+}
+
+/// One morph target: displacements added to the mesh's attributes, scaled by its weight.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MorphTargetData {
+    /// Written to `mesh.extras.targetNames`.
+    pub name: String,
+    /// Position deltas, one per vertex.
+    pub positions: Vec<Vec3>,
+    /// Normal deltas, one per vertex, or empty.
+    pub normals: Vec<Vec3>,
 }
 
 /// A metallic-roughness material.
@@ -79,8 +106,48 @@ pub struct NodeData {
     pub mesh: Option<usize>,
     /// Index into `GltfDocument::cameras`.
     pub camera: Option<usize>,
+    /// Index into `GltfDocument::skins`; the node's mesh must then carry joints and weights.
+    /// (glTF ignores the transform of a node showing a skinned mesh: make it a root with
+    /// the identity transform.)
+    pub skin: Option<usize>,
     /// Indices into `GltfDocument::nodes`.
     pub children: Vec<usize>,
+}
+
+/// A skin: the joint nodes that deform skinned meshes, with their inverse bind matrices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkinData {
+    pub name: String,
+    /// Node index of each joint, no node twice; `MeshData::joints` index into this list.
+    pub joints: Vec<usize>,
+    /// One per joint: the inverse of the joint's world matrix in the bind pose. The fourth
+    /// row must be exactly (0, 0, 0, 1) (invert an `Affine3A` to get that).
+    pub inverse_bind_matrices: Vec<Mat4>,
+    /// The common root of the joints, or an ancestor of it.
+    pub skeleton: Option<usize>,
+}
+
+/// A named clip: channels played together, each with its own sampler.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AnimationData {
+    pub name: String,
+    pub channels: Vec<ChannelData>,
+}
+
+/// One animated property of one node and its keyframes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChannelData {
+    /// Index into `GltfDocument::nodes`.
+    pub node: usize,
+    pub property: AnimatedProperty,
+    pub interpolation: Interpolation,
+    /// Keyframe times in seconds: finite, >= 0 and strictly increasing.
+    pub times: Vec<f32>,
+    /// Output values flattened exactly as `model::AnimationSampler::values` holds them:
+    /// per keyframe 3 floats (translation, scale), 4 (rotation, x y z w; unit quaternions
+    /// for LINEAR and STEP) or one per morph target (weights); CUBICSPLINE stores
+    /// (in-tangent, value, out-tangent) per keyframe.
+    pub values: Vec<f32>,
 }
 
 /// Everything one glTF file holds; indices refer into the sibling vectors.
@@ -93,6 +160,8 @@ pub struct GltfDocument {
     pub nodes: Vec<NodeData>,
     /// Root nodes of the file's single scene.
     pub roots: Vec<usize>,
+    pub skins: Vec<SkinData>,
+    pub animations: Vec<AnimationData>,
 }
 
 impl MaterialData {
@@ -122,6 +191,7 @@ impl NodeData {
             scale: Vec3::ONE,
             mesh: None,
             camera: None,
+            skin: None,
             children: Vec::new(),
         }
     }
@@ -165,6 +235,10 @@ impl MeshData {
             uvs: Vec::new(),
             indices: Vec::new(),
             material,
+            joints: Vec::new(),
+            weights: Vec::new(),
+            morph_targets: Vec::new(),
+            morph_weights: Vec::new(),
         }
     }
 
@@ -421,6 +495,8 @@ fn validate(document: &GltfDocument) -> anyhow::Result<()> {
             "mesh '{name}' uses material {} which does not exist",
             mesh.material
         );
+        validate_skinning(mesh)?;
+        validate_morph_targets(mesh)?;
     }
     for material in &document.materials {
         let name = &material.name;
@@ -485,11 +561,297 @@ fn validate(document: &GltfDocument) -> anyhow::Result<()> {
             node.children.iter().all(|&c| c < document.nodes.len()),
             "node '{name}' has a child that does not exist"
         );
+        let mesh = node.mesh.map(|m| &document.meshes[m]);
+        match (node.skin, mesh) {
+            (Some(skin), Some(mesh)) => {
+                let skin = document.skins.get(skin).with_context(|| {
+                    format!("node '{name}' uses skin {skin} which does not exist")
+                })?;
+                ensure!(
+                    !mesh.joints.is_empty(),
+                    "node '{name}' has skin '{}' but its mesh '{}' has no joints and weights",
+                    skin.name,
+                    mesh.name
+                );
+                if let Some(joint) = mesh
+                    .joints
+                    .iter()
+                    .flatten()
+                    .find(|&&j| usize::from(j) >= skin.joints.len())
+                {
+                    bail!(
+                        "mesh '{}' (on node '{name}') names joint {joint} but skin '{}' has only {} joints",
+                        mesh.name,
+                        skin.name,
+                        skin.joints.len()
+                    );
+                }
+            }
+            (Some(_), None) => bail!("node '{name}' has a skin but no mesh"),
+            (None, Some(mesh)) => ensure!(
+                mesh.joints.is_empty(),
+                "node '{name}' shows the skinned mesh '{}' without a skin",
+                mesh.name
+            ),
+            (None, None) => {}
+        }
     }
     ensure!(
         document.roots.iter().all(|&r| r < document.nodes.len()),
         "a scene root names a node that does not exist"
     );
+    validate_skins(document)?;
+    for animation in &document.animations {
+        validate_animation(document, animation)?;
+    }
+    Ok(())
+}
+
+/// JOINTS_0 / WEIGHTS_0: one set per vertex (or none), weights normalised, no joint twice.
+fn validate_skinning(mesh: &MeshData) -> anyhow::Result<()> {
+    let name = &mesh.name;
+    let vertex_count = mesh.positions.len();
+    ensure!(
+        mesh.joints.len() == mesh.weights.len()
+            && (mesh.joints.is_empty() || mesh.joints.len() == vertex_count),
+        "mesh '{name}' has {} joint sets and {} weight sets for {vertex_count} vertices (both must be empty or one per vertex)",
+        mesh.joints.len(),
+        mesh.weights.len()
+    );
+    for (vertex, (joints, weights)) in mesh.joints.iter().zip(&mesh.weights).enumerate() {
+        ensure!(
+            weights.iter().all(|w| w.is_finite() && *w >= 0.0),
+            "mesh '{name}': vertex {vertex} has a negative or non-finite skin weight {weights:?}"
+        );
+        let sum: f32 = weights.iter().sum();
+        ensure!(
+            (sum - 1.0).abs() <= 1e-3,
+            "mesh '{name}': the skin weights of vertex {vertex} sum to {sum}, not 1 (glTF requires normalised weights)"
+        );
+        for a in 0..4 {
+            for b in a + 1..4 {
+                ensure!(
+                    !(joints[a] == joints[b] && weights[a] > 0.0 && weights[b] > 0.0),
+                    "mesh '{name}': vertex {vertex} gives joint {} two non-zero weights",
+                    joints[a]
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Morph targets: one delta per vertex, finite, one default weight per target.
+fn validate_morph_targets(mesh: &MeshData) -> anyhow::Result<()> {
+    let name = &mesh.name;
+    let vertex_count = mesh.positions.len();
+    ensure!(
+        mesh.morph_weights.len() == mesh.morph_targets.len(),
+        "mesh '{name}' has {} default morph weights for {} morph targets",
+        mesh.morph_weights.len(),
+        mesh.morph_targets.len()
+    );
+    ensure!(
+        mesh.morph_weights.iter().all(|w| w.is_finite()),
+        "mesh '{name}' has a non-finite default morph weight"
+    );
+    for target in &mesh.morph_targets {
+        let target_name = &target.name;
+        ensure!(
+            target.positions.len() == vertex_count,
+            "morph target '{target_name}' of mesh '{name}' has {} position deltas for {vertex_count} vertices",
+            target.positions.len()
+        );
+        ensure!(
+            target.normals.is_empty() || target.normals.len() == vertex_count,
+            "morph target '{target_name}' of mesh '{name}' has {} normal deltas for {vertex_count} vertices",
+            target.normals.len()
+        );
+        ensure!(
+            target
+                .positions
+                .iter()
+                .chain(&target.normals)
+                .all(|v| v.is_finite()),
+            "morph target '{target_name}' of mesh '{name}' has a non-finite delta"
+        );
+    }
+    Ok(())
+}
+
+/// Skins: existing, distinct joints (in the scene when the skin is), one affine inverse
+/// bind matrix each, and a skeleton root that is an ancestor (or itself) of every joint.
+fn validate_skins(document: &GltfDocument) -> anyhow::Result<()> {
+    let node_count = document.nodes.len();
+    let mut parent = vec![None; node_count];
+    for (index, node) in document.nodes.iter().enumerate() {
+        for &child in &node.children {
+            parent[child] = Some(index);
+        }
+    }
+    // Nodes in the scene: reachable from the roots (visited once each, so cycles end).
+    let mut in_scene = vec![false; node_count];
+    let mut stack = document.roots.clone();
+    while let Some(node) = stack.pop() {
+        if !std::mem::replace(&mut in_scene[node], true) {
+            stack.extend(&document.nodes[node].children);
+        }
+    }
+    for (skin_index, skin) in document.skins.iter().enumerate() {
+        let name = &skin.name;
+        ensure!(!skin.joints.is_empty(), "skin '{name}' has no joints");
+        let mut seen = BTreeSet::new();
+        for &joint in &skin.joints {
+            ensure!(
+                joint < node_count,
+                "skin '{name}' names joint node {joint} which does not exist"
+            );
+            ensure!(
+                seen.insert(joint),
+                "skin '{name}' lists node '{}' twice",
+                document.nodes[joint].name
+            );
+        }
+        ensure!(
+            skin.inverse_bind_matrices.len() == skin.joints.len(),
+            "skin '{name}' has {} inverse bind matrices for {} joints",
+            skin.inverse_bind_matrices.len(),
+            skin.joints.len()
+        );
+        for (index, matrix) in skin.inverse_bind_matrices.iter().enumerate() {
+            ensure!(
+                matrix.is_finite() && matrix.row(3) == Vec4::W,
+                "skin '{name}': inverse bind matrix {index} is not finite or its fourth row is not exactly (0, 0, 0, 1)"
+            );
+        }
+        let used_in_scene = document
+            .nodes
+            .iter()
+            .zip(&in_scene)
+            .any(|(node, &shown)| shown && node.skin == Some(skin_index));
+        if used_in_scene && let Some(&joint) = skin.joints.iter().find(|&&j| !in_scene[j]) {
+            bail!(
+                "skin '{name}' is used in the scene but its joint '{}' is not in the scene (make the joints' root a scene root)",
+                document.nodes[joint].name
+            );
+        }
+        if let Some(skeleton) = skin.skeleton {
+            ensure!(
+                skeleton < node_count,
+                "skin '{name}' names skeleton node {skeleton} which does not exist"
+            );
+            for &joint in &skin.joints {
+                // Walk up at most node_count steps (a cycle must not hang the writer).
+                let mut current = Some(joint);
+                let mut steps = 0;
+                while let Some(node) = current
+                    && node != skeleton
+                    && steps <= node_count
+                {
+                    current = parent[node];
+                    steps += 1;
+                }
+                ensure!(
+                    current == Some(skeleton),
+                    "skin '{name}': joint '{}' is not under the skeleton root '{}'",
+                    document.nodes[joint].name,
+                    document.nodes[skeleton].name
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// glTF's `target.path` for an animated property.
+fn property_path(property: AnimatedProperty) -> &'static str {
+    match property {
+        AnimatedProperty::Translation => "translation",
+        AnimatedProperty::Rotation => "rotation",
+        AnimatedProperty::Scale => "scale",
+        AnimatedProperty::MorphWeights => "weights",
+    }
+}
+
+/// Floats per keyframe element of `channel` (3, 4, or the morph-target count of the
+/// node's mesh); errors when a weights channel's node has no morph targets.
+fn channel_components(document: &GltfDocument, channel: &ChannelData) -> anyhow::Result<usize> {
+    Ok(match channel.property {
+        AnimatedProperty::Translation | AnimatedProperty::Scale => 3,
+        AnimatedProperty::Rotation => 4,
+        AnimatedProperty::MorphWeights => {
+            let node = &document.nodes[channel.node];
+            let targets = node
+                .mesh
+                .map_or(0, |mesh| document.meshes[mesh].morph_targets.len());
+            ensure!(
+                targets > 0,
+                "animates the morph weights of node '{}', whose mesh has no morph targets",
+                node.name
+            );
+            targets
+        }
+    })
+}
+
+/// One animation: existing nodes, each (node, property) once, valid keyframes and values.
+fn validate_animation(document: &GltfDocument, animation: &AnimationData) -> anyhow::Result<()> {
+    let name = &animation.name;
+    ensure!(
+        !animation.channels.is_empty(),
+        "animation '{name}' has no channels"
+    );
+    let mut animated = BTreeSet::new();
+    for (index, channel) in animation.channels.iter().enumerate() {
+        let path = property_path(channel.property);
+        let node = document.nodes.get(channel.node).with_context(|| {
+            format!(
+                "animation '{name}', channel {index}: node {} does not exist",
+                channel.node
+            )
+        })?;
+        let what = format!(
+            "animation '{name}', channel {index} ({path} of node '{}')",
+            node.name
+        );
+        ensure!(
+            animated.insert((channel.node, path)),
+            "{what}: the node's {path} is already animated by an earlier channel"
+        );
+        let components = channel_components(document, channel).with_context(|| what.clone())?;
+        let keys = channel.times.len();
+        let cubic = channel.interpolation == Interpolation::CubicSpline;
+        ensure!(
+            keys >= if cubic { 2 } else { 1 },
+            "{what} has {keys} keyframes (at least {} needed)",
+            if cubic { 2 } else { 1 }
+        );
+        ensure!(
+            channel.times.iter().all(|t| t.is_finite() && *t >= 0.0)
+                && channel.times.windows(2).all(|w| w[0] < w[1]),
+            "{what}: keyframe times must be finite, >= 0 and strictly increasing"
+        );
+        let per_key = components * if cubic { 3 } else { 1 };
+        ensure!(
+            channel.values.len() == keys * per_key,
+            "{what}: {} values for {keys} keyframes, expected {} ({per_key} per keyframe)",
+            channel.values.len(),
+            keys * per_key
+        );
+        ensure!(
+            channel.values.iter().all(|v| v.is_finite()),
+            "{what} has a non-finite value"
+        );
+        if channel.property == AnimatedProperty::Rotation && !cubic {
+            for (key, quat) in channel.values.chunks_exact(4).enumerate() {
+                let length = Vec4::from_slice(quat).length();
+                ensure!(
+                    (length - 1.0).abs() <= 1e-4,
+                    "{what}: keyframe {key} is not a unit quaternion (length {length})"
+                );
+            }
+        }
+    }
     Ok(())
 }
 
@@ -518,6 +880,7 @@ struct BufferBuilder {
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
+const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
 
 impl BufferBuilder {
@@ -536,25 +899,58 @@ impl BufferBuilder {
         self.views.len() - 1
     }
 
-    /// Appends a tightly packed float vertex attribute (`kind` VEC2 or VEC3); returns the accessor.
-    fn push_floats<const N: usize>(
+    /// Appends tightly packed floats, `components` per element (1 SCALAR, 2 VEC2, 3 VEC3,
+    /// 4 VEC4, 16 MAT4), as a new buffer view with `target`; the accessor gets per-component
+    /// `min`/`max` when `bounds` is set. Returns the accessor.
+    fn push_floats(
         &mut self,
-        elements: &[[f32; N]],
-        kind: &str,
-        bounds: Option<(Vec3, Vec3)>,
+        flat: &[f32],
+        components: usize,
+        target: Option<u32>,
+        bounds: bool,
     ) -> usize {
-        let bytes: Vec<u8> = elements
-            .iter()
-            .flatten()
-            .flat_map(|x| x.to_le_bytes())
-            .collect();
-        let view = self.push_view(&bytes, Some(ARRAY_BUFFER));
-        let mut accessor = json!({ "bufferView": view, "componentType": FLOAT, "count": elements.len(), "type": kind });
-        if let Some((min, max)) = bounds {
-            accessor["min"] = numbers(&min.to_array());
-            accessor["max"] = numbers(&max.to_array());
+        let kind = match components {
+            1 => "SCALAR",
+            2 => "VEC2",
+            3 => "VEC3",
+            4 => "VEC4",
+            16 => "MAT4",
+            _ => unreachable!("no glTF float accessor has {components} components"),
+        };
+        let bytes: Vec<u8> = flat.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.push_view(&bytes, target);
+        let mut accessor = json!({ "bufferView": view, "componentType": FLOAT, "count": flat.len() / components, "type": kind });
+        if bounds {
+            let mut min = vec![f32::INFINITY; components];
+            let mut max = vec![f32::NEG_INFINITY; components];
+            for element in flat.chunks_exact(components) {
+                for (i, &x) in element.iter().enumerate() {
+                    min[i] = min[i].min(x);
+                    max[i] = max[i].max(x);
+                }
+            }
+            accessor["min"] = numbers(&min);
+            accessor["max"] = numbers(&max);
         }
         self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    /// Appends a VEC3 vertex attribute (with bounds for POSITION); returns the accessor.
+    fn push_vec3s(&mut self, vectors: &[Vec3], bounds: bool) -> usize {
+        let flat: Vec<f32> = vectors.iter().flat_map(|v| v.to_array()).collect();
+        self.push_floats(&flat, 3, Some(ARRAY_BUFFER), bounds)
+    }
+
+    /// Appends a JOINTS_0 attribute (unsigned short VEC4); returns the accessor.
+    fn push_joints(&mut self, joints: &[[u16; 4]]) -> usize {
+        let bytes: Vec<u8> = joints
+            .iter()
+            .flatten()
+            .flat_map(|j| j.to_le_bytes())
+            .collect();
+        let view = self.push_view(&bytes, Some(ARRAY_BUFFER));
+        self.accessors.push(json!({ "bufferView": view, "componentType": UNSIGNED_SHORT, "count": joints.len(), "type": "VEC4" }));
         self.accessors.len() - 1
     }
 
@@ -580,39 +976,60 @@ fn build_json_and_buffer(document: &GltfDocument) -> anyhow::Result<(Value, Vec<
     let mut extensions_used = BTreeSet::new();
     let mut meshes = Vec::new();
     for mesh in &document.meshes {
-        let min = mesh
-            .positions
-            .iter()
-            .copied()
-            .fold(Vec3::INFINITY, Vec3::min);
-        let max = mesh
-            .positions
-            .iter()
-            .copied()
-            .fold(Vec3::NEG_INFINITY, Vec3::max);
         let mut attributes = Map::new();
-        let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
         attributes.insert(
             "POSITION".into(),
-            json!(buffer.push_floats(&positions, "VEC3", Some((min, max)))),
+            json!(buffer.push_vec3s(&mesh.positions, true)),
         );
-        let normals: Vec<[f32; 3]> = mesh.normals.iter().map(|n| n.to_array()).collect();
         attributes.insert(
             "NORMAL".into(),
-            json!(buffer.push_floats(&normals, "VEC3", None)),
+            json!(buffer.push_vec3s(&mesh.normals, false)),
         );
         if !mesh.uvs.is_empty() {
-            let uvs: Vec<[f32; 2]> = mesh.uvs.iter().map(|uv| uv.to_array()).collect();
+            let uvs: Vec<f32> = mesh.uvs.iter().flat_map(|uv| uv.to_array()).collect();
             attributes.insert(
                 "TEXCOORD_0".into(),
-                json!(buffer.push_floats(&uvs, "VEC2", None)),
+                json!(buffer.push_floats(&uvs, 2, Some(ARRAY_BUFFER), false)),
+            );
+        }
+        if !mesh.joints.is_empty() {
+            attributes.insert("JOINTS_0".into(), json!(buffer.push_joints(&mesh.joints)));
+            let weights: Vec<f32> = mesh.weights.iter().flatten().copied().collect();
+            attributes.insert(
+                "WEIGHTS_0".into(),
+                json!(buffer.push_floats(&weights, 4, Some(ARRAY_BUFFER), false)),
             );
         }
         let indices = buffer.push_indices(&mesh.indices);
-        meshes.push(json!({
-            "name": mesh.name,
-            "primitives": [{ "attributes": attributes, "indices": indices, "material": mesh.material, "mode": 4 }],
-        }));
+        let mut primitive = json!({ "attributes": attributes, "indices": indices, "material": mesh.material, "mode": 4 });
+        let mut value = json!({ "name": mesh.name });
+        if !mesh.morph_targets.is_empty() {
+            // Morph deltas are per-vertex data like the attributes, so their views are ARRAY_BUFFERs too.
+            let targets: Vec<Value> = mesh
+                .morph_targets
+                .iter()
+                .map(|target| {
+                    let mut attributes = Map::new();
+                    attributes.insert(
+                        "POSITION".into(),
+                        json!(buffer.push_vec3s(&target.positions, true)),
+                    );
+                    if !target.normals.is_empty() {
+                        attributes.insert(
+                            "NORMAL".into(),
+                            json!(buffer.push_vec3s(&target.normals, false)),
+                        );
+                    }
+                    Value::Object(attributes)
+                })
+                .collect();
+            primitive["targets"] = Value::Array(targets);
+            value["weights"] = numbers(&mesh.morph_weights);
+            let names: Vec<&str> = mesh.morph_targets.iter().map(|t| t.name.as_str()).collect();
+            value["extras"] = json!({ "targetNames": names });
+        }
+        value["primitives"] = json!([primitive]);
+        meshes.push(value);
     }
 
     let images: Vec<Value> = document
@@ -626,6 +1043,52 @@ fn build_json_and_buffer(document: &GltfDocument) -> anyhow::Result<(Value, Vec<
     let textures: Vec<Value> = (0..document.images.len())
         .map(|image| json!({ "sampler": 0, "source": image }))
         .collect();
+
+    let skins: Vec<Value> = document
+        .skins
+        .iter()
+        .map(|skin| {
+            let matrices: Vec<f32> = skin
+                .inverse_bind_matrices
+                .iter()
+                .flat_map(|m| m.to_cols_array())
+                .collect();
+            let accessor = buffer.push_floats(&matrices, 16, None, false);
+            let mut value = json!({ "name": skin.name, "joints": skin.joints, "inverseBindMatrices": accessor });
+            if let Some(skeleton) = skin.skeleton {
+                value["skeleton"] = json!(skeleton);
+            }
+            value
+        })
+        .collect();
+
+    let mut animations = Vec::new();
+    for animation in &document.animations {
+        let mut channels = Vec::new();
+        let mut samplers = Vec::new();
+        for channel in &animation.channels {
+            let input = buffer.push_floats(&channel.times, 1, None, true);
+            // Weights outputs are scalars (targets x keyframes of them); the rest are vectors.
+            let components = match channel.property {
+                AnimatedProperty::MorphWeights => 1,
+                _ => channel_components(document, channel)?,
+            };
+            let output = buffer.push_floats(&channel.values, components, None, false);
+            let interpolation = match channel.interpolation {
+                Interpolation::Linear => "LINEAR",
+                Interpolation::Step => "STEP",
+                Interpolation::CubicSpline => "CUBICSPLINE",
+            };
+            channels.push(json!({
+                "sampler": samplers.len(),
+                "target": { "node": channel.node, "path": property_path(channel.property) },
+            }));
+            samplers
+                .push(json!({ "input": input, "interpolation": interpolation, "output": output }));
+        }
+        animations
+            .push(json!({ "name": animation.name, "channels": channels, "samplers": samplers }));
+    }
     buffer.pad();
 
     let materials: Vec<Value> = document
@@ -669,6 +1132,8 @@ fn build_json_and_buffer(document: &GltfDocument) -> anyhow::Result<(Value, Vec<
         );
     }
     insert_nonempty("textures", textures);
+    insert_nonempty("skins", skins);
+    insert_nonempty("animations", animations);
     insert_nonempty("accessors", buffer.accessors);
     insert_nonempty("bufferViews", buffer.views);
     Ok((Value::Object(root), buffer.bytes))
@@ -743,6 +1208,9 @@ fn node_json(node: &NodeData) -> Value {
     }
     if let Some(camera) = node.camera {
         value["camera"] = json!(camera);
+    }
+    if let Some(skin) = node.skin {
+        value["skin"] = json!(skin);
     }
     if !node.children.is_empty() {
         value["children"] = json!(node.children);
@@ -940,6 +1408,252 @@ mod tests {
             "{error:#}"
         );
         assert!(!dir.join("broken.glb").exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A skinned two-joint tube with a translation/scale/rotation clip, and a morphing
+    /// quad with a weights clip.
+    fn animated_document() -> GltfDocument {
+        let mut document = GltfDocument::default();
+        // Nodes 0 and 1: the joints; 2: the skinned mesh; 3: the morphing quad.
+        document.nodes.push(NodeData {
+            translation: Vec3::new(0.0, 0.5, 0.0),
+            children: vec![1],
+            ..NodeData::named("root joint")
+        });
+        document.nodes.push(NodeData {
+            translation: Vec3::new(0.0, 1.0, 0.0),
+            ..NodeData::named("tip joint")
+        });
+        let mut tube = MeshData::cylinder("tube", 0.1, 2.0, 6, 0);
+        for position in &tube.positions {
+            let t = (position.y / 2.0).clamp(0.0, 1.0);
+            // glTF: a joint index with zero weight should be 0.
+            tube.joints.push([0, if t > 0.0 { 1 } else { 0 }, 0, 0]);
+            tube.weights.push([1.0 - t, t, 0.0, 0.0]);
+        }
+        document.roots.push(0);
+        let tube_node =
+            document.add_mesh_node(tube, MaterialData::lambertian("grey", Vec3::splat(0.5)));
+        document.nodes[tube_node].skin = Some(0);
+        document.skins.push(SkinData {
+            name: "tube skin".into(),
+            joints: vec![0, 1],
+            inverse_bind_matrices: vec![
+                Mat4::from_translation(Vec3::new(0.0, -0.5, 0.0)),
+                Mat4::from_translation(Vec3::new(0.0, -1.5, 0.0)),
+            ],
+            skeleton: Some(0),
+        });
+        let mut flag = MeshData::quad(
+            "flag",
+            [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+            0,
+        );
+        flag.morph_targets = vec![
+            MorphTargetData {
+                name: "bulge".into(),
+                positions: flag.positions.iter().map(|p| Vec3::Z * p.x * 0.3).collect(),
+                normals: vec![Vec3::new(-0.1, 0.0, -0.005); 4],
+            },
+            MorphTargetData {
+                name: "lift".into(),
+                positions: vec![Vec3::new(0.0, 0.125, 0.0); 4],
+                normals: Vec::new(),
+            },
+        ];
+        flag.morph_weights = vec![0.25, 0.5];
+        let flag_node = document.add_mesh_node(flag, MaterialData::lambertian("cloth", Vec3::ONE));
+        let half_turn = Quat::from_rotation_z(0.7);
+        document.animations = vec![
+            AnimationData {
+                name: "bend".into(),
+                channels: vec![
+                    ChannelData {
+                        node: 0,
+                        property: AnimatedProperty::Translation,
+                        interpolation: Interpolation::Linear,
+                        times: vec![0.0, 0.5, 1.0],
+                        values: vec![0.0, 0.5, 0.0, 0.1, 0.6, 0.0, 0.0, 0.5, 0.0],
+                    },
+                    ChannelData {
+                        node: 1,
+                        property: AnimatedProperty::Scale,
+                        interpolation: Interpolation::Step,
+                        times: vec![0.0, 0.25],
+                        values: vec![1.0, 1.0, 1.0, 1.5, 0.75, 1.5],
+                    },
+                    ChannelData {
+                        node: 1,
+                        property: AnimatedProperty::Rotation,
+                        interpolation: Interpolation::CubicSpline,
+                        times: vec![0.0, 1.0 / 3.0],
+                        values: [
+                            [0.0, 0.0, 0.1, 0.0],
+                            Quat::IDENTITY.to_array(),
+                            [0.0, 0.0, 0.2, -0.01],
+                            [0.0, 0.0, 0.3, 0.0],
+                            half_turn.to_array(),
+                            [0.0, 0.0, -0.1, 0.05],
+                        ]
+                        .concat(),
+                    },
+                ],
+            },
+            AnimationData {
+                name: "flutter".into(),
+                channels: vec![ChannelData {
+                    node: flag_node,
+                    property: AnimatedProperty::MorphWeights,
+                    interpolation: Interpolation::Linear,
+                    times: vec![0.0, 1.0, 2.0],
+                    values: vec![0.0, 0.0, 1.0, -0.5, 0.0, 0.0],
+                }],
+            },
+        ];
+        document
+    }
+
+    #[test]
+    fn skins_morph_targets_and_animations_import_unchanged() {
+        let dir = unique_temp_dir("animated");
+        let document = animated_document();
+        for name in ["animated.gltf", "animated.glb"] {
+            let path = dir.join(name);
+            write_gltf(&document, &path).unwrap();
+            let first = std::fs::read(&path).unwrap();
+            write_gltf(&document, &path).unwrap();
+            assert_eq!(
+                first,
+                std::fs::read(&path).unwrap(),
+                "{name} is not deterministic"
+            );
+            let asset = import_gltf(&path).unwrap_or_else(|error| panic!("{name}: {error}"));
+
+            let tube = &document.meshes[0];
+            let primitive = &asset.meshes[0].primitives[0];
+            assert_eq!(primitive.skin_influences.len(), 1, "{name}");
+            assert_eq!(primitive.skin_influences[0].joints, tube.joints, "{name}");
+            assert_eq!(primitive.skin_influences[0].weights, tube.weights, "{name}");
+            assert!(primitive.morph_targets.is_empty());
+            assert_eq!(asset.nodes[2].skin, Some(0));
+            assert_eq!(asset.skins.len(), 1);
+            let (skin, expected) = (&asset.skins[0], &document.skins[0]);
+            assert_eq!(
+                (
+                    &skin.name,
+                    &skin.joints,
+                    &skin.inverse_bind_matrices,
+                    skin.skeleton
+                ),
+                (
+                    &expected.name,
+                    &expected.joints,
+                    &expected.inverse_bind_matrices,
+                    expected.skeleton
+                ),
+                "{name}"
+            );
+
+            let flag = &document.meshes[1];
+            let mesh = &asset.meshes[1];
+            assert_eq!(mesh.morph_weights, flag.morph_weights, "{name}");
+            assert!(mesh.primitives[0].skin_influences.is_empty());
+            let targets = &mesh.primitives[0].morph_targets;
+            assert_eq!(targets.len(), 2, "{name}");
+            for (imported, written) in targets.iter().zip(&flag.morph_targets) {
+                assert_eq!(imported.positions, written.positions, "{name}");
+                assert_eq!(imported.normals, written.normals, "{name}");
+            }
+
+            assert_eq!(asset.animations.len(), document.animations.len());
+            for (imported, written) in asset.animations.iter().zip(&document.animations) {
+                assert_eq!(imported.name, written.name);
+                assert_eq!(imported.channels.len(), written.channels.len());
+                for (channel, expected) in imported.channels.iter().zip(&written.channels) {
+                    let sampler = &imported.samplers[channel.sampler];
+                    assert_eq!(
+                        (channel.node, channel.property, sampler.interpolation),
+                        (expected.node, expected.property, expected.interpolation),
+                        "{name}: {}",
+                        written.name
+                    );
+                    assert_eq!(sampler.times, expected.times, "{name}: {}", written.name);
+                    assert_eq!(sampler.values, expected.values, "{name}: {}", written.name);
+                }
+            }
+            assert_eq!(asset.animations[0].duration(), 1.0);
+            assert_eq!(asset.animations[1].samplers[0].components, 2);
+        }
+        // The text form names the morph targets in the mesh's extras.
+        let json: Value =
+            serde_json::from_slice(&std::fs::read(dir.join("animated.gltf")).unwrap()).unwrap();
+        assert_eq!(
+            json["meshes"][1]["extras"]["targetNames"],
+            json!(["bulge", "lift"])
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn bad_skins_and_animations_are_errors_naming_the_mesh_or_animation() {
+        let dir = unique_temp_dir("animated-errors");
+        let path = dir.join("broken.glb");
+        let expect_error = |document: &GltfDocument, needles: &[&str]| {
+            let error = format!("{:#}", write_gltf(document, &path).unwrap_err());
+            for needle in needles {
+                assert!(error.contains(needle), "'{needle}' missing from: {error}");
+            }
+            assert!(!path.exists(), "a file was written despite: {error}");
+        };
+
+        let mut short_joints = animated_document();
+        short_joints.meshes[0].joints.pop();
+        expect_error(&short_joints, &["broken.glb", "mesh 'tube'", "joint sets"]);
+
+        let mut unnormalised = animated_document();
+        unnormalised.meshes[0].weights[3] = [0.5, 0.2, 0.0, 0.0];
+        expect_error(&unnormalised, &["mesh 'tube'", "vertex 3", "sum to"]);
+
+        let mut bad_joint = animated_document();
+        bad_joint.meshes[0].joints[0] = [2, 1, 0, 0];
+        expect_error(&bad_joint, &["mesh 'tube'", "joint 2", "skin 'tube skin'"]);
+
+        let mut wrong_count = animated_document();
+        wrong_count.animations[1].channels[0].values.pop();
+        expect_error(
+            &wrong_count,
+            &["animation 'flutter'", "5 values", "expected 6"],
+        );
+
+        let mut no_targets = animated_document();
+        no_targets.animations[1].channels[0].node = 0;
+        expect_error(&no_targets, &["animation 'flutter'", "no morph targets"]);
+
+        let mut unsorted = animated_document();
+        unsorted.animations[0].channels[0].times = vec![0.0, 0.5, 0.5];
+        expect_error(&unsorted, &["animation 'bend'", "strictly increasing"]);
+
+        let mut not_unit = animated_document();
+        not_unit.animations[0].channels[2].interpolation = Interpolation::Linear;
+        not_unit.animations[0].channels[2].values.truncate(8);
+        not_unit.animations[0].channels[2].values[3] = 0.5;
+        expect_error(&not_unit, &["animation 'bend'", "not a unit quaternion"]);
+
+        let mut missing_weights = animated_document();
+        missing_weights.meshes[1].morph_weights.pop();
+        expect_error(&missing_weights, &["mesh 'flag'", "morph weights"]);
+
+        let mut joints_outside = animated_document();
+        joints_outside.roots.retain(|&r| r != 0);
+        expect_error(
+            &joints_outside,
+            &["skin 'tube skin'", "'root joint' is not in the scene"],
+        );
+
+        let mut not_affine = animated_document();
+        not_affine.skins[0].inverse_bind_matrices[1].x_axis.w = 1e-7;
+        expect_error(&not_affine, &["skin 'tube skin'", "fourth row"]);
         let _ = std::fs::remove_dir_all(&dir);
     }
 

@@ -1,6 +1,8 @@
 //! Gloam's own assets, reproducible from code: the Cornell box (`cornell/cornell-box.gltf`
-//! and its `.bin`) and the level kit (`kit/wall.glb`, `floor.glb`, `pillar.glb`,
-//! `crate.glb`, `shard.glb`), plus a wavy-grid stress mesh for import timing.
+//! and its `.bin`), the level kit (`kit/wall.glb`, `floor.glb`, `pillar.glb`, `crate.glb`,
+//! `shard.glb`, and the morphing cloth `banner.glb`) and the enemy (`kit/warden.glb`, a
+//! skinned, animated guard), plus a wavy-grid stress mesh for import timing and a
+//! high-detail warden for skinning benchmarks.
 //!
 //! Load-time tooling, never run by the game itself. `gloam generate assets` calls
 //! [`generate_assets`] to rewrite every file under `assets/`; a test checks that the
@@ -11,24 +13,28 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, ensure};
-use glam::{Vec2, Vec3};
+use glam::{Affine3A, Mat4, Vec2, Vec3};
 use image::ImageEncoder as _;
 
 use super::gltf_export::{
-    CameraData, GltfDocument, ImageData, MaterialData, MeshData, NodeData, write_gltf,
+    AnimationData, CameraData, ChannelData, GltfDocument, ImageData, MaterialData, MeshData,
+    MorphTargetData, NodeData, SkinData, write_gltf,
 };
+use super::model::{AnimatedProperty, Interpolation};
 
 /// Writes every shipped asset under `out_dir` (normally `assets/`); returns the files written, sorted.
 pub fn generate_assets(out_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let cornell = out_dir.join("cornell").join("cornell-box.gltf");
     write_gltf(&cornell_box()?, &cornell)?;
     let mut written = vec![cornell.with_extension("bin"), cornell];
-    let kit: [(&str, GltfDocument); 5] = [
+    let kit: [(&str, GltfDocument); 7] = [
         ("wall", wall()),
         ("floor", floor()?),
         ("pillar", pillar()),
         ("crate", crate_box()),
         ("shard", shard()?),
+        ("warden", warden_document(WARDEN_DETAIL)?),
+        ("banner", banner()),
     ];
     for (name, document) in kit {
         let path = out_dir.join("kit").join(format!("{name}.glb"));
@@ -251,6 +257,7 @@ fn cornell_box() -> anyhow::Result<GltfDocument> {
             znear: 0.01,
         }],
         nodes,
+        ..GltfDocument::default()
     })
 }
 
@@ -401,6 +408,699 @@ fn shard() -> anyhow::Result<GltfDocument> {
     Ok(single_mesh(mesh, glow))
 }
 
+// ---- the warden: the skinned, animated enemy -----------------------------------------------
+
+/// The warden's joint names, in skin order; node `i` of [`warden_document`] is joint `i`.
+/// ".L" is the warden's left (+X: it faces +Z), ".R" its right (-X).
+pub const WARDEN_JOINTS: [&str; 11] = [
+    "hips",
+    "spine",
+    "head",
+    "upper_arm.L",
+    "lower_arm.L",
+    "upper_arm.R",
+    "lower_arm.R",
+    "upper_leg.L",
+    "lower_leg.L",
+    "upper_leg.R",
+    "lower_leg.R",
+];
+
+const HIPS: usize = 0;
+const SPINE: usize = 1;
+const HEAD: usize = 2;
+const UPPER_ARM_L: usize = 3;
+const LOWER_ARM_L: usize = 4;
+const UPPER_ARM_R: usize = 5;
+const LOWER_ARM_R: usize = 6;
+const UPPER_LEG_L: usize = 7;
+const LOWER_LEG_L: usize = 8;
+const UPPER_LEG_R: usize = 9;
+const LOWER_LEG_R: usize = 10;
+
+/// Bind pose of each joint: (parent, translation from the parent); no rotation or scale,
+/// so every limb hangs straight down. World positions: hips (0, 0.95, 0), spine y 1.1,
+/// head (neck) y 1.5, shoulders (+-0.25, 1.42), elbows y 1.13, hip joints (+-0.1, 0.92),
+/// knees y 0.5.
+const WARDEN_BIND: [(Option<usize>, Vec3); 11] = [
+    (None, Vec3::new(0.0, 0.95, 0.0)),
+    (Some(HIPS), Vec3::new(0.0, 0.15, 0.0)),
+    (Some(SPINE), Vec3::new(0.0, 0.4, 0.0)),
+    (Some(SPINE), Vec3::new(0.25, 0.32, 0.0)),
+    (Some(UPPER_ARM_L), Vec3::new(0.0, -0.29, 0.0)),
+    (Some(SPINE), Vec3::new(-0.25, 0.32, 0.0)),
+    (Some(UPPER_ARM_R), Vec3::new(0.0, -0.29, 0.0)),
+    (Some(HIPS), Vec3::new(0.1, -0.03, 0.0)),
+    (Some(UPPER_LEG_L), Vec3::new(0.0, -0.42, 0.0)),
+    (Some(HIPS), Vec3::new(-0.1, -0.03, 0.0)),
+    (Some(UPPER_LEG_R), Vec3::new(0.0, -0.42, 0.0)),
+];
+
+/// Tessellation of the shipped `kit/warden.glb`.
+const WARDEN_DETAIL: u32 = 3;
+
+/// A body part: a closed surface of revolution around a vertical axis with elliptical
+/// cross-sections, given bottom to top as (y, half-width in x, half-depth in z) with a
+/// pole (zero radius) at each end; all y in the bind pose, in metres.
+struct BodyPart {
+    /// Axis position (x, z).
+    axis: Vec2,
+    profile: &'static [[f32; 3]],
+    /// The bones the part follows, bottom to top.
+    bones: &'static [usize],
+    /// Between `bones[i]` and `bones[i + 1]`: (joint whose bind height is the seam,
+    /// half-width of the blend zone in metres).
+    seams: &'static [(usize, f32)],
+}
+
+/// Legs (left +X, right -X): foot stump to inside the pelvis, knee at 0.5.
+const LEG_PROFILE: &[[f32; 3]] = &[
+    [0.02, 0.0, 0.0],
+    [0.03, 0.035, 0.04],
+    [0.08, 0.045, 0.05],
+    [0.3, 0.055, 0.06],
+    [0.48, 0.05, 0.055],
+    [0.7, 0.07, 0.075],
+    [0.9, 0.08, 0.08],
+    [0.98, 0.06, 0.06],
+    [1.0, 0.0, 0.0],
+];
+/// Pelvis, waist, chest and shoulders, closing at the neck.
+const TORSO_PROFILE: &[[f32; 3]] = &[
+    [0.84, 0.0, 0.0],
+    [0.86, 0.12, 0.09],
+    [0.92, 0.17, 0.11],
+    [1.05, 0.15, 0.1],
+    [1.3, 0.19, 0.12],
+    [1.42, 0.19, 0.11],
+    [1.48, 0.12, 0.08],
+    [1.52, 0.05, 0.05],
+    [1.53, 0.0, 0.0],
+];
+/// Neck and head; the crown is the warden's highest point, y = 1.8.
+const HEAD_PROFILE: &[[f32; 3]] = &[
+    [1.46, 0.0, 0.0],
+    [1.47, 0.04, 0.04],
+    [1.56, 0.05, 0.05],
+    [1.6, 0.08, 0.09],
+    [1.68, 0.1, 0.11],
+    [1.75, 0.09, 0.1],
+    [1.79, 0.05, 0.055],
+    [1.8, 0.0, 0.0],
+];
+/// Arms from the fist up to the shoulder cap; elbow at 1.13.
+const ARM_PROFILE: &[[f32; 3]] = &[
+    [0.74, 0.0, 0.0],
+    [0.75, 0.03, 0.035],
+    [0.8, 0.042, 0.045],
+    [0.87, 0.035, 0.035],
+    [1.12, 0.045, 0.045],
+    [1.38, 0.055, 0.055],
+    [1.45, 0.05, 0.05],
+    [1.48, 0.0, 0.0],
+];
+
+const WARDEN_PARTS: [BodyPart; 6] = [
+    BodyPart {
+        axis: Vec2::new(0.1, 0.0),
+        profile: LEG_PROFILE,
+        bones: &[LOWER_LEG_L, UPPER_LEG_L, HIPS],
+        seams: &[(LOWER_LEG_L, 0.06), (UPPER_LEG_L, 0.04)],
+    },
+    BodyPart {
+        axis: Vec2::new(-0.1, 0.0),
+        profile: LEG_PROFILE,
+        bones: &[LOWER_LEG_R, UPPER_LEG_R, HIPS],
+        seams: &[(LOWER_LEG_R, 0.06), (UPPER_LEG_R, 0.04)],
+    },
+    BodyPart {
+        axis: Vec2::new(0.0, 0.0),
+        profile: TORSO_PROFILE,
+        bones: &[HIPS, SPINE, HEAD],
+        seams: &[(SPINE, 0.08), (HEAD, 0.03)],
+    },
+    BodyPart {
+        axis: Vec2::new(0.0, 0.01),
+        profile: HEAD_PROFILE,
+        bones: &[SPINE, HEAD],
+        seams: &[(HEAD, 0.03)],
+    },
+    BodyPart {
+        axis: Vec2::new(0.25, 0.0),
+        profile: ARM_PROFILE,
+        bones: &[LOWER_ARM_L, UPPER_ARM_L, SPINE],
+        seams: &[(LOWER_ARM_L, 0.06), (UPPER_ARM_L, 0.04)],
+    },
+    BodyPart {
+        axis: Vec2::new(-0.25, 0.0),
+        profile: ARM_PROFILE,
+        bones: &[LOWER_ARM_R, UPPER_ARM_R, SPINE],
+        seams: &[(LOWER_ARM_R, 0.06), (UPPER_ARM_R, 0.04)],
+    },
+];
+
+/// Each joint's bind-pose world transform (parents come before children in `WARDEN_BIND`).
+fn warden_bind_world() -> [Affine3A; 11] {
+    let mut world = [Affine3A::IDENTITY; 11];
+    for (joint, &(parent, translation)) in WARDEN_BIND.iter().enumerate() {
+        let parent_world = parent.map_or(Affine3A::IDENTITY, |p| world[p]);
+        world[joint] = parent_world * Affine3A::from_translation(translation);
+    }
+    world
+}
+
+/// The skin influences of a vertex at bind height `y` on `part`: one bone away from the
+/// seams, and a smoothstep blend of the two bones next to a seam within its zone.
+fn part_influences(part: &BodyPart, seam_heights: &[f32], y: f32) -> ([u16; 4], [f32; 4]) {
+    let single = |bone: usize| ([bone as u16, 0, 0, 0], [1.0, 0.0, 0.0, 0.0]);
+    for (i, (&(_, half_width), &height)) in part.seams.iter().zip(seam_heights).enumerate() {
+        if y >= height + half_width {
+            continue;
+        }
+        let s = ((y - (height - half_width)) / (2.0 * half_width)).clamp(0.0, 1.0);
+        let upper = s * s * (3.0 - 2.0 * s);
+        return if upper <= 0.0 {
+            single(part.bones[i])
+        } else if upper >= 1.0 {
+            single(part.bones[i + 1])
+        } else {
+            (
+                [part.bones[i] as u16, part.bones[i + 1] as u16, 0, 0],
+                [1.0 - upper, upper, 0.0, 0.0],
+            )
+        };
+    }
+    single(part.bones[part.bones.len() - 1])
+}
+
+/// Appends `part` to `mesh` as a closed, smooth-shaded surface of revolution: `segments`
+/// vertices around each ring, rings about `spacing` metres apart along the profile, a
+/// single vertex at each pole. Normals are the area-weighted face normals (outward: the
+/// triangles are counter-clockwise seen from outside).
+fn push_body_part(
+    mesh: &mut MeshData,
+    part: &BodyPart,
+    seam_heights: &[f32],
+    segments: u32,
+    spacing: f32,
+) -> anyhow::Result<()> {
+    let profile = part.profile;
+    ensure!(
+        profile.len() >= 3
+            && profile[0][1..] == [0.0, 0.0]
+            && profile[profile.len() - 1][1..] == [0.0, 0.0]
+            && profile[1..profile.len() - 1]
+                .iter()
+                .all(|p| p[1] > 0.0 && p[2] > 0.0),
+        "a body part's profile must run from pole to pole through positive radii"
+    );
+    // Profile length in the (y, mean radius) plane, sampled evenly by arc length.
+    let point = |p: &[f32; 3]| Vec2::new(p[0], 0.5 * (p[1] + p[2]));
+    let lengths: Vec<f32> = profile
+        .windows(2)
+        .map(|w| point(&w[0]).distance(point(&w[1])))
+        .collect();
+    let total: f32 = lengths.iter().sum();
+    let steps = ((total / spacing).ceil() as usize).max(3);
+    let mut rings = Vec::with_capacity(steps - 1);
+    let (mut segment, mut start) = (0, 0.0);
+    for step in 1..steps {
+        let at = total * step as f32 / steps as f32;
+        while segment + 1 < lengths.len() && at > start + lengths[segment] {
+            start += lengths[segment];
+            segment += 1;
+        }
+        let t = ((at - start) / lengths[segment]).clamp(0.0, 1.0);
+        let (a, b) = (profile[segment], profile[segment + 1]);
+        rings.push([0, 1, 2].map(|i| a[i] + (b[i] - a[i]) * t));
+    }
+
+    let first = mesh.positions.len() as u32;
+    let first_triangle = mesh.indices.len();
+    let around: Vec<(f32, f32)> = (0..segments)
+        .map(|j| {
+            // Trig in f64, rounded to f32: the same bits in every build profile.
+            let angle = std::f64::consts::TAU * f64::from(j) / f64::from(segments);
+            (angle.sin() as f32, angle.cos() as f32)
+        })
+        .collect();
+    let push_vertex = |mesh: &mut MeshData, position: Vec3| {
+        let (joints, weights) = part_influences(part, seam_heights, position.y);
+        mesh.positions.push(position);
+        mesh.joints.push(joints);
+        mesh.weights.push(weights);
+    };
+    let (bottom, top) = (profile[0][0], profile[profile.len() - 1][0]);
+    push_vertex(mesh, Vec3::new(part.axis.x, bottom, part.axis.y));
+    for &[y, half_width, half_depth] in &rings {
+        for &(sin, cos) in &around {
+            let position = Vec3::new(
+                part.axis.x + half_width * sin,
+                y,
+                part.axis.y + half_depth * cos,
+            );
+            push_vertex(mesh, position);
+        }
+    }
+    push_vertex(mesh, Vec3::new(part.axis.x, top, part.axis.y));
+
+    // Vertex `j` of ring `r`; the angle grows to the right seen from outside.
+    let ring = |r: usize, j: u32| first + 1 + r as u32 * segments + j % segments;
+    let bottom_pole = first;
+    let top_pole = ring(rings.len(), 0);
+    for j in 0..segments {
+        mesh.indices.push([bottom_pole, ring(0, j + 1), ring(0, j)]);
+        for r in 0..rings.len() - 1 {
+            let (bottom_left, bottom_right) = (ring(r, j), ring(r, j + 1));
+            let (top_left, top_right) = (ring(r + 1, j), ring(r + 1, j + 1));
+            mesh.indices.push([bottom_left, bottom_right, top_right]);
+            mesh.indices.push([bottom_left, top_right, top_left]);
+        }
+        let last = rings.len() - 1;
+        mesh.indices
+            .push([ring(last, j), ring(last, j + 1), top_pole]);
+    }
+
+    let mut normals = vec![Vec3::ZERO; mesh.positions.len() - first as usize];
+    for triangle in &mesh.indices[first_triangle..] {
+        let [a, b, c] = triangle.map(|i| mesh.positions[i as usize]);
+        let area_normal = (b - a).cross(c - a);
+        for &i in triangle {
+            normals[(i - first) as usize] += area_normal;
+        }
+    }
+    mesh.normals
+        .extend(normals.into_iter().map(Vec3::normalize_or_zero));
+    Ok(())
+}
+
+/// Appends a box (flat faces) rigidly bound to joint `bone`; UVs are dropped.
+fn push_rigid_box(mesh: &mut MeshData, min: Vec3, max: Vec3, bone: usize) {
+    let cuboid = MeshData::cuboid("", min, max, 0);
+    let first = mesh.positions.len() as u32;
+    mesh.positions.extend(&cuboid.positions);
+    mesh.normals.extend(&cuboid.normals);
+    mesh.joints.extend(std::iter::repeat_n(
+        [bone as u16, 0, 0, 0],
+        cuboid.positions.len(),
+    ));
+    mesh.weights.extend(std::iter::repeat_n(
+        [1.0, 0.0, 0.0, 0.0],
+        cuboid.positions.len(),
+    ));
+    mesh.indices
+        .extend(cuboid.indices.iter().map(|t| t.map(|i| first + i)));
+}
+
+/// A unit quaternion turning `angle` radians about the axis-aligned unit `axis`, from f64 trig.
+fn axis_angle(axis: Vec3, angle: f64) -> [f32; 4] {
+    let (sin, cos) = (0.5 * angle).sin_cos();
+    [
+        (f64::from(axis.x) * sin) as f32,
+        (f64::from(axis.y) * sin) as f32,
+        (f64::from(axis.z) * sin) as f32,
+        cos as f32,
+    ]
+}
+
+/// A rotation channel about the axis-aligned `axis` with keys at `times`, turning
+/// `angle(key)` radians at each.
+fn rotation_channel(
+    node: usize,
+    interpolation: Interpolation,
+    times: &[f32],
+    axis: Vec3,
+    angle: impl Fn(usize) -> f64,
+) -> ChannelData {
+    ChannelData {
+        node,
+        property: AnimatedProperty::Rotation,
+        interpolation,
+        times: times.to_vec(),
+        values: (0..times.len())
+            .flat_map(|key| axis_angle(axis, angle(key)))
+            .collect(),
+    }
+}
+
+/// `walk`: a 1 s loop, 17 LINEAR keys (every 1/16 s, the last equal to the first): legs
+/// swing +-0.45 rad about X in opposite phase with the knee bending up to 0.6 rad as each
+/// leg passes forward, the left arm swings against the left leg (+-0.35 rad), the lantern
+/// arm less (+-0.15 rad), elbows slightly bent, and the hips bob down 4 cm twice a cycle.
+fn warden_walk() -> AnimationData {
+    const KEYS: usize = 16;
+    let times: Vec<f32> = (0..=KEYS).map(|k| k as f32 / KEYS as f32).collect();
+    // Phase of key k; k % KEYS makes the last key exactly the first.
+    let phase = |k: usize| std::f64::consts::TAU * (k % KEYS) as f64 / KEYS as f64;
+    let knee = |phase: f64| {
+        let swing = 0.5 * (1.0 + phase.cos());
+        0.05 + 0.55 * swing * swing
+    };
+    let x = Vec3::X;
+    let linear = Interpolation::Linear;
+    let hips_rest = WARDEN_BIND[HIPS].1;
+    let bob = ChannelData {
+        node: HIPS,
+        property: AnimatedProperty::Translation,
+        interpolation: linear,
+        times: times.clone(),
+        values: (0..=KEYS)
+            .flat_map(|k| {
+                let drop = 0.02 * (1.0 - (2.0 * phase(k)).cos());
+                [hips_rest.x, hips_rest.y - drop as f32, hips_rest.z]
+            })
+            .collect(),
+    };
+    AnimationData {
+        name: "walk".into(),
+        channels: vec![
+            bob,
+            rotation_channel(UPPER_LEG_L, linear, &times, x, |k| -0.45 * phase(k).sin()),
+            rotation_channel(LOWER_LEG_L, linear, &times, x, |k| knee(phase(k))),
+            rotation_channel(UPPER_LEG_R, linear, &times, x, |k| 0.45 * phase(k).sin()),
+            rotation_channel(LOWER_LEG_R, linear, &times, x, |k| {
+                knee(phase(k) + std::f64::consts::PI)
+            }),
+            rotation_channel(UPPER_ARM_L, linear, &times, x, |k| 0.35 * phase(k).sin()),
+            rotation_channel(LOWER_ARM_L, linear, &times, x, |k| {
+                -0.2 - 0.1 * phase(k).sin()
+            }),
+            rotation_channel(UPPER_ARM_R, linear, &times, x, |k| -0.15 * phase(k).sin()),
+            rotation_channel(LOWER_ARM_R, linear, &times, x, |k| {
+                -0.35 - 0.05 * phase(k).sin()
+            }),
+        ],
+    }
+}
+
+/// `idle`: a 2 s loop, 9 CUBICSPLINE keys (every 0.25 s, the last equal to the first) with
+/// the exact derivative as both tangents: the spine sways 0.04 rad about Z and the head
+/// turns 0.2 rad about Y, both sinusoids of period 2 s (phases chosen so no tangent is 0).
+fn warden_idle() -> AnimationData {
+    const KEYS: usize = 8;
+    const PERIOD: f64 = 2.0;
+    let times: Vec<f32> = (0..=KEYS).map(|k| k as f32 * 0.25).collect();
+    // (joint, axis, amplitude, phase): angle(t) = amplitude * sin(2 pi t / PERIOD + phase).
+    let sways = [
+        (SPINE, Vec3::Z, 0.04, std::f64::consts::FRAC_PI_4),
+        (HEAD, Vec3::Y, 0.2, 1.0),
+    ];
+    let channels = sways
+        .into_iter()
+        .map(|(joint, axis, amplitude, phase)| {
+            let values = (0..=KEYS)
+                .flat_map(|k| {
+                    let t = PERIOD * (k % KEYS) as f64 / KEYS as f64;
+                    let omega = std::f64::consts::TAU / PERIOD;
+                    let angle = amplitude * (omega * t + phase).sin();
+                    let rate = amplitude * omega * (omega * t + phase).cos();
+                    // d/dt (axis sin(a/2), cos(a/2)) = a'/2 (axis cos(a/2), -sin(a/2)).
+                    let (sin, cos) = (0.5 * angle).sin_cos();
+                    let tangent = [
+                        (f64::from(axis.x) * 0.5 * rate * cos) as f32,
+                        (f64::from(axis.y) * 0.5 * rate * cos) as f32,
+                        (f64::from(axis.z) * 0.5 * rate * cos) as f32,
+                        (-0.5 * rate * sin) as f32,
+                    ];
+                    [tangent, axis_angle(axis, angle), tangent].concat()
+                })
+                .collect();
+            ChannelData {
+                node: joint,
+                property: AnimatedProperty::Rotation,
+                interpolation: Interpolation::CubicSpline,
+                times: times.clone(),
+                values,
+            }
+        })
+        .collect();
+    AnimationData {
+        name: "idle".into(),
+        channels,
+    }
+}
+
+/// `alert`: 0.6 s, STEP: the head snaps left (0.7 rad about Y), right (-0.7), a little left
+/// (0.35) and back to the front at 0, 0.15, 0.3, 0.45 and 0.6 s, while the lantern arm
+/// snaps up to 1.1 rad forward at 0.15 s and holds it (a one-shot clip, not a loop).
+fn warden_alert() -> AnimationData {
+    let step = Interpolation::Step;
+    let head_times = [0.0, 0.15, 0.3, 0.45, 0.6];
+    let head_angles = [0.0, 0.7, -0.7, 0.35, 0.0];
+    let arm_times = [0.0, 0.15, 0.6];
+    let arm_angles = [0.0, -1.1, -1.1];
+    AnimationData {
+        name: "alert".into(),
+        channels: vec![
+            rotation_channel(HEAD, step, &head_times, Vec3::Y, |k| head_angles[k]),
+            rotation_channel(UPPER_ARM_R, step, &arm_times, Vec3::X, |k| arm_angles[k]),
+        ],
+    }
+}
+
+/// The warden, Gloam's enemy: a skinned humanoid guard 1.8 m tall standing on y = 0 and
+/// facing +Z, carrying a lantern in its right hand, with the clips `walk`, `idle` and
+/// `alert`. `detail` (>= 1) scales the tessellation: 4 + 4 x detail segments around each
+/// part and rings 1 / (8 x detail) m apart (detail 3, the shipped asset, gives a few
+/// thousand triangles; the count grows with detail^2).
+///
+/// Nodes 0..11 are the joints ([`WARDEN_JOINTS`], hips the root and the skeleton), node 11
+/// shows the body mesh (`cloak`) and node 12 the lantern mesh (`lantern glow`, emissive),
+/// both roots with the identity transform and skinned by skin 0.
+pub fn warden_document(detail: u32) -> anyhow::Result<GltfDocument> {
+    ensure!(
+        (1..=1000).contains(&detail),
+        "warden detail must lie in 1..=1000 (got {detail})"
+    );
+    let world = warden_bind_world();
+    let height_of = |joint: usize| world[joint].translation.y;
+    let segments = 4 + 4 * detail;
+    let spacing = 1.0 / (8.0 * detail as f32);
+
+    let mut body = MeshData::new("warden", 0);
+    for part in &WARDEN_PARTS {
+        let seam_heights: Vec<f32> = part
+            .seams
+            .iter()
+            .map(|&(joint, _)| height_of(joint))
+            .collect();
+        push_body_part(&mut body, part, &seam_heights, segments, spacing)?;
+    }
+    // Feet (pointing forward, +Z) and a hood brim over the face: boxes bound to one bone.
+    for (x, bone) in [(0.1, LOWER_LEG_L), (-0.1, LOWER_LEG_R)] {
+        push_rigid_box(
+            &mut body,
+            Vec3::new(x - 0.045, 0.0, -0.06),
+            Vec3::new(x + 0.045, 0.07, 0.16),
+            bone,
+        );
+    }
+    push_rigid_box(
+        &mut body,
+        Vec3::new(-0.07, 1.69, 0.08),
+        Vec3::new(0.07, 1.72, 0.15),
+        HEAD,
+    );
+    let mut lantern = MeshData::new("lantern", 1);
+    push_rigid_box(
+        &mut lantern,
+        Vec3::new(-0.31, 0.58, -0.06),
+        Vec3::new(-0.19, 0.72, 0.06),
+        LOWER_ARM_R,
+    );
+
+    let mut nodes: Vec<NodeData> = WARDEN_JOINTS
+        .iter()
+        .zip(&WARDEN_BIND)
+        .map(|(&name, &(_, translation))| NodeData {
+            translation,
+            ..NodeData::named(name)
+        })
+        .collect();
+    for (joint, &(parent, _)) in WARDEN_BIND.iter().enumerate() {
+        if let Some(parent) = parent {
+            nodes[parent].children.push(joint);
+        }
+    }
+    for (mesh, name) in [(0, "warden"), (1, "lantern")] {
+        nodes.push(NodeData {
+            skin: Some(0),
+            ..NodeData::with_mesh(name, mesh)
+        });
+    }
+    Ok(GltfDocument {
+        meshes: vec![body, lantern],
+        materials: vec![
+            MaterialData {
+                roughness: 0.7,
+                ..MaterialData::lambertian("cloak", Vec3::new(0.08, 0.08, 0.1))
+            },
+            MaterialData {
+                emissive: Vec3::new(6.0, 4.0, 1.5),
+                ..MaterialData::lambertian("lantern glow", Vec3::new(0.9, 0.8, 0.6))
+            },
+        ],
+        nodes,
+        roots: vec![HIPS, WARDEN_JOINTS.len(), WARDEN_JOINTS.len() + 1],
+        skins: vec![SkinData {
+            name: "warden".into(),
+            joints: (0..WARDEN_JOINTS.len()).collect(),
+            inverse_bind_matrices: world.iter().map(|w| Mat4::from(w.inverse())).collect(),
+            skeleton: Some(HIPS),
+        }],
+        animations: vec![warden_walk(), warden_idle(), warden_alert()],
+        ..GltfDocument::default()
+    })
+}
+
+/// Writes a warden (as [`warden_document`]) whose detail is raised until it has at least
+/// `triangles` triangles, for skinning benchmarks; returns the triangle count (under about
+/// twice the request once that exceeds the shipped asset's).
+pub fn write_skinned_stress(path: &Path, triangles: usize) -> anyhow::Result<usize> {
+    ensure!(
+        triangles <= 50_000_000,
+        "{triangles} triangles is too many for a skinned stress mesh (50 million at most)"
+    );
+    // The count grows with detail^2: start from the estimate, then step up.
+    let base = warden_document(1)?.triangle_count();
+    let mut detail = ((triangles as f64 / base as f64).sqrt().floor() as u32).max(1);
+    let document = loop {
+        let document = warden_document(detail)?;
+        if document.triangle_count() >= triangles {
+            break document;
+        }
+        detail += 1;
+    };
+    write_gltf(&document, path)?;
+    Ok(document.triangle_count())
+}
+
+// ---- the banner: a morphing cloth ---------------------------------------------------------
+
+/// Columns and rows of quads in the banner grid.
+const BANNER_CELLS: (usize, usize) = (16, 32);
+
+/// The banner's morph displacement at grid coordinates (u across, v down from the top
+/// edge, both 0..1): `billow` pushes the lower cloth out from the wall (+Z, up to 0.15 m
+/// at the bottom centre), `sway` swings the bottom sideways (+X, 0.12 m) with a ripple.
+/// The top edge (v = 0) never moves.
+fn banner_displacement(target: usize, u: f64, v: f64) -> Vec3 {
+    use std::f64::consts::PI;
+    match target {
+        0 => Vec3::new(
+            0.0,
+            0.0,
+            (0.15 * v * v * (0.6 + 0.4 * (PI * u).sin())) as f32,
+        ),
+        _ => Vec3::new(
+            (0.12 * v * v) as f32,
+            0.0,
+            (0.05 * v * (2.0 * PI * u).sin()) as f32,
+        ),
+    }
+}
+
+/// Normals of a (columns + 1) x (rows + 1) grid of points, row-major from the top-left,
+/// by central differences (one-sided at the edges): (right - left) x (up - down).
+fn grid_normals(points: &[Vec3], columns: usize, rows: usize) -> Vec<Vec3> {
+    let at = |column: usize, row: usize| points[row * (columns + 1) + column];
+    let mut normals = Vec::with_capacity(points.len());
+    for row in 0..=rows {
+        for column in 0..=columns {
+            let across = at((column + 1).min(columns), row) - at(column.saturating_sub(1), row);
+            let up = at(column, row.saturating_sub(1)) - at(column, (row + 1).min(rows));
+            normals.push(across.cross(up).normalize());
+        }
+    }
+    normals
+}
+
+/// A 1 x 2 m cloth banner hanging from its top edge (y = 3, x -0.5..0.5) in the z = 0
+/// plane, front facing +Z, with the morph targets `billow` and `sway` (position and
+/// normal deltas) and the looping clip `wind`.
+fn banner() -> GltfDocument {
+    let (columns, rows) = BANNER_CELLS;
+    let mut mesh = MeshData::new("banner", 0);
+    for row in 0..=rows {
+        for column in 0..=columns {
+            let uv = Vec2::new(column as f32 / columns as f32, row as f32 / rows as f32);
+            mesh.positions
+                .push(Vec3::new(uv.x - 0.5, 3.0 - 2.0 * uv.y, 0.0));
+            mesh.uvs.push(uv);
+        }
+    }
+    mesh.normals = grid_normals(&mesh.positions, columns, rows);
+    let vertex = |column: usize, row: usize| (row * (columns + 1) + column) as u32;
+    for row in 0..rows {
+        for column in 0..columns {
+            // Counter-clockwise seen from the front (+Z); rows run downwards.
+            let (top_left, top_right) = (vertex(column, row), vertex(column + 1, row));
+            let (bottom_left, bottom_right) =
+                (vertex(column, row + 1), vertex(column + 1, row + 1));
+            mesh.indices.push([bottom_left, bottom_right, top_right]);
+            mesh.indices.push([bottom_left, top_right, top_left]);
+        }
+    }
+    for (target, name) in ["billow", "sway"].into_iter().enumerate() {
+        let deltas: Vec<Vec3> = (0..=rows)
+            .flat_map(|row| {
+                (0..=columns).map(move |column| {
+                    let (u, v) = (column as f64 / columns as f64, row as f64 / rows as f64);
+                    banner_displacement(target, u, v)
+                })
+            })
+            .collect();
+        let displaced: Vec<Vec3> = mesh
+            .positions
+            .iter()
+            .zip(&deltas)
+            .map(|(&p, &d)| p + d)
+            .collect();
+        let normals = grid_normals(&displaced, columns, rows)
+            .into_iter()
+            .zip(&mesh.normals)
+            .map(|(displaced, &rest)| displaced - rest)
+            .collect();
+        mesh.morph_targets.push(MorphTargetData {
+            name: name.into(),
+            positions: deltas,
+            normals,
+        });
+    }
+    mesh.morph_weights = vec![0.0, 0.0];
+
+    // `wind`: 3 s loop, 13 LINEAR keys every 0.25 s, the last equal to the first.
+    const KEYS: usize = 12;
+    let times: Vec<f32> = (0..=KEYS).map(|k| k as f32 * 0.25).collect();
+    let values = (0..=KEYS)
+        .flat_map(|k| {
+            let phase = std::f64::consts::TAU * (k % KEYS) as f64 / KEYS as f64;
+            let billow = 0.45 + 0.35 * (phase + 0.5).sin();
+            let sway = 0.6 * (2.0 * phase).sin();
+            [billow as f32, sway as f32]
+        })
+        .collect();
+    let mut document = GltfDocument::default();
+    let node = document.add_mesh_node(
+        mesh,
+        MaterialData {
+            double_sided: true,
+            ..MaterialData::lambertian("banner cloth", Vec3::new(0.35, 0.05, 0.05))
+        },
+    );
+    document.animations.push(AnimationData {
+        name: "wind".into(),
+        channels: vec![ChannelData {
+            node,
+            property: AnimatedProperty::MorphWeights,
+            interpolation: Interpolation::Linear,
+            times,
+            values,
+        }],
+    });
+    document
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -503,16 +1203,29 @@ mod tests {
         let expected_files = [
             "cornell/cornell-box.bin",
             "cornell/cornell-box.gltf",
+            "kit/banner.glb",
             "kit/crate.glb",
             "kit/floor.glb",
             "kit/pillar.glb",
             "kit/shard.glb",
             "kit/wall.glb",
+            "kit/warden.glb",
         ];
         assert_eq!(names, expected_files);
 
+        let warden_triangles = warden_document(WARDEN_DETAIL).unwrap().triangle_count();
+        assert!(
+            (2000..=6000).contains(&warden_triangles),
+            "the shipped warden has {warden_triangles} triangles"
+        );
         // (file, triangles, material names)
-        let expectations: [(&str, usize, &[&str]); 6] = [
+        let expectations: [(&str, usize, &[&str]); 8] = [
+            (
+                "kit/warden.glb",
+                warden_triangles,
+                &["cloak", "lantern glow"],
+            ),
+            ("kit/banner.glb", 2 * 16 * 32, &["banner cloth"]),
             (
                 "cornell/cornell-box.gltf",
                 32,
@@ -688,6 +1401,324 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Signed volume enclosed by `primitive`'s triangles: positive when they face outwards.
+    fn signed_volume(primitive: &crate::scene::model::Primitive) -> f32 {
+        primitive
+            .indices
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| primitive.positions[i as usize]);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum()
+    }
+
+    #[test]
+    fn warden_is_a_skinned_animated_guard() {
+        use crate::scene::model::{AnimatedProperty, Interpolation};
+        let dir = unique_temp_dir("warden");
+        let path = dir.join("warden.glb");
+        write_gltf(&warden_document(WARDEN_DETAIL).unwrap(), &path).unwrap();
+        let asset = import_gltf(&path).unwrap();
+
+        // The skin: joints named in order, hips the skeleton root, inverse bind matrices
+        // undoing each joint's bind-pose world transform.
+        assert_eq!(asset.skins.len(), 1);
+        let skin = &asset.skins[0];
+        let joint_names: Vec<&str> = skin
+            .joints
+            .iter()
+            .map(|&j| asset.nodes[j].name.as_str())
+            .collect();
+        assert_eq!(joint_names, WARDEN_JOINTS);
+        assert_eq!(skin.skeleton, Some(skin.joints[0]));
+        let mut world = vec![glam::Mat4::IDENTITY; asset.nodes.len()];
+        let mut parent = vec![None; asset.nodes.len()];
+        asset.visit_nodes(glam::Mat4::IDENTITY, |node, matrix| world[node] = matrix);
+        for (index, node) in asset.nodes.iter().enumerate() {
+            node.children.iter().for_each(|&c| parent[c] = Some(index));
+        }
+        for (&joint, inverse_bind) in skin.joints.iter().zip(&skin.inverse_bind_matrices) {
+            assert!(
+                (world[joint] * *inverse_bind).abs_diff_eq(glam::Mat4::IDENTITY, 1e-6),
+                "{}: inverse bind matrix does not undo the bind pose",
+                asset.nodes[joint].name
+            );
+        }
+
+        // Skinned meshes hang off identity root nodes; weights are normalised, reference
+        // real joints, and blend only a joint with its parent.
+        let mut blended = 0;
+        for node in asset.nodes.iter().filter(|n| n.mesh.is_some()) {
+            assert_eq!(node.skin, Some(0), "{}", node.name);
+            assert_eq!(
+                node.transform.matrix(),
+                glam::Mat4::IDENTITY,
+                "{}",
+                node.name
+            );
+            let primitive = &asset.meshes[node.mesh.unwrap()].primitives[0];
+            let influences = &primitive.skin_influences[0];
+            assert_eq!(influences.joints.len(), primitive.positions.len());
+            for (joints, weights) in influences.joints.iter().zip(&influences.weights) {
+                let sum: f32 = weights.iter().sum();
+                assert!((sum - 1.0).abs() < 1e-6, "weights {weights:?} sum to {sum}");
+                assert!(joints.iter().all(|&j| (j as usize) < skin.joints.len()));
+                assert!(weights.iter().all(|&w| w >= 0.0));
+                let used: Vec<usize> = (0..4)
+                    .filter(|&i| weights[i] > 0.0)
+                    .map(|i| skin.joints[joints[i] as usize])
+                    .collect();
+                match used[..] {
+                    [_] => {}
+                    [a, b] => {
+                        assert!(
+                            parent[a] == Some(b) || parent[b] == Some(a),
+                            "a vertex blends unrelated joints {} and {}",
+                            asset.nodes[a].name,
+                            asset.nodes[b].name
+                        );
+                        blended += 1;
+                    }
+                    _ => panic!("a vertex has {} influences", used.len()),
+                }
+            }
+            triangles_of(&asset, &asset.meshes[node.mesh.unwrap()].name);
+            assert!(
+                signed_volume(primitive) > 0.0,
+                "{} faces inwards",
+                node.name
+            );
+        }
+        assert!(blended > 100, "only {blended} vertices blend two bones");
+
+        // Size and facing: 1.8 m tall on y = 0, feet and hood brim towards +Z, the lantern
+        // (emissive, bound to the right forearm) on the right (-X).
+        let body = &asset.meshes[0].primitives[0];
+        let (min, max) = body
+            .positions
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
+        assert!(
+            min.y.abs() < 1e-6 && (max.y - 1.8).abs() < 1e-3,
+            "{min} .. {max}"
+        );
+        assert!(
+            max.z > -min.z + 0.02,
+            "the warden should face +Z: {min} .. {max}"
+        );
+        let lantern_material = asset.material_by_name("lantern glow").unwrap();
+        assert_eq!(
+            asset.materials[lantern_material].emissive,
+            Vec3::new(6.0, 4.0, 1.5)
+        );
+        let lantern = &asset.meshes[1].primitives[0];
+        assert_eq!(lantern.material, Some(lantern_material));
+        assert!(lantern.positions.iter().all(|p| p.x < -0.15 && p.y < 0.75));
+        let right_forearm = WARDEN_JOINTS
+            .iter()
+            .position(|&n| n == "lower_arm.R")
+            .unwrap();
+        assert!(
+            lantern.skin_influences[0]
+                .joints
+                .iter()
+                .zip(&lantern.skin_influences[0].weights)
+                .all(|(j, w)| j[0] as usize == right_forearm && w[0] == 1.0)
+        );
+
+        // The clips: names, interpolation, durations; the loops end where they start.
+        let clips: Vec<(&str, f32)> = asset
+            .animations
+            .iter()
+            .map(|a| (a.name.as_str(), a.duration()))
+            .collect();
+        assert_eq!(clips, [("walk", 1.0), ("idle", 2.0), ("alert", 0.6)]);
+        for (animation, interpolation) in asset.animations.iter().zip([
+            Interpolation::Linear,
+            Interpolation::CubicSpline,
+            Interpolation::Step,
+        ]) {
+            assert!(
+                animation
+                    .samplers
+                    .iter()
+                    .all(|s| s.interpolation == interpolation),
+                "{}",
+                animation.name
+            );
+            for channel in &animation.channels {
+                assert!(skin.joints.contains(&channel.node), "{}", animation.name);
+            }
+        }
+        for animation in &asset.animations[..2] {
+            for sampler in &animation.samplers {
+                let per_key = sampler.values.len() / sampler.times.len();
+                assert_eq!(
+                    sampler.values[..per_key],
+                    sampler.values[sampler.values.len() - per_key..],
+                    "{} does not loop",
+                    animation.name
+                );
+            }
+        }
+        let walk = &asset.animations[0];
+        let walk_properties: Vec<AnimatedProperty> =
+            walk.channels.iter().map(|c| c.property).collect();
+        assert_eq!(walk_properties[0], AnimatedProperty::Translation);
+        assert_eq!(asset.nodes[walk.channels[0].node].name, "hips");
+        assert!(
+            walk_properties[1..]
+                .iter()
+                .all(|&p| p == AnimatedProperty::Rotation)
+        );
+        let idle = &asset.animations[1];
+        let idle_joints: Vec<&str> = idle
+            .channels
+            .iter()
+            .map(|c| asset.nodes[c.node].name.as_str())
+            .collect();
+        assert_eq!(idle_joints, ["spine", "head"]);
+        for sampler in &idle.samplers {
+            // Every key's in- and out-tangent is non-zero.
+            for key in sampler.values.chunks_exact(12) {
+                assert!(key[..4].iter().any(|&x| x != 0.0) && key[8..].iter().any(|&x| x != 0.0));
+            }
+        }
+        let alert = &asset.animations[2];
+        assert!(alert.channels.iter().any(
+            |c| asset.nodes[c.node].name == "head" && c.property == AnimatedProperty::Rotation
+        ));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn warden_parts_face_away_from_their_axes() {
+        let world = warden_bind_world();
+        for (index, part) in WARDEN_PARTS.iter().enumerate() {
+            let seams: Vec<f32> = part
+                .seams
+                .iter()
+                .map(|&(joint, _)| world[joint].translation.y)
+                .collect();
+            let mut mesh = MeshData::new("part", 0);
+            push_body_part(&mut mesh, part, &seams, 12, 0.05).unwrap();
+            for triangle in &mesh.indices {
+                let [a, b, c] = triangle.map(|i| mesh.positions[i as usize]);
+                let normal = (b - a).cross(c - a);
+                let centroid = (a + b + c) / 3.0;
+                let outward = centroid - Vec3::new(part.axis.x, centroid.y, part.axis.y);
+                assert!(
+                    normal.dot(outward) > 0.0,
+                    "part {index} has an inward triangle"
+                );
+                for &i in triangle {
+                    assert!(
+                        mesh.normals[i as usize].dot(normal) > 0.0,
+                        "part {index}: a vertex normal disagrees with the winding"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn banner_has_two_morph_targets_and_a_looping_wind() {
+        use crate::scene::model::{AnimatedProperty, Interpolation};
+        let dir = unique_temp_dir("banner");
+        let path = dir.join("banner.glb");
+        write_gltf(&banner(), &path).unwrap();
+        let asset = import_gltf(&path).unwrap();
+        let cloth = &asset.materials[0];
+        assert_eq!(
+            (
+                cloth.name.as_str(),
+                cloth.base_color.truncate(),
+                cloth.double_sided
+            ),
+            ("banner cloth", Vec3::new(0.35, 0.05, 0.05), true)
+        );
+        let mesh = &asset.meshes[0];
+        assert_eq!(mesh.morph_weights, [0.0, 0.0]);
+        let primitive = &mesh.primitives[0];
+        triangles_of(&asset, "banner")
+            .iter()
+            .for_each(|(_, normal)| assert!(normal.z > 0.999, "the banner faces +Z"));
+        let (min, max) = primitive
+            .positions
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            });
+        assert_eq!(
+            (min, max),
+            (Vec3::new(-0.5, 1.0, 0.0), Vec3::new(0.5, 3.0, 0.0))
+        );
+        assert_eq!(primitive.morph_targets.len(), 2);
+        for target in &primitive.morph_targets {
+            assert_eq!(target.positions.len(), primitive.positions.len());
+            assert_eq!(target.normals.len(), primitive.positions.len());
+            assert!(target.positions.iter().any(|d| d.length() > 0.1));
+            for ((position, delta), (normal, normal_delta)) in primitive
+                .positions
+                .iter()
+                .zip(&target.positions)
+                .zip(primitive.normals.iter().zip(&target.normals))
+            {
+                if position.y == 3.0 {
+                    assert_eq!(*delta, Vec3::ZERO, "the top edge is fixed");
+                }
+                // Rest normal + delta is the displaced surface's unit normal, facing out.
+                let displaced = *normal + *normal_delta;
+                assert!((displaced.length() - 1.0).abs() < 1e-5 && displaced.z > 0.5);
+            }
+        }
+        // Full weights keep the vertex normals consistent with the displaced winding.
+        for target in &primitive.morph_targets {
+            for triangle in &primitive.indices {
+                let [a, b, c] = triangle
+                    .map(|i| primitive.positions[i as usize] + target.positions[i as usize]);
+                let normal = (b - a).cross(c - a);
+                for &i in triangle {
+                    let n = primitive.normals[i as usize] + target.normals[i as usize];
+                    assert!(n.dot(normal) > 0.0);
+                }
+            }
+        }
+        assert_eq!(asset.animations.len(), 1);
+        let wind = &asset.animations[0];
+        assert_eq!((wind.name.as_str(), wind.duration()), ("wind", 3.0));
+        assert_eq!(wind.channels.len(), 1);
+        assert_eq!(wind.channels[0].property, AnimatedProperty::MorphWeights);
+        let sampler = &wind.samplers[wind.channels[0].sampler];
+        assert_eq!(
+            (sampler.interpolation, sampler.components),
+            (Interpolation::Linear, 2)
+        );
+        let values = &sampler.values;
+        assert_eq!(
+            values[..2],
+            values[values.len() - 2..],
+            "wind does not loop"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn skinned_stress_mesh_has_at_least_the_requested_triangles() {
+        let dir = unique_temp_dir("skinned-stress");
+        let path = dir.join("stress.glb");
+        let written = write_skinned_stress(&path, 20_000).unwrap();
+        assert!((20_000..40_000).contains(&written), "{written} triangles");
+        let asset = import_gltf(&path).unwrap();
+        assert_eq!(asset.triangle_count(), written);
+        assert_eq!(asset.skins[0].joints.len(), WARDEN_JOINTS.len());
+        assert_eq!(asset.animations.len(), 3);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
