@@ -560,7 +560,8 @@ fn project_assets_match_the_reference() {
 
 /// The scene with every deforming mesh replaced by its pose at `t` as a plain static mesh:
 /// vertices written into the asset, skins, morph targets and clips removed, skinned nodes
-/// moved to the root with no transform (their vertices are already in the entity's space).
+/// given the transform that cancels their parents' (their vertices are already in the
+/// entity's space).
 fn baked(scene: &Scene, engine: &Engine) -> Scene {
     let mut baked = scene.clone();
     let state = engine.world.resource::<RenderState>();
@@ -573,7 +574,11 @@ fn baked(scene: &Scene, engine: &Engine) -> Scene {
         let Some(asset_index) = *asset_index else {
             continue;
         };
-        let asset = &mut baked.assets[asset_index];
+        // Entities share assets; each baked pose needs its own copy.
+        let own = baked.assets.len();
+        baked.assets.push(scene.assets[asset_index].clone());
+        baked.entity_assets[entity_index] = Some(own);
+        let asset = &mut baked.assets[own];
         for node in 0..asset.nodes.len() {
             let Some(mesh) = asset.nodes[node].mesh else {
                 continue;
@@ -597,13 +602,17 @@ fn baked(scene: &Scene, engine: &Engine) -> Scene {
                 offset += count;
             }
             if asset.nodes[node].skin.take().is_some() {
-                asset.nodes[node].transform = Default::default();
-                for other in &mut asset.nodes {
-                    other.children.retain(|&c| c != node);
-                }
-                if !asset.roots.contains(&node) {
-                    asset.roots.push(node);
-                }
+                // The vertices are in the entity's space: undo the parents' rest transforms
+                // (the node keeps its place in the hierarchy, so instance order is kept).
+                let mut world_from_node = glam::Mat4::IDENTITY;
+                asset.visit_nodes(glam::Mat4::IDENTITY, |n, world| {
+                    if n == node {
+                        world_from_node = world;
+                    }
+                });
+                let parent_world = world_from_node * asset.nodes[node].transform.matrix().inverse();
+                asset.nodes[node].transform =
+                    gloam::scene::model::NodeTransform::Matrix(parent_world.inverse());
             }
         }
         asset.animations.clear();
@@ -650,12 +659,16 @@ fn a_deformed_pose_renders_like_the_same_pose_baked_static() {
         let camera = Camera::new(&deformed.camera, 96, 64);
         let a = render(deformed, &camera, &settings(96, 64, 8), &|_| {}).film;
         let b = render(still, &camera, &settings(96, 64, 8), &|_| {}).film;
-        // Same triangles, same rays, same seeds: the images agree except where a tie between
-        // triangles sharing an edge resolves differently in the two trees (BVH layouts
-        // differ), or light selection differs with emitter areas rounded differently.
+        // Same triangles, same rays, same seeds: the images agree to rounding (measured
+        // ~2e-8 on first-light, ~6e-7 on CesiumMan), except where a tie between triangles
+        // sharing an edge resolves differently in the two trees (their layouts differ).
         let error = rmse_over_mean(&a, &b);
+        println!(
+            "{}: deformed vs baked RMSE/mean {error:.2e}",
+            path.display()
+        );
         assert!(
-            error < 0.02,
+            error < 1e-4,
             "{}: deformed vs baked RMSE/mean {error}",
             path.display()
         );
@@ -778,8 +791,11 @@ fn a_deformer_refits_every_step_and_rebuilds_when_the_tree_decays() {
     // policy rebuilds it (from then on the new shape is the reference).
     let mut deformers = engine.world.query::<&mut gloam::game::Deformer>();
     for mut deformer in deformers.iter_mut(&mut engine.world) {
-        if let gloam::scene::level::DeformerDef::Wave { amplitude, wavelength, .. } =
-            &mut deformer.kind
+        if let gloam::scene::level::DeformerDef::Wave {
+            amplitude,
+            wavelength,
+            ..
+        } = &mut deformer.kind
         {
             (*amplitude, *wavelength) = (1.5, 0.2);
         }
@@ -789,5 +805,8 @@ fn a_deformer_refits_every_step_and_rebuilds_when_the_tree_decays() {
         engine.advance(1.0 / 60.0);
         rebuilds += engine.deform_stats().rebuilds;
     }
-    assert_eq!(rebuilds, 1, "one rebuild when the waves turn violent, then refits");
+    assert_eq!(
+        rebuilds, 1,
+        "one rebuild when the waves turn violent, then refits"
+    );
 }

@@ -613,7 +613,12 @@ fn broken_skins_and_channels_are_reported_at_their_place() {
         "no-joints.gltf",
         skinned_triangle(|json| json["skins"][0]["joints"] = serde_json::json!([])),
     );
-    assert_reported(&path, "no-joints.gltf", None, &["JOINTS_0", "joint index 0 is past the 0 joints"]);
+    assert_reported(
+        &path,
+        "no-joints.gltf",
+        None,
+        &["JOINTS_0", "joint index 0 is past the 0 joints"],
+    );
     // A rotation channel whose sampler gives 3 values per key.
     let path = common::write(
         &dir,

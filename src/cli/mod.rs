@@ -110,11 +110,15 @@ pub enum Generate {
         #[arg(long, default_value = "assets")]
         out: PathBuf,
     },
-    /// Write a wavy-grid mesh with at least N triangles, for import timing.
+    /// Write a wavy-grid mesh with at least N triangles, for import timing (or, with
+    /// --skinned, a walking warden of at least N triangles, for skinning timing).
     Stress {
         /// Minimum number of triangles.
         #[arg(long, default_value_t = 1_000_000)]
         triangles: usize,
+        /// A skinned, animated warden instead of a static grid.
+        #[arg(long)]
+        skinned: bool,
         /// Output .glb or .gltf file.
         #[arg(long)]
         out: PathBuf,
@@ -211,9 +215,17 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             raybench::run(&options)?;
             Ok(ExitCode::SUCCESS)
         }
-        Command::Generate(Generate::Stress { triangles, out }) => {
-            let written = crate::scene::kit::write_stress_mesh(&out, triangles)
-                .with_context(|| format!("writing stress mesh {}", out.display()))?;
+        Command::Generate(Generate::Stress {
+            triangles,
+            skinned,
+            out,
+        }) => {
+            let written = if skinned {
+                crate::scene::kit::write_skinned_stress(&out, triangles)
+            } else {
+                crate::scene::kit::write_stress_mesh(&out, triangles)
+            }
+            .with_context(|| format!("writing stress mesh {}", out.display()))?;
             println!("wrote {} ({written} triangles)", out.display());
             Ok(ExitCode::SUCCESS)
         }
