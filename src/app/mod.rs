@@ -27,7 +27,7 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 
-use crate::game::{Accumulation, Action, Engine, Input, StageTimes};
+use crate::game::{Accumulation, Action, DeformStats, Engine, Input, StageTimes};
 use crate::render::RenderSettings;
 use crate::render::film::tone_map;
 use crate::scene::world::Scene;
@@ -51,6 +51,9 @@ pub struct PlayOptions {
 #[derive(Default)]
 struct StageLog {
     rows: Vec<[f64; 9]>,
+    /// Deforming meshes refit and rebuilt, summed over the frames.
+    refits: u64,
+    rebuilds: u64,
 }
 
 impl StageLog {
@@ -66,7 +69,9 @@ impl StageLog {
         "frame",
     ];
 
-    fn push(&mut self, times: &StageTimes, present: f64, frame: f64) {
+    fn push(&mut self, times: &StageTimes, deform: DeformStats, present: f64, frame: f64) {
+        self.refits += deform.refits as u64;
+        self.rebuilds += deform.rebuilds as u64;
         self.rows.push([
             times.simulate,
             times.extract,
@@ -91,6 +96,12 @@ impl StageLog {
             values.sort_by(f64::total_cmp);
             let median = values.get(values.len() / 2).copied().unwrap_or(0.0);
             line += &format!(" {name} {median:.2}");
+        }
+        if self.refits + self.rebuilds > 0 {
+            line += &format!(
+                "; deforming BLASes: {} refits, {} rebuilds",
+                self.refits, self.rebuilds
+            );
         }
         println!("{line}");
     }
@@ -197,6 +208,7 @@ fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
         last = now;
         log.push(
             engine.world.resource::<StageTimes>(),
+            engine.deform_stats(),
             0.0,
             now.elapsed().as_secs_f64() * 1e3,
         );
@@ -333,8 +345,12 @@ impl App {
         if advanced {
             let times = *self.engine.world.resource::<StageTimes>();
             let present = present_start.elapsed().as_secs_f64() * 1e3;
-            self.log
-                .push(&times, present, now.elapsed().as_secs_f64() * 1e3);
+            self.log.push(
+                &times,
+                self.engine.deform_stats(),
+                present,
+                now.elapsed().as_secs_f64() * 1e3,
+            );
         }
         if holding && self.done_at.is_none() {
             println!("ready: {} frames shown", self.rendered);
