@@ -1,12 +1,13 @@
 //! Frame step `extract`: turns scene data into the `RenderScene` that `accel` and `render`
 //! consume.
 //!
-//! Today this is the headless path used by `gloam render` and `gloam raybench`: a loaded
-//! `Scene` (a level or a bare glTF) becomes one BLAS per distinct glTF mesh, one instance
-//! per placement, the materials with each entity's level overrides applied, textures
-//! decoded to linear values, and the light set (emissive triangles and punctual lights).
-//! The ECS path arrives with the real-time shell and will produce the same structures from
-//! entities; both stay in this one module.
+//! At load, a `Scene` (a level or a bare glTF) becomes one BLAS per distinct glTF mesh that
+//! keeps its shape (shared by its instances), one refittable BLAS per placement of a mesh
+//! that deforms (skinned, morphing, or under a level deformer), one instance per placement,
+//! the materials with each entity's level overrides applied, textures decoded to linear
+//! values, and the light set (emissive triangles and punctual lights). Per frame, the game
+//! moves instances and deformed vertices in place and calls `refresh_triangle_lights` so
+//! emitters follow them. `gloam render`, `raybench` and the game all start here.
 
 use std::collections::HashMap;
 

@@ -182,32 +182,59 @@ pub fn deform(source: &DeformSource, pose: &Pose, positions: &mut [Vec3], normal
         .collect();
 
     // 1. Rest shape plus morph targets, then the deformer's offset along the normal.
-    positions
-        .par_chunks_mut(VERTICES_PER_TASK)
-        .zip(normals.par_chunks_mut(VERTICES_PER_TASK))
-        .enumerate()
-        .for_each(|(chunk, (positions, normals))| {
-            let first = chunk * VERTICES_PER_TASK;
-            for (offset, (position, normal)) in positions.iter_mut().zip(normals).enumerate() {
-                let v = first + offset;
-                let mut p = source.positions[v];
-                let mut n = source.normals[v];
-                for &(target, w) in &morphs {
-                    p += w * source.morph_positions[target][v];
-                    n += w * source.morph_normals[target][v];
-                }
-                if let Some((deformer, time)) = pose.deformer {
-                    p += n.normalize_or_zero() * deformer_offset(deformer, time, p, source.radius);
-                }
-                *position = p;
-                *normal = n;
-            }
-        });
+    for_each_vertex(positions, normals, |v, position, normal| {
+        let mut p = source.positions[v];
+        let mut n = source.normals[v];
+        for &(target, w) in &morphs {
+            p += w * source.morph_positions[target][v];
+            n += w * source.morph_normals[target][v];
+        }
+        if let Some((deformer, time)) = pose.deformer {
+            p += n.normalize_or_zero() * deformer_offset(deformer, time, p, source.radius);
+        }
+        *position = p;
+        *normal = n;
+    });
     if pose.deformer.is_some() {
         recompute_normals(positions, &source.triangles, normals);
     }
 
     // 2. Linear blend skinning in place (or just renormalise morphed normals).
+    for_each_vertex(positions, normals, |v, position, normal| {
+        if !skin {
+            *normal = normal.normalize_or(Vec3::Y);
+            return;
+        }
+        let range = v * per_vertex..(v + 1) * per_vertex;
+        let mut blended = [Vec3A::ZERO; 4];
+        for (&joint, &weight) in source.joints[range.clone()]
+            .iter()
+            .zip(&source.weights[range])
+        {
+            if weight != 0.0 {
+                let columns = &joints[joint as usize];
+                for (sum, column) in blended.iter_mut().zip(columns) {
+                    *sum += *column * weight;
+                }
+            }
+        }
+        let [x, y, z, translation] = blended;
+        let p = Vec3A::from(*position);
+        *position = Vec3::from(x * p.x + y * p.y + z * p.z + translation);
+        *normal = Vec3::from(
+            normal_matrix(x, y, z)
+                .mul_vec3a(Vec3A::from(*normal))
+                .normalize_or(Vec3A::Y),
+        );
+    });
+}
+
+/// Calls `visit(vertex index, position, normal)` for every vertex, in parallel chunks.
+fn for_each_vertex(
+    positions: &mut [Vec3],
+    normals: &mut [Vec3],
+    visit: impl Fn(usize, &mut Vec3, &mut Vec3) + Sync,
+) {
     positions
         .par_chunks_mut(VERTICES_PER_TASK)
         .zip(normals.par_chunks_mut(VERTICES_PER_TASK))
@@ -215,32 +242,7 @@ pub fn deform(source: &DeformSource, pose: &Pose, positions: &mut [Vec3], normal
         .for_each(|(chunk, (positions, normals))| {
             let first = chunk * VERTICES_PER_TASK;
             for (offset, (position, normal)) in positions.iter_mut().zip(normals).enumerate() {
-                if !skin {
-                    *normal = normal.normalize_or(Vec3::Y);
-                    continue;
-                }
-                let v = first + offset;
-                let range = v * per_vertex..(v + 1) * per_vertex;
-                let mut blended = [Vec3A::ZERO; 4];
-                for (&joint, &weight) in source.joints[range.clone()]
-                    .iter()
-                    .zip(&source.weights[range])
-                {
-                    if weight != 0.0 {
-                        let columns = &joints[joint as usize];
-                        for (sum, column) in blended.iter_mut().zip(columns) {
-                            *sum += *column * weight;
-                        }
-                    }
-                }
-                let [x, y, z, translation] = blended;
-                let p = Vec3A::from(*position);
-                *position = Vec3::from(x * p.x + y * p.y + z * p.z + translation);
-                *normal = Vec3::from(
-                    normal_matrix(x, y, z)
-                        .mul_vec3a(Vec3A::from(*normal))
-                        .normalize_or(Vec3A::Y),
-                );
+                visit(first + offset, position, normal);
             }
         });
 }
