@@ -28,6 +28,7 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 
 use crate::game::{Accumulation, Action, DeformStats, Engine, Input, StageTimes};
+use crate::profile::Profile;
 use crate::render::RenderSettings;
 use crate::render::film::tone_map;
 use crate::scene::world::Scene;
@@ -50,60 +51,41 @@ pub struct PlayOptions {
 /// Per-frame stage times, for the table printed when a `--frames` run ends.
 #[derive(Default)]
 struct StageLog {
-    rows: Vec<[f64; 9]>,
+    profile: Profile,
     /// Deforming meshes refit and rebuilt, summed over the frames.
     refits: u64,
     rebuilds: u64,
 }
 
 impl StageLog {
-    const NAMES: [&'static str; 9] = [
-        "simulate",
-        "extract",
-        "animation",
-        "blas_refit",
-        "tlas_build",
-        "render",
-        "film",
-        "present",
-        "frame",
-    ];
+    fn new(options: &PlayOptions) -> StageLog {
+        StageLog {
+            profile: Profile {
+                scene: options.level.display().to_string(),
+                width: options.width,
+                height: options.height,
+                threads: rayon::current_num_threads(),
+                frames: Vec::new(),
+            },
+            ..StageLog::default()
+        }
+    }
 
     fn push(&mut self, times: &StageTimes, deform: DeformStats, present: f64, frame: f64) {
         self.refits += deform.refits as u64;
         self.rebuilds += deform.rebuilds as u64;
-        self.rows.push([
-            times.simulate,
-            times.extract,
-            times.animation,
-            times.blas_refit,
-            times.tlas_build,
-            times.render,
-            times.film,
-            present,
-            frame,
-        ]);
+        self.profile.frames.push(times.sample(present, frame));
     }
 
-    /// Median of each stage, in milliseconds.
+    /// The per-stage statistics, and the deforming meshes' refits and rebuilds.
     fn print(&self, label: &str) {
-        let mut line = format!(
-            "stage medians over {} frames, {label} (ms):",
-            self.rows.len()
-        );
-        for (column, name) in Self::NAMES.iter().enumerate() {
-            let mut values: Vec<f64> = self.rows.iter().map(|row| row[column]).collect();
-            values.sort_by(f64::total_cmp);
-            let median = values.get(values.len() / 2).copied().unwrap_or(0.0);
-            line += &format!(" {name} {median:.2}");
-        }
+        print!("{label}: {}", self.profile.table());
         if self.refits + self.rebuilds > 0 {
-            line += &format!(
-                "; deforming BLASes: {} refits, {} rebuilds",
+            println!(
+                "deforming BLASes: {} refits, {} rebuilds",
                 self.refits, self.rebuilds
             );
         }
-        println!("{line}");
     }
 }
 
@@ -160,6 +142,7 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
     let event_loop = EventLoop::new().map_err(|error| {
         anyhow!("cannot open a window ({error}); `gloam render` and `gloam raybench` work without a display")
     })?;
+    let log = StageLog::new(&options);
     let mut app = App {
         engine: Engine::new(&scene, settings),
         options,
@@ -174,16 +157,13 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         rendered: 0,
         done_at: None,
         error: None,
-        log: StageLog::default(),
+        log,
     };
     event_loop
         .run_app(&mut app)
         .context("running the window's event loop")?;
     if app.options.frames.is_some() {
-        app.log.print(&format!(
-            "windowed {}x{}",
-            app.options.width, app.options.height
-        ));
+        app.log.print("windowed");
     }
     match app.error {
         Some(error) => Err(error),
@@ -200,7 +180,7 @@ fn frame_settings(options: &PlayOptions) -> RenderSettings {
 fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
     let scene = Scene::load(&options.level)?;
     let mut engine = Engine::new(&scene, frame_settings(&options));
-    let mut log = StageLog::default();
+    let mut log = StageLog::new(&options);
     let mut last = Instant::now();
     for _ in 0..options.frames.unwrap_or(60) {
         let now = Instant::now();
@@ -213,7 +193,7 @@ fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
             now.elapsed().as_secs_f64() * 1e3,
         );
     }
-    log.print(&format!("headless {}x{}", options.width, options.height));
+    log.print("headless");
     Ok(())
 }
 

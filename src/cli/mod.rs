@@ -1,6 +1,7 @@
 //! The `gloam` command line: parses arguments and calls into the library. Outside the frame;
 //! this is where user errors become one line on stderr and exit status 1.
 
+mod bench;
 mod convergence;
 mod raybench;
 
@@ -62,6 +63,9 @@ pub enum Command {
     /// RMSE against a converged render at 1/4/16 spp for the white, stratified and blue
     /// samplers, and path against reference integrator at equal time.
     Convergence(convergence::Options),
+    /// Headless frame-time profile along a fixed camera path: per-stage mean, p50, p95,
+    /// p99 and max; JSON, CSV, Chrome trace and PNG chart reports.
+    Bench(bench::Options),
     /// Compare two .exr renders of the same size: mean radiance of each, RMSE, and the
     /// ratio of their means over a 4 x 4 grid of regions (a local bias shows there).
     Compare {
@@ -205,6 +209,10 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         }
         Command::Convergence(options) => {
             convergence::run(&options)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Bench(options) => {
+            bench::run(&options)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Compare { image, reference } => {

@@ -421,8 +421,7 @@ pub fn deform_meshes(
         });
     }
     if jobs.is_empty() {
-        times.animation = since(start);
-        times.blas_refit = 0.0;
+        times.animation += since(start);
         return;
     }
 
@@ -460,7 +459,7 @@ pub fn deform_meshes(
         .iter()
         .map(|(job, _)| job.mesh.source.positions.len() as u64)
         .sum();
-    times.animation = since(start);
+    times.animation += since(start);
 
     // 3. Refit (or rebuild) each deformed BLAS.
     let refit_start = std::time::Instant::now();
@@ -473,7 +472,7 @@ pub fn deform_meshes(
         .filter(|&&o| o == RefitOutcome::Rebuilt)
         .count() as u32;
     stats.refits = stats.deformed - stats.rebuilds;
-    times.blas_refit = since(refit_start);
+    times.blas_refit += since(refit_start);
 
     // 4. Their emitters move with them; the TLAS must see their new bounds.
     for (job, _) in &work {

@@ -93,14 +93,20 @@ pub struct SimulationClock {
     pub alpha: f32,
 }
 
-/// Milliseconds each stage of the last frame took.
+/// Milliseconds each stage of the last frame took (`profile::STAGES` names them; the fixed
+/// steps' stages sum over every step the frame ran), and the rays it traced.
 #[derive(Resource, Default, Clone, Copy, Debug)]
 pub struct StageTimes {
-    /// All fixed steps run for this frame (input, gameplay, clip sampling, transforms).
-    pub simulate: f64,
-    pub extract: f64,
-    /// Deforming meshes: skinning, morph targets, procedural deformers.
+    /// Input actions applied (the fly camera), and last step's transforms remembered.
+    pub input: f64,
+    /// Gameplay systems (none yet: the game proper adds them here).
+    pub gameplay: f64,
+    /// Clip sampling in the fixed steps, plus deforming meshes (skinning, morph targets,
+    /// procedural deformers) in the frame.
     pub animation: f64,
+    /// Transform propagation down the hierarchy.
+    pub transforms: f64,
+    pub extract: f64,
     /// Refitting (or rebuilding) the deformed meshes' BLASes.
     pub blas_refit: f64,
     /// Rebuilding the TLAS and moving emissive triangles with their instances.
@@ -108,6 +114,30 @@ pub struct StageTimes {
     pub render: f64,
     /// Adding the frame into the accumulated image.
     pub film: f64,
+    /// Rays the render traced (camera, bounce and shadow).
+    pub rays: u64,
+}
+
+impl StageTimes {
+    /// This frame as a profile sample, with the shell's own `present` and whole-frame times.
+    pub fn sample(&self, present_ms: f64, frame_ms: f64) -> crate::profile::FrameSample {
+        crate::profile::FrameSample {
+            stages: [
+                self.input,
+                self.gameplay,
+                self.animation,
+                self.transforms,
+                self.extract,
+                self.blas_refit,
+                self.tlas_build,
+                self.render,
+                self.film,
+                present_ms,
+            ],
+            frame_ms,
+            rays: self.rays,
+        }
+    }
 }
 
 pub(crate) fn since(start: std::time::Instant) -> f64 {
@@ -129,8 +159,9 @@ impl Accumulation {
 /// The ECS world and its schedules.
 pub struct Engine {
     pub world: World,
-    /// One 1/60 s simulation step.
-    fixed_step: Schedule,
+    /// One 1/60 s simulation step, as its timed stages: input, gameplay, animation,
+    /// transforms.
+    fixed_step: [Schedule; 4],
     /// Animation applied and transforms propagated, without moving any clock (posing).
     pose: Schedule,
     /// Extract, deform and refit, TLAS: the scene made ready to trace.
@@ -326,17 +357,15 @@ impl Engine {
             reset: true,
         });
 
-        let mut fixed_step = Schedule::default();
-        fixed_step.add_systems(
-            (
-                remember_transforms,
-                fly_camera,
-                advance_animations,
-                apply_animations,
-                propagate_transforms,
-            )
-                .chain(),
-        );
+        let mut input = Schedule::default();
+        input.add_systems((remember_transforms, fly_camera).chain());
+        // Gameplay systems (player, shards, wardens) join this schedule with the game.
+        let gameplay = Schedule::default();
+        let mut animation = Schedule::default();
+        animation.add_systems((advance_animations, apply_animations).chain());
+        let mut transforms = Schedule::default();
+        transforms.add_systems(propagate_transforms);
+        let fixed_step = [input, gameplay, animation, transforms];
         let mut pose = Schedule::default();
         pose.add_systems((apply_animations, propagate_transforms).chain());
         let mut prepare = Schedule::default();
@@ -414,15 +443,25 @@ impl Engine {
     /// Simulates `seconds` of real time in fixed 1/60 s steps (the remainder carries
     /// over), then renders and accumulates one frame.
     pub fn advance(&mut self, seconds: f64) {
-        let start = std::time::Instant::now();
         self.owed += seconds.max(0.0);
         let step = 1.0 / SIMULATION_HZ;
+        let mut times = StageTimes::default();
         while self.owed >= step {
-            self.fixed_step.run(&mut self.world);
+            let [input, gameplay, animation, transforms] = &mut self.fixed_step;
+            for (schedule, slot) in [
+                (input, &mut times.input),
+                (gameplay, &mut times.gameplay),
+                (animation, &mut times.animation),
+                (transforms, &mut times.transforms),
+            ] {
+                let start = std::time::Instant::now();
+                schedule.run(&mut self.world);
+                *slot += since(start);
+            }
             self.owed -= step;
             self.steps += 1;
         }
-        self.world.resource_mut::<StageTimes>().simulate = since(start);
+        self.world.insert_resource(times);
         self.world.resource_mut::<SimulationClock>().alpha = (self.owed / step) as f32;
         self.prepare.run(&mut self.world);
         self.frame.run(&mut self.world);
@@ -520,6 +559,7 @@ pub fn render_frame(
     let start = std::time::Instant::now();
     let output = render(&state.scene, &camera, &settings, &|_| {});
     times.render = since(start);
+    times.rays = output.rays.total();
     let start = std::time::Instant::now();
     for (sum, pixel) in accumulation.sum.iter_mut().zip(&output.film.pixels) {
         *sum += *pixel;

@@ -1,0 +1,294 @@
+//! Profiling: what every stage of every frame cost, summarised and written as reports.
+//!
+//! Not a step of the frame but a witness to all of them: the game's `StageTimes` resource
+//! (filled by the schedules' own timers) becomes one `FrameSample` per frame, and a
+//! `Profile` of them is what `gloam bench` prints and writes:
+//! - JSON in DESIGN.md's schema (`frames`, `width`, `height`, `stages.<name>.{mean_ms,
+//!   p50_ms, p95_ms, p99_ms, max_ms}`, `frame`, `mrays_per_s`), plus rays per frame;
+//! - CSV, a row per frame and a column per stage;
+//! - a Chrome trace (the JSON "Trace Event Format"), which Perfetto and chrome://tracing
+//!   open: one complete ("X") event per stage per frame, laid end to end;
+//! - a PNG chart: the stages stacked per frame over time, and a histogram of frame times.
+//!
+//! Depends on nothing above it (DESIGN.md): plain numbers in, files out.
+
+use std::path::Path;
+
+use anyhow::Context as _;
+use serde_json::{Value, json};
+
+use crate::scene::files::write_atomically;
+
+pub mod chart;
+
+/// The stages of a frame, in the order they run (DESIGN.md's names, plus `transforms` and
+/// `extract`, which it folds into its neighbours but Gloam times apart).
+pub const STAGES: [&str; 10] = [
+    "input",
+    "gameplay",
+    "animation",
+    "transforms",
+    "extract",
+    "blas_refit",
+    "tlas_build",
+    "render",
+    "film",
+    "present",
+];
+
+/// One frame: milliseconds per stage (in `STAGES` order), the whole frame, and rays traced.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameSample {
+    pub stages: [f64; STAGES.len()],
+    pub frame_ms: f64,
+    pub rays: u64,
+}
+
+/// Order statistics of one series, in milliseconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Summary {
+    pub mean: f64,
+    pub p50: f64,
+    pub p95: f64,
+    pub p99: f64,
+    pub max: f64,
+}
+
+impl Summary {
+    /// Nearest-rank percentiles (the smallest value with at least p% of the series at or
+    /// below it), so every reported figure is a frame that happened.
+    pub fn of(values: &[f64]) -> Summary {
+        if values.is_empty() {
+            return Summary::default();
+        }
+        let mut sorted = values.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let rank = |p: f64| {
+            let index = ((p / 100.0) * sorted.len() as f64).ceil() as usize;
+            sorted[index.clamp(1, sorted.len()) - 1]
+        };
+        Summary {
+            mean: sorted.iter().sum::<f64>() / sorted.len() as f64,
+            p50: rank(50.0),
+            p95: rank(95.0),
+            p99: rank(99.0),
+            max: sorted[sorted.len() - 1],
+        }
+    }
+
+    fn json(&self) -> Value {
+        json!({
+            "mean_ms": self.mean,
+            "p50_ms": self.p50,
+            "p95_ms": self.p95,
+            "p99_ms": self.p99,
+            "max_ms": self.max,
+        })
+    }
+}
+
+/// A run of frames and what it ran on.
+#[derive(Clone, Debug, Default)]
+pub struct Profile {
+    pub scene: String,
+    pub width: u32,
+    pub height: u32,
+    pub threads: usize,
+    pub frames: Vec<FrameSample>,
+}
+
+impl Profile {
+    /// Summary of stage `index` over the frames.
+    pub fn stage(&self, index: usize) -> Summary {
+        let values: Vec<f64> = self.frames.iter().map(|f| f.stages[index]).collect();
+        Summary::of(&values)
+    }
+
+    pub fn frame(&self) -> Summary {
+        let values: Vec<f64> = self.frames.iter().map(|f| f.frame_ms).collect();
+        Summary::of(&values)
+    }
+
+    /// Rays traced per second of render stage, in millions.
+    pub fn mrays_per_s(&self) -> f64 {
+        let render = STAGES.iter().position(|&s| s == "render").unwrap_or(0);
+        let rays: u64 = self.frames.iter().map(|f| f.rays).sum();
+        let seconds: f64 = self.frames.iter().map(|f| f.stages[render]).sum::<f64>() / 1e3;
+        rays as f64 / seconds.max(1e-9) / 1e6
+    }
+
+    /// DESIGN.md's `bench --json` schema, and the rays of each frame.
+    pub fn to_json(&self) -> Value {
+        let stages: serde_json::Map<String, Value> = STAGES
+            .iter()
+            .enumerate()
+            .map(|(index, name)| (name.to_string(), self.stage(index).json()))
+            .collect();
+        json!({
+            "scene": self.scene,
+            "frames": self.frames.len(),
+            "width": self.width,
+            "height": self.height,
+            "threads": self.threads,
+            "stages": stages,
+            "frame": self.frame().json(),
+            "mrays_per_s": self.mrays_per_s(),
+            "rays_per_frame": self.frames.iter().map(|f| f.rays).collect::<Vec<_>>(),
+        })
+    }
+
+    /// The table `gloam bench` prints: a row per stage.
+    pub fn table(&self) -> String {
+        let mut text = format!(
+            "{} frames of {} at {}x{} on {} threads; {:.2} Mrays/s\n{:<12}{:>10}{:>10}{:>10}{:>10}{:>10}\n",
+            self.frames.len(),
+            self.scene,
+            self.width,
+            self.height,
+            self.threads,
+            self.mrays_per_s(),
+            "stage (ms)",
+            "mean",
+            "p50",
+            "p95",
+            "p99",
+            "max"
+        );
+        let rows = STAGES
+            .iter()
+            .enumerate()
+            .map(|(index, name)| (*name, self.stage(index)))
+            .chain([("frame", self.frame())]);
+        for (name, s) in rows {
+            text += &format!(
+                "{name:<12}{:>10.3}{:>10.3}{:>10.3}{:>10.3}{:>10.3}\n",
+                s.mean, s.p50, s.p95, s.p99, s.max
+            );
+        }
+        text
+    }
+
+    /// A row per frame: frame index, each stage, the frame, rays.
+    pub fn to_csv(&self) -> String {
+        let mut text = format!(
+            "frame,{},frame_ms,rays\n",
+            STAGES.map(|s| format!("{s}_ms")).join(",")
+        );
+        for (index, frame) in self.frames.iter().enumerate() {
+            let stages: Vec<String> = frame.stages.iter().map(|ms| format!("{ms:.6}")).collect();
+            text += &format!(
+                "{index},{},{:.6},{}\n",
+                stages.join(","),
+                frame.frame_ms,
+                frame.rays
+            );
+        }
+        text
+    }
+
+    /// Chrome's Trace Event Format: each frame's stages as consecutive complete events on
+    /// one track, frames end to end (with any untimed gap between stages left as a gap).
+    pub fn to_trace(&self) -> Value {
+        let mut events = Vec::new();
+        let mut frame_start_us = 0.0;
+        for (index, frame) in self.frames.iter().enumerate() {
+            events.push(json!({
+                "name": "frame", "cat": "frame", "ph": "X", "pid": 1, "tid": 1,
+                "ts": frame_start_us, "dur": frame.frame_ms * 1e3,
+                "args": { "index": index, "rays": frame.rays },
+            }));
+            let mut at = frame_start_us;
+            for (name, ms) in STAGES.iter().zip(frame.stages) {
+                if ms > 0.0 {
+                    events.push(json!({
+                        "name": name, "cat": "stage", "ph": "X", "pid": 1, "tid": 2,
+                        "ts": at, "dur": ms * 1e3,
+                    }));
+                }
+                at += ms * 1e3;
+            }
+            frame_start_us += (frame.frame_ms * 1e3).max(at - frame_start_us);
+        }
+        json!({
+            "traceEvents": events,
+            "displayTimeUnit": "ms",
+            "otherData": { "scene": self.scene, "width": self.width, "height": self.height },
+        })
+    }
+
+    /// Writes whichever reports have a path; each file is written whole or not at all.
+    pub fn write_reports(
+        &self,
+        json_path: Option<&Path>,
+        csv_path: Option<&Path>,
+        trace_path: Option<&Path>,
+        chart_path: Option<&Path>,
+    ) -> anyhow::Result<()> {
+        let write = |path: &Path, bytes: &[u8]| {
+            write_atomically(path, bytes).with_context(|| format!("writing {}", path.display()))
+        };
+        if let Some(path) = json_path {
+            write(
+                path,
+                serde_json::to_string_pretty(&self.to_json())?.as_bytes(),
+            )?;
+        }
+        if let Some(path) = csv_path {
+            write(path, self.to_csv().as_bytes())?;
+        }
+        if let Some(path) = trace_path {
+            write(path, serde_json::to_string(&self.to_trace())?.as_bytes())?;
+        }
+        if let Some(path) = chart_path {
+            write(path, &chart::png(self)?)?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_are_nearest_rank_frames_that_happened() {
+        let values: Vec<f64> = (1..=100).map(f64::from).rev().collect();
+        let s = Summary::of(&values);
+        assert_eq!((s.p50, s.p95, s.p99, s.max), (50.0, 95.0, 99.0, 100.0));
+        assert_eq!(s.mean, 50.5);
+        let one = Summary::of(&[7.0]);
+        assert_eq!((one.p50, one.p99, one.max, one.mean), (7.0, 7.0, 7.0, 7.0));
+        assert_eq!(Summary::of(&[]), Summary::default());
+    }
+
+    #[test]
+    fn trace_events_lie_end_to_end_inside_their_frames() {
+        let frame = |render: f64| FrameSample {
+            stages: [0.1, 0.0, 0.2, 0.1, 0.0, 0.3, 0.1, render, 0.2, 0.0],
+            frame_ms: render + 1.5,
+            rays: 10,
+        };
+        let profile = Profile {
+            frames: vec![frame(5.0), frame(7.0)],
+            ..Profile::default()
+        };
+        let trace = profile.to_trace();
+        let events = trace["traceEvents"].as_array().unwrap();
+        let frames: Vec<&Value> = events.iter().filter(|e| e["name"] == "frame").collect();
+        assert_eq!(frames[1]["ts"].as_f64(), Some(6500.0));
+        for event in events.iter().filter(|e| e["cat"] == "stage") {
+            let (ts, dur) = (
+                event["ts"].as_f64().unwrap(),
+                event["dur"].as_f64().unwrap(),
+            );
+            let inside = frames.iter().any(|f| {
+                let (start, length) = (f["ts"].as_f64().unwrap(), f["dur"].as_f64().unwrap());
+                ts >= start && ts + dur <= start + length + 1e-9
+            });
+            assert!(inside, "{event}");
+        }
+        // Empty stages leave no event.
+        assert!(!events.iter().any(|e| e["name"] == "gameplay"));
+        assert!((profile.mrays_per_s() - 20.0 / 12.0 / 1e3).abs() < 1e-12);
+    }
+}

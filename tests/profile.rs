@@ -1,0 +1,190 @@
+//! `gloam bench` as a user runs it: the reports it writes hold their schemas, the stages
+//! account for the frame, and the same run does the same work every time.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+const STAGES: [&str; 8] = [
+    "input",
+    "gameplay",
+    "animation",
+    "blas_refit",
+    "tlas_build",
+    "render",
+    "film",
+    "present",
+];
+
+/// Runs a short bench of first-light (wardens walking, a banner in the wind) into `dir`.
+fn bench(dir: &Path, name: &str, extra: &[&str]) -> (Value, String) {
+    let path = |ext: &str| dir.join(format!("{name}.{ext}")).display().to_string();
+    let (json, csv, trace, chart) = (path("json"), path("csv"), path("trace.json"), path("png"));
+    let mut args = vec![
+        "bench",
+        "levels/first-light.ron",
+        "--frames",
+        "24",
+        "--warmup",
+        "4",
+        "--width",
+        "96",
+        "--height",
+        "54",
+        "--json",
+        &json,
+        "--csv",
+        &csv,
+        "--trace",
+        &trace,
+        "--chart",
+        &chart,
+    ];
+    args.extend_from_slice(extra);
+    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .args(&args)
+        .current_dir(common::repo())
+        .output()
+        .expect("run gloam bench");
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    assert!(
+        output.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(
+        stdout.contains("render") && stdout.contains("p99"),
+        "{stdout}"
+    );
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    (report, std::fs::read_to_string(&csv).unwrap())
+}
+
+#[test]
+fn reports_hold_their_schemas_and_the_stages_add_up() {
+    let dir = common::scratch_dir("bench");
+    let (report, csv) = bench(&dir, "first", &["--threads", "2"]);
+
+    // DESIGN.md's JSON schema.
+    assert_eq!(report["frames"], 24);
+    assert_eq!(
+        (report["width"].as_u64(), report["height"].as_u64()),
+        (Some(96), Some(54))
+    );
+    let fields = ["mean_ms", "p50_ms", "p95_ms", "p99_ms", "max_ms"];
+    for stage in STAGES {
+        for field in fields {
+            assert!(
+                report["stages"][stage][field]
+                    .as_f64()
+                    .is_some_and(|v| v >= 0.0),
+                "stages.{stage}.{field} in {report}"
+            );
+        }
+        let s = &report["stages"][stage];
+        assert!(
+            s["p50_ms"].as_f64() <= s["p95_ms"].as_f64()
+                && s["p95_ms"].as_f64() <= s["max_ms"].as_f64()
+        );
+    }
+    for field in fields {
+        assert!(report["frame"][field].as_f64().is_some_and(|v| v > 0.0));
+    }
+    assert!(report["mrays_per_s"].as_f64().is_some_and(|v| v > 0.0));
+    // Wardens walk in first-light: animation and refits take time every frame.
+    assert!(report["stages"]["animation"]["mean_ms"].as_f64().unwrap() > 0.0);
+    assert!(report["stages"]["blas_refit"]["mean_ms"].as_f64().unwrap() > 0.0);
+
+    // The stages account for the frame: their means add up to the mean frame within 5%.
+    let stage_sum: f64 = report["stages"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|s| s["mean_ms"].as_f64().unwrap())
+        .sum();
+    let frame = report["frame"]["mean_ms"].as_f64().unwrap();
+    assert!(
+        (stage_sum - frame).abs() <= 0.05 * frame,
+        "stages sum to {stage_sum:.3} ms, the frame is {frame:.3} ms"
+    );
+
+    // CSV: a header and a row per frame, a column per stage.
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 25);
+    let header: Vec<&str> = lines[0].split(',').collect();
+    for stage in STAGES {
+        assert!(
+            header.contains(&format!("{stage}_ms").as_str()),
+            "{}",
+            lines[0]
+        );
+    }
+    assert!(
+        lines[1..]
+            .iter()
+            .all(|l| l.split(',').count() == header.len())
+    );
+
+    // Chrome trace: complete events with numeric microsecond times, every stage present,
+    // stages inside their frame.
+    let trace: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("first.trace.json")).unwrap())
+            .unwrap();
+    let events = trace["traceEvents"].as_array().expect("traceEvents");
+    assert!(events.iter().all(|e| e["ph"] == "X"
+        && e["ts"].as_f64().is_some_and(|t| t >= 0.0)
+        && e["dur"].as_f64().is_some_and(|d| d >= 0.0)
+        && e["pid"].is_u64()
+        && e["tid"].is_u64()
+        && e["name"].is_string()));
+    assert_eq!(events.iter().filter(|e| e["name"] == "frame").count(), 24);
+    for stage in ["animation", "blas_refit", "render"] {
+        assert!(
+            events.iter().any(|e| e["name"] == stage),
+            "no {stage} event"
+        );
+    }
+    // The chart is a PNG.
+    let chart = image::open(dir.join("first.png")).expect("chart decodes");
+    assert_eq!((chart.width(), chart.height()), (960, 540));
+}
+
+#[test]
+fn the_same_bench_does_the_same_work_every_run() {
+    let dir = common::scratch_dir("bench-repeat");
+    let (first, _) = bench(&dir, "one", &["--threads", "1"]);
+    let (second, _) = bench(&dir, "two", &["--threads", "2"]);
+    let rays = |report: &Value| report["rays_per_frame"].as_array().unwrap().clone();
+    assert_eq!(rays(&first).len(), 24);
+    assert!(rays(&first).iter().all(|r| r.as_u64().unwrap() > 0));
+    assert_eq!(
+        rays(&first),
+        rays(&second),
+        "same path, same poses, same rays"
+    );
+}
+
+#[test]
+fn bad_bench_flags_are_one_line_errors() {
+    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .args(["bench", "levels/first-light.ron", "--chart", "chart.jpg"])
+        .current_dir(common::repo())
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("chart.jpg") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .args(["bench", "levels/missing.ron"])
+        .current_dir(common::repo())
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("missing.ron"));
+}
