@@ -9,7 +9,7 @@
 //!    scales it to the window.
 //!
 //! Keys: W A S D fly, Space / C up and down, mouse looks once captured (click), Esc pauses
-//! (and releases the mouse), Q quits, F11 toggles fullscreen, V toggles vsync.
+//! (and releases the mouse), Q quits, F11 toggles fullscreen, V toggles vsync, F3 the profiler overlay.
 
 mod hud;
 
@@ -28,7 +28,7 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 
 use crate::game::{Accumulation, Action, DeformStats, Engine, Input, StageTimes};
-use crate::profile::Profile;
+use crate::profile::{Profile, overlay};
 use crate::render::RenderSettings;
 use crate::render::film::tone_map;
 use crate::scene::world::Scene;
@@ -46,12 +46,16 @@ pub struct PlayOptions {
     /// Run the same frame loop without a window (`frames` frames, default 60) and print
     /// the stage times.
     pub headless: bool,
+    /// Start with the profiler overlay (F3) shown.
+    pub profiler: bool,
 }
 
 /// Per-frame stage times, for the table printed when a `--frames` run ends.
 #[derive(Default)]
 struct StageLog {
     profile: Profile,
+    /// Frames kept (None: all, for the table a `--frames` run prints).
+    keep: Option<usize>,
     /// Deforming meshes refit and rebuilt, summed over the frames.
     refits: u64,
     rebuilds: u64,
@@ -67,6 +71,7 @@ impl StageLog {
                 threads: rayon::current_num_threads(),
                 frames: Vec::new(),
             },
+            keep: options.frames.is_none().then_some(2 * overlay::HISTORY),
             ..StageLog::default()
         }
     }
@@ -75,6 +80,14 @@ impl StageLog {
         self.refits += deform.refits as u64;
         self.rebuilds += deform.rebuilds as u64;
         self.profile.frames.push(times.sample(present, frame));
+        if let Some(keep) = self.keep
+            && self.profile.frames.len() > keep
+        {
+            // Playing without end: keep what the overlay shows, not every frame.
+            self.profile
+                .frames
+                .drain(..self.profile.frames.len() - keep / 2);
+        }
     }
 
     /// The per-stage statistics, and the deforming meshes' refits and rebuilds.
@@ -96,6 +109,7 @@ enum Binding {
     Pause,
     Quit,
     Fullscreen,
+    Profiler,
     Vsync,
 }
 
@@ -110,6 +124,7 @@ const BINDINGS: &[(KeyCode, Binding)] = &[
     (KeyCode::Escape, Binding::Pause),
     (KeyCode::KeyQ, Binding::Quit),
     (KeyCode::F11, Binding::Fullscreen),
+    (KeyCode::F3, Binding::Profiler),
     (KeyCode::KeyV, Binding::Vsync),
 ];
 
@@ -143,6 +158,7 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         anyhow!("cannot open a window ({error}); `gloam render` and `gloam raybench` work without a display")
     })?;
     let log = StageLog::new(&options);
+    let overlay = options.profiler;
     let mut app = App {
         engine: Engine::new(&scene, settings),
         options,
@@ -153,6 +169,7 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         frame_ms: Vec::new(),
         paused: false,
         vsync: true,
+        overlay,
         captured: false,
         rendered: 0,
         done_at: None,
@@ -208,6 +225,8 @@ struct App {
     frame_ms: Vec<f32>,
     paused: bool,
     vsync: bool,
+    /// The profiler overlay (F3) is shown.
+    overlay: bool,
     captured: bool,
     /// Frames rendered (not counting repeats of a held image).
     rendered: u32,
@@ -266,6 +285,7 @@ impl App {
                     window.set_fullscreen(fullscreen);
                 }
             }
+            Binding::Profiler if pressed => self.overlay = !self.overlay,
             Binding::Vsync if pressed => {
                 self.vsync = !self.vsync;
                 if let Some(pixels) = &mut self.pixels {
@@ -318,6 +338,12 @@ impl App {
         hud::draw_text(frame, width, height, 2, 2, &status);
         if self.paused {
             hud::draw_text(frame, width, height, 2, 22, "PAUSED  Esc resume  Q quit");
+        }
+        if self.overlay {
+            let frames = &self.log.profile.frames;
+            let recent = &frames[frames.len().saturating_sub(overlay::HISTORY)..];
+            let deform = self.engine.deform_stats();
+            overlay::draw(frame, width, height, recent, deform.refits, deform.rebuilds);
         }
         if let Err(error) = pixels.render() {
             return self.fail(event_loop, anyhow!("presenting the frame: {error}"));

@@ -44,9 +44,12 @@ pub enum Command {
         #[arg(long, default_value_t = 0.0)]
         linger_seconds: f64,
         /// The same frame loop without a window (for --frames frames, default 60); prints
-        /// the median time of each stage.
+        /// the per-stage table `bench` prints.
         #[arg(long)]
         headless: bool,
+        /// Start with the profiler overlay (F3) shown.
+        #[arg(long)]
+        profiler: bool,
     },
     /// Validate a level (.ron) or glTF file: prints `file:line:column: message` per problem,
     /// exit 1 when there are any; otherwise a summary and the load time.
@@ -155,6 +158,7 @@ pub fn main() -> ExitCode {
         frames: None,
         linger_seconds: 0.0,
         headless: false,
+        profiler: false,
     });
     match run(command) {
         Ok(code) => code,
@@ -174,6 +178,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             frames,
             linger_seconds,
             headless,
+            profiler,
         } => {
             if width == 0 || height == 0 {
                 anyhow::bail!("--width and --height must be at least 1");
@@ -186,6 +191,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 frames,
                 linger: std::time::Duration::from_secs_f64(linger_seconds.max(0.0)),
                 headless,
+                profiler,
             })?;
             Ok(ExitCode::SUCCESS)
         }

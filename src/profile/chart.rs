@@ -15,7 +15,7 @@ const PLOT: (u32, u32, u32, u32) = (60, 40, 940, 330);
 const HISTOGRAM: (u32, u32, u32, u32) = (60, 380, 940, 520);
 
 /// A colour per stage (Okabe-Ito-like, distinguishable by colour-blind readers).
-const COLOURS: [[u8; 3]; STAGES.len()] = [
+pub(super) const COLOURS: [[u8; 3]; STAGES.len()] = [
     [230, 159, 0],
     [86, 180, 233],
     [0, 158, 115],

@@ -10,7 +10,9 @@
 //!   open: one complete ("X") event per stage per frame, laid end to end;
 //! - a PNG chart: the stages stacked per frame over time, and a histogram of frame times.
 //!
-//! Depends on nothing above it (DESIGN.md): plain numbers in, files out.
+//! `overlay` draws the same statistics live over the game's frame (F3).
+//!
+//! Depends on nothing above it (DESIGN.md): plain numbers in, files and pixels out.
 
 use std::path::Path;
 
@@ -20,6 +22,7 @@ use serde_json::{Value, json};
 use crate::scene::files::write_atomically;
 
 pub mod chart;
+pub mod overlay;
 
 /// The stages of a frame, in the order they run (DESIGN.md's names, plus `transforms` and
 /// `extract`, which it folds into its neighbours but Gloam times apart).
