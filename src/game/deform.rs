@@ -32,7 +32,8 @@ use crate::scene::level::DeformerDef;
 use crate::scene::model::Asset;
 
 /// A mesh's rest geometry and deformation data, in the vertex order of
-/// `extract::mesh_geometry` (primitives concatenated): shared by every instance of the mesh.
+/// `extract::mesh_geometry` (which gives the rest positions, normals and triangles, so the
+/// order is the BLAS's by construction): shared by every instance of the mesh.
 #[derive(Clone, Debug, Default)]
 pub struct DeformSource {
     pub positions: Vec<Vec3>,
@@ -62,20 +63,18 @@ impl DeformSource {
             .map(|p| p.skin_influences.len())
             .max()
             .unwrap_or(0);
+        let rest = crate::extract::mesh_geometry(asset, mesh, 0);
         let mut source = DeformSource {
+            positions: rest.positions,
+            normals: rest.normals,
+            triangles: rest.triangles,
             influences_per_vertex: 4 * sets,
             morph_positions: vec![Vec::new(); targets],
             morph_normals: vec![Vec::new(); targets],
             ..DeformSource::default()
         };
         for primitive in primitives {
-            let base = source.positions.len() as u32;
             let count = primitive.positions.len();
-            source.positions.extend_from_slice(&primitive.positions);
-            source.normals.extend_from_slice(&primitive.normals);
-            source
-                .triangles
-                .extend(primitive.indices.iter().map(|t| t.map(|i| i + base)));
             for vertex in 0..count {
                 for slot in 0..sets {
                     let set = primitive.skin_influences.get(slot);
