@@ -111,6 +111,25 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
         "stages sum to {stage_sum:.3} ms, the frame is {frame:.3} ms"
     );
 
+    // The render phases (primary, shade, shadow, bounces) share out the render stage.
+    let phases = report["render_phases"].as_object().expect("render_phases");
+    assert_eq!(phases.len(), 4);
+    let phase_sum: f64 = phases
+        .values()
+        .map(|p| p["mean_ms"].as_f64().unwrap())
+        .sum();
+    let render = report["stages"]["render"]["mean_ms"].as_f64().unwrap();
+    assert!(
+        (phase_sum - render).abs() <= 1e-6 * render.max(1.0),
+        "phases sum to {phase_sum} ms, render is {render} ms"
+    );
+    for phase in ["primary", "shade", "shadow", "bounces"] {
+        assert!(
+            phases[phase]["mean_ms"].as_f64().unwrap() > 0.0,
+            "render.{phase} took no time"
+        );
+    }
+
     // CSV: a header and a row per frame, a column per stage.
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines.len(), 25);
@@ -141,7 +160,13 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
         && e["tid"].is_u64()
         && e["name"].is_string()));
     assert_eq!(events.iter().filter(|e| e["name"] == "frame").count(), 24);
-    for stage in ["animation", "blas_refit", "render"] {
+    for stage in [
+        "animation",
+        "blas_refit",
+        "render",
+        "render.primary",
+        "render.bounces",
+    ] {
         assert!(
             events.iter().any(|e| e["name"] == stage),
             "no {stage} event"

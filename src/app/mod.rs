@@ -314,6 +314,7 @@ impl App {
             }
         }
         let present_start = Instant::now();
+        profiling::scope!("present");
         let Some(pixels) = &mut self.pixels else {
             return;
         };

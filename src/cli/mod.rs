@@ -170,6 +170,11 @@ pub fn main() -> ExitCode {
 }
 
 fn run(command: Command) -> anyhow::Result<ExitCode> {
+    // Only with a profile-with-* feature; a profiler that cannot start is not fatal.
+    let _live_profiler = crate::profile::start_live_profiler().unwrap_or_else(|error| {
+        eprintln!("gloam: {error:#}; running without the live profiler");
+        None
+    });
     match command {
         Command::Play {
             level,

@@ -371,6 +371,7 @@ pub fn deform_meshes(
     mut times: ResMut<StageTimes>,
 ) {
     let start = std::time::Instant::now();
+    profiling::scope!("animation.deform");
     *stats = DeformStats::default();
 
     // 1. Change detection and this frame's inputs.
@@ -462,6 +463,7 @@ pub fn deform_meshes(
 
     // 3. Refit (or rebuild) each deformed BLAS.
     let refit_start = std::time::Instant::now();
+    profiling::scope!("blas_refit");
     let outcomes: Vec<RefitOutcome> = work
         .par_iter_mut()
         .map(|(_, blas)| blas.refit_geometry())

@@ -112,6 +112,9 @@ pub struct StageTimes {
     /// Rebuilding the TLAS and moving emissive triangles with their instances.
     pub tlas_build: f64,
     pub render: f64,
+    /// The render's wall time split over its phases (`render::PhaseTimes::NAMES`) in
+    /// proportion to the CPU time each took on the tiles' threads.
+    pub render_phases: [f64; 4],
     /// Adding the frame into the accumulated image.
     pub film: f64,
     /// Rays the render traced (camera, bounce and shadow).
@@ -134,6 +137,7 @@ impl StageTimes {
                 self.film,
                 present_ms,
             ],
+            render_phases: self.render_phases,
             frame_ms,
             rays: self.rays,
         }
@@ -443,18 +447,22 @@ impl Engine {
     /// Simulates `seconds` of real time in fixed 1/60 s steps (the remainder carries
     /// over), then renders and accumulates one frame.
     pub fn advance(&mut self, seconds: f64) {
+        // A live profiler's frame boundary (the previous frame's present ends before it).
+        profiling::finish_frame!();
         self.owed += seconds.max(0.0);
         let step = 1.0 / SIMULATION_HZ;
         let mut times = StageTimes::default();
         while self.owed >= step {
+            profiling::scope!("fixed step");
             let [input, gameplay, animation, transforms] = &mut self.fixed_step;
-            for (schedule, slot) in [
-                (input, &mut times.input),
-                (gameplay, &mut times.gameplay),
-                (animation, &mut times.animation),
-                (transforms, &mut times.transforms),
+            for (_name, schedule, slot) in [
+                ("input", input, &mut times.input),
+                ("gameplay", gameplay, &mut times.gameplay),
+                ("animation", animation, &mut times.animation),
+                ("transforms", transforms, &mut times.transforms),
             ] {
                 let start = std::time::Instant::now();
+                profiling::scope!(_name);
                 schedule.run(&mut self.world);
                 *slot += since(start);
             }
@@ -482,6 +490,7 @@ pub fn extract_instances(
     mut times: ResMut<StageTimes>,
 ) {
     let start = std::time::Instant::now();
+    profiling::scope!("extract");
     let state = &mut *state;
     for (instance, global, previous) in &instances {
         let shown = if previous.0 == global.0 {
@@ -507,6 +516,7 @@ pub fn update_acceleration(
     mut times: ResMut<StageTimes>,
 ) {
     let start = std::time::Instant::now();
+    profiling::scope!("tlas_build");
     let state = &mut *state;
     if state.tlas_stale {
         state.scene.accel.rebuild_tlas();
@@ -557,10 +567,15 @@ pub fn render_frame(
     settings.frame = accumulation.frames;
     let camera = Camera::new(&placement, settings.width, settings.height);
     let start = std::time::Instant::now();
-    let output = render(&state.scene, &camera, &settings, &|_| {});
+    let output = {
+        profiling::scope!("render");
+        render(&state.scene, &camera, &settings, &|_| {})
+    };
     times.render = since(start);
+    times.render_phases = output.phases.share_of(times.render);
     times.rays = output.rays.total();
     let start = std::time::Instant::now();
+    profiling::scope!("film");
     for (sum, pixel) in accumulation.sum.iter_mut().zip(&output.film.pixels) {
         *sum += *pixel;
     }

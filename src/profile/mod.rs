@@ -24,6 +24,38 @@ use crate::scene::files::write_atomically;
 pub mod chart;
 pub mod overlay;
 
+/// The live profiler a `profile-with-*` feature built in, running while this value lives.
+/// Without those features there is none, and every `profiling::scope!` compiles to nothing.
+pub struct LiveProfiler {
+    #[cfg(feature = "profile-with-puffin")]
+    _server: puffin_http::Server,
+}
+
+/// Where `profile-with-puffin` serves its scopes for puffin_viewer.
+pub const PUFFIN_ADDRESS: &str = "127.0.0.1:8585";
+
+/// Starts the live profiler, if one was built in: Tracy's client (the Tracy profiler then
+/// connects to this process), or puffin's recorder and its server at `PUFFIN_ADDRESS`.
+pub fn start_live_profiler() -> anyhow::Result<Option<LiveProfiler>> {
+    #[cfg(feature = "profile-with-tracy")]
+    {
+        profiling::tracy_client::Client::start();
+        eprintln!("gloam: Tracy client running; connect with the Tracy profiler");
+        return Ok(Some(LiveProfiler {}));
+    }
+    #[cfg(feature = "profile-with-puffin")]
+    {
+        profiling::puffin::set_scopes_on(true);
+        let server = puffin_http::Server::new(PUFFIN_ADDRESS).map_err(|error| {
+            anyhow::anyhow!("starting the puffin server on {PUFFIN_ADDRESS}: {error}")
+        })?;
+        eprintln!("gloam: puffin scopes served on {PUFFIN_ADDRESS}; connect with puffin_viewer");
+        return Ok(Some(LiveProfiler { _server: server }));
+    }
+    #[allow(unreachable_code)]
+    Ok(None)
+}
+
 /// The stages of a frame, in the order they run (DESIGN.md's names, plus `transforms` and
 /// `extract`, which it folds into its neighbours but Gloam times apart).
 pub const STAGES: [&str; 10] = [
@@ -39,10 +71,18 @@ pub const STAGES: [&str; 10] = [
     "present",
 ];
 
+/// The phases inside `render` (render/mod.rs's wavefront over each tile), nested under it
+/// in every report as `render.<phase>`. The same names as `render::PhaseTimes::NAMES`
+/// (a test holds them equal; the profiler depends on nothing above it).
+pub const RENDER_PHASES: [&str; 4] = ["primary", "shade", "shadow", "bounces"];
+
 /// One frame: milliseconds per stage (in `STAGES` order), the whole frame, and rays traced.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct FrameSample {
     pub stages: [f64; STAGES.len()],
+    /// The render stage's milliseconds per phase (`RENDER_PHASES`), summing to it: the
+    /// wall time shared out by each phase's CPU time over the threads.
+    pub render_phases: [f64; RENDER_PHASES.len()],
     pub frame_ms: f64,
     pub rays: u64,
 }
@@ -107,6 +147,12 @@ impl Profile {
         Summary::of(&values)
     }
 
+    /// Summary of render phase `index` over the frames.
+    pub fn render_phase(&self, index: usize) -> Summary {
+        let values: Vec<f64> = self.frames.iter().map(|f| f.render_phases[index]).collect();
+        Summary::of(&values)
+    }
+
     pub fn frame(&self) -> Summary {
         let values: Vec<f64> = self.frames.iter().map(|f| f.frame_ms).collect();
         Summary::of(&values)
@@ -127,6 +173,11 @@ impl Profile {
             .enumerate()
             .map(|(index, name)| (name.to_string(), self.stage(index).json()))
             .collect();
+        let render_phases: serde_json::Map<String, Value> = RENDER_PHASES
+            .iter()
+            .enumerate()
+            .map(|(index, name)| (name.to_string(), self.render_phase(index).json()))
+            .collect();
         json!({
             "scene": self.scene,
             "frames": self.frames.len(),
@@ -134,6 +185,7 @@ impl Profile {
             "height": self.height,
             "threads": self.threads,
             "stages": stages,
+            "render_phases": render_phases,
             "frame": self.frame().json(),
             "mrays_per_s": self.mrays_per_s(),
             "rays_per_frame": self.frames.iter().map(|f| f.rays).collect::<Vec<_>>(),
@@ -157,11 +209,19 @@ impl Profile {
             "p99",
             "max"
         );
-        let rows = STAGES
-            .iter()
-            .enumerate()
-            .map(|(index, name)| (*name, self.stage(index)))
-            .chain([("frame", self.frame())]);
+        let mut rows: Vec<(String, Summary)> = Vec::new();
+        for (index, name) in STAGES.iter().enumerate() {
+            rows.push((name.to_string(), self.stage(index)));
+            if *name == "render" {
+                rows.extend(
+                    RENDER_PHASES
+                        .iter()
+                        .enumerate()
+                        .map(|(phase, name)| (format!("  .{name}"), self.render_phase(phase))),
+                );
+            }
+        }
+        rows.push(("frame".to_string(), self.frame()));
         for (name, s) in rows {
             text += &format!(
                 "{name:<12}{:>10.3}{:>10.3}{:>10.3}{:>10.3}{:>10.3}\n",
@@ -174,11 +234,17 @@ impl Profile {
     /// A row per frame: frame index, each stage, the frame, rays.
     pub fn to_csv(&self) -> String {
         let mut text = format!(
-            "frame,{},frame_ms,rays\n",
-            STAGES.map(|s| format!("{s}_ms")).join(",")
+            "frame,{},{},frame_ms,rays\n",
+            STAGES.map(|s| format!("{s}_ms")).join(","),
+            RENDER_PHASES.map(|s| format!("render.{s}_ms")).join(",")
         );
         for (index, frame) in self.frames.iter().enumerate() {
-            let stages: Vec<String> = frame.stages.iter().map(|ms| format!("{ms:.6}")).collect();
+            let stages: Vec<String> = frame
+                .stages
+                .iter()
+                .chain(&frame.render_phases)
+                .map(|ms| format!("{ms:.6}"))
+                .collect();
             text += &format!(
                 "{index},{},{:.6},{}\n",
                 stages.join(","),
@@ -207,6 +273,20 @@ impl Profile {
                         "name": name, "cat": "stage", "ph": "X", "pid": 1, "tid": 2,
                         "ts": at, "dur": ms * 1e3,
                     }));
+                }
+                if *name == "render" {
+                    // The phases nest inside render on the same track.
+                    let mut phase_at = at;
+                    for (phase, phase_ms) in RENDER_PHASES.iter().zip(frame.render_phases) {
+                        if phase_ms > 0.0 {
+                            events.push(json!({
+                                "name": format!("render.{phase}"), "cat": "render",
+                                "ph": "X", "pid": 1, "tid": 2,
+                                "ts": phase_at, "dur": phase_ms * 1e3,
+                            }));
+                        }
+                        phase_at += phase_ms * 1e3;
+                    }
                 }
                 at += ms * 1e3;
             }
@@ -265,9 +345,15 @@ mod tests {
     }
 
     #[test]
+    fn render_phase_names_are_the_renderers() {
+        assert_eq!(RENDER_PHASES, crate::render::PhaseTimes::NAMES);
+    }
+
+    #[test]
     fn trace_events_lie_end_to_end_inside_their_frames() {
         let frame = |render: f64| FrameSample {
             stages: [0.1, 0.0, 0.2, 0.1, 0.0, 0.3, 0.1, render, 0.2, 0.0],
+            render_phases: [render * 0.4, render * 0.1, render * 0.2, render * 0.3],
             frame_ms: render + 1.5,
             rays: 10,
         };
@@ -289,6 +375,27 @@ mod tests {
                 ts >= start && ts + dur <= start + length + 1e-9
             });
             assert!(inside, "{event}");
+        }
+        // The render phases nest inside their frame's render event and fill it.
+        let span = |e: &Value| (e["ts"].as_f64().unwrap(), e["dur"].as_f64().unwrap());
+        let renders: Vec<(f64, f64)> = events
+            .iter()
+            .filter(|e| e["name"] == "render")
+            .map(span)
+            .collect();
+        let phases: Vec<(f64, f64)> = events
+            .iter()
+            .filter(|e| e["cat"] == "render")
+            .map(span)
+            .collect();
+        assert_eq!(phases.len(), 8);
+        for (frame, &(start, length)) in renders.iter().enumerate() {
+            let own = &phases[frame * 4..frame * 4 + 4];
+            assert!(
+                own.iter()
+                    .all(|&(ts, dur)| ts >= start && ts + dur <= start + length + 1e-6)
+            );
+            assert!((own.iter().map(|p| p.1).sum::<f64>() - length).abs() < 1e-6);
         }
         // Empty stages leave no event.
         assert!(!events.iter().any(|e| e["name"] == "gameplay"));

@@ -112,6 +112,7 @@ mod tests {
             stages: [0.5, 0.0, 1.0, 0.2, 0.1, 2.0, 0.3, 20.0, 0.5, 3.0],
             frame_ms: 28.0,
             rays: 100_000,
+            ..FrameSample::default()
         };
         let (width, height) = (480, 270);
         let mut frame = vec![128u8; (width * height * 4) as usize];

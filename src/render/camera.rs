@@ -66,6 +66,24 @@ impl Camera {
             (self.rotation * (focus - origin)).normalize(),
         )
     }
+
+    /// The film point (pixels from the top-left, continuous) a world point projects to
+    /// through the pinhole: `ray`'s inverse. None behind the camera.
+    pub fn project(&self, point: Vec3A) -> Option<Vec2> {
+        let local = self.rotation.transpose() * (point - self.position);
+        if local.z >= -1e-6 {
+            return None;
+        }
+        let aspect = self.width as f32 / self.height as f32;
+        let ndc = Vec2::new(
+            local.x / (-local.z * self.tan_half_fov * aspect),
+            local.y / (-local.z * self.tan_half_fov),
+        );
+        Some(Vec2::new(
+            (ndc.x + 1.0) * 0.5 * self.width as f32,
+            (1.0 - ndc.y) * 0.5 * self.height as f32,
+        ))
+    }
 }
 
 #[cfg(test)]
@@ -90,5 +108,30 @@ mod tests {
         // Left edge: x = -aspect * tan(45) = -2 at z = -1.
         let left = camera.ray(Vec2::new(0.0, 50.0), Vec2::ZERO);
         assert!((left.direction.x / left.direction.z - 2.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn project_inverts_ray() {
+        let placement = CameraPlacement {
+            name: String::new(),
+            yfov: 60f32.to_radians(),
+            znear: 0.1,
+            world_from_camera: Mat4::from_rotation_translation(
+                glam::Quat::from_euler(glam::EulerRot::YXZ, 0.7, -0.3, 0.1),
+                glam::Vec3::new(1.0, 2.0, -3.0),
+            ),
+        };
+        let camera = Camera::new(&placement, 320, 180);
+        for film in [
+            Vec2::new(0.5, 0.5),
+            Vec2::new(160.0, 90.0),
+            Vec2::new(311.2, 7.9),
+        ] {
+            let ray = camera.ray(film, Vec2::ZERO);
+            let point = ray.origin + ray.direction * 4.5;
+            let back = camera.project(point).unwrap();
+            assert!((back - film).length() < 1e-3, "{film} -> {back}");
+            assert!(camera.project(ray.origin - ray.direction).is_none());
+        }
     }
 }

@@ -57,16 +57,16 @@ struct Vertex {
 
 /// The next surface along a ray, and the light it emits back along the ray (zero unless
 /// the material is emissive and the ray meets its emitting side).
-struct NextHit {
-    hit: Hit,
-    surface: SurfaceHit,
+pub struct NextHit {
+    pub hit: Hit,
+    pub surface: SurfaceHit,
     /// Unit direction back along the ray.
-    wo_world: Vec3A,
-    emitted: Vec3,
+    pub wo_world: Vec3A,
+    pub emitted: Vec3,
 }
 
 /// Both integrators' first step at every vertex: None when the ray leaves the scene.
-fn next_hit(scene: &RenderScene, ray: &Ray, alpha: &SceneAlpha) -> Option<NextHit> {
+pub fn next_hit(scene: &RenderScene, ray: &Ray, alpha: &SceneAlpha) -> Option<NextHit> {
     let hit = scene.accel.intersect(ray, InstanceMask::CAMERA, alpha)?;
     let surface = scene.accel.surface(&hit);
     let wo_world = -ray.direction.normalize();
@@ -120,7 +120,188 @@ fn vertex(
     }
 }
 
-/// Radiance along `ray` (a camera ray) with the path integrator.
+/// One path's running sums between vertices: pbrt's `PathIntegrator` locals, kept in a
+/// struct so a tile can take all its paths through one vertex at a time (render/mod.rs)
+/// as well as one path at a time (`path_radiance`). Both orders draw each pixel's sample
+/// dimensions in the same sequence, so they give bit-identical images.
+#[derive(Clone, Copy, Debug)]
+pub struct PathState {
+    pub radiance: Vec3,
+    /// Path throughput: the product of f cos / pdf (and roulette) so far.
+    beta: Vec3,
+    /// Whether the previous vertex was specular (or the camera): emission found by the
+    /// next ray is then counted in full, since light sampling could not have produced it.
+    specular_bounce: bool,
+    previous_bsdf_pdf: f32,
+    previous_position: Vec3A,
+    /// Scattering events so far (pbrt's definition: max_depth 0 is emission only, 1 adds
+    /// direct lighting).
+    depth: u32,
+}
+
+impl PathState {
+    /// A path about to trace `camera_ray`.
+    pub fn new(camera_ray: &Ray) -> PathState {
+        PathState {
+            radiance: Vec3::ZERO,
+            beta: Vec3::ONE,
+            specular_bounce: true,
+            previous_bsdf_pdf: 0.0,
+            previous_position: camera_ray.origin,
+            depth: 0,
+        }
+    }
+}
+
+/// Next event estimation's shadow ray: `contribution` arrives unless something blocks it.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowQuery {
+    pub ray: Ray,
+    pub contribution: Vec3,
+}
+
+impl ShadowQuery {
+    /// Traces the shadow ray and adds the light it lets through.
+    pub fn resolve(&self, scene: &RenderScene, alpha: &SceneAlpha, state: &mut PathState) {
+        if !scene.accel.occluded(&self.ray, InstanceMask::SHADOW, alpha) {
+            state.radiance += self.contribution;
+        }
+    }
+}
+
+/// What a vertex leaves to do: a shadow ray to trace, and the ray that continues the path.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct VertexOutcome {
+    pub shadow: Option<ShadowQuery>,
+    pub next: Option<Ray>,
+}
+
+/// The path integrator at one vertex: `found` is what the path's last ray hit (None if it
+/// left the scene). Adds emission to `state`, and returns the NEE shadow ray and the next
+/// ray, drawing `sampler`'s dimensions in a fixed order.
+pub fn path_vertex(
+    scene: &RenderScene,
+    state: &mut PathState,
+    found: Option<NextHit>,
+    sampler: &mut PixelSampler,
+    max_depth: u32,
+    counts: &mut RayCounts,
+) -> VertexOutcome {
+    // 1. Escaping rays see the sky.
+    let Some(NextHit {
+        hit,
+        surface,
+        wo_world,
+        emitted,
+    }) = found
+    else {
+        state.radiance += state.beta * scene.sky;
+        return VertexOutcome::default();
+    };
+
+    // 2. Emission at the hit: in full after the camera or a specular bounce, else
+    //    weighted against the light-sampling strategy that could also have found it.
+    if emitted != Vec3::ZERO {
+        if state.specular_bounce {
+            state.radiance += state.beta * emitted;
+        } else if let Some(light) = scene.lights.triangle_light(hit.instance, hit.primitive) {
+            let light_pdf = scene
+                .lights
+                .pdf(light, state.previous_position, surface.position);
+            state.radiance +=
+                state.beta * emitted * power_heuristic(state.previous_bsdf_pdf, light_pdf);
+        } else {
+            state.radiance += state.beta * emitted;
+        }
+    }
+
+    if state.depth == max_depth {
+        return VertexOutcome::default();
+    }
+    state.depth += 1;
+    let v = vertex(scene, surface, wo_world, hit.instance, sampler.next_1d());
+
+    // 3. Next event estimation: one light sample, one shadow ray (traced by the caller).
+    let mut outcome = VertexOutcome::default();
+    let u_pick = sampler.next_1d();
+    let u_light = sampler.next_2d();
+    if !v.bsdf.is_specular()
+        && let Some(light) =
+            scene
+                .lights
+                .sample(v.surface.position, u_pick, u_light, |material, uv| {
+                    scene.materials[material as usize].emission_at(&scene.textures, uv)
+                })
+    {
+        let wi = v.frame.to_local(light.wi);
+        let f = v.bsdf.f(v.wo, wi) * wi.z.abs();
+        if f.max_element() > 0.0 && light.radiance.max_element() > 0.0 {
+            counts.shadow += 1;
+            let weight = if light.is_delta {
+                1.0
+            } else {
+                power_heuristic(light.pdf, v.bsdf.pdf(v.wo, wi))
+            };
+            outcome.shadow = Some(ShadowQuery {
+                ray: Ray::spawn_to(v.surface.position, v.facing_normal, light.point),
+                contribution: state.beta * f * light.radiance * (weight / light.pdf),
+            });
+        }
+    }
+
+    // 4. Continue the path by sampling the BSDF.
+    let u_choice = sampler.next_1d();
+    let u_direction = sampler.next_2d();
+    let u_roulette = sampler.next_1d();
+    let Some(sample) = v.bsdf.sample(v.wo, u_choice, u_direction) else {
+        return outcome;
+    };
+    state.beta *= sample.f * (sample.wi.z.abs() / sample.pdf);
+    state.specular_bounce = sample.specular;
+    state.previous_bsdf_pdf = sample.pdf;
+    state.previous_position = v.surface.position;
+
+    // 5. Russian roulette: survive with probability q, and divide by it.
+    if state.depth >= ROULETTE_START {
+        let q = state.beta.max_element().min(0.95);
+        if u_roulette >= q {
+            return outcome;
+        }
+        state.beta /= q;
+    }
+    if !state.beta.is_finite() || state.beta == Vec3::ZERO {
+        return outcome;
+    }
+    let wi_world = v.frame.to_world(sample.wi);
+    outcome.next = Some(Ray::spawn(v.surface.position, v.facing_normal, wi_world));
+    counts.bounce += 1;
+    outcome
+}
+
+/// Follows a path from `ray` (already counted) to its end, one vertex at a time.
+pub fn continue_path(
+    scene: &RenderScene,
+    alpha: &SceneAlpha,
+    state: &mut PathState,
+    mut ray: Ray,
+    sampler: &mut PixelSampler,
+    max_depth: u32,
+    counts: &mut RayCounts,
+) {
+    loop {
+        let found = next_hit(scene, &ray, alpha);
+        let outcome = path_vertex(scene, state, found, sampler, max_depth, counts);
+        if let Some(shadow) = outcome.shadow {
+            shadow.resolve(scene, alpha, state);
+        }
+        match outcome.next {
+            Some(next) => ray = next,
+            None => break,
+        }
+    }
+}
+
+/// Radiance along `ray` (a camera ray) with the path integrator, one path at a time.
 pub fn path_radiance(
     scene: &RenderScene,
     camera_ray: Ray,
@@ -129,106 +310,12 @@ pub fn path_radiance(
     counts: &mut RayCounts,
 ) -> Vec3 {
     let alpha = scene.alpha();
-    let mut radiance = Vec3::ZERO;
-    let mut beta = Vec3::ONE;
-    let mut ray = camera_ray;
-    // Whether the previous vertex was specular (or the camera): emission found by this
-    // ray is then counted in full, since light sampling could not have produced it.
-    let mut specular_bounce = true;
-    let mut previous_bsdf_pdf = 0.0;
-    let mut previous_position = ray.origin;
+    let mut state = PathState::new(&camera_ray);
     counts.camera += 1;
-
-    // `depth` counts scattering events so far (pbrt's definition: max_depth 0 is emission
-    // only, 1 adds direct lighting).
-    let mut depth = 0;
-    loop {
-        // 1. Find the next vertex; escaping rays see the sky.
-        let Some(NextHit {
-            hit,
-            surface,
-            wo_world,
-            emitted,
-        }) = next_hit(scene, &ray, &alpha)
-        else {
-            radiance += beta * scene.sky;
-            break;
-        };
-
-        // 2. Emission at the hit: in full after the camera or a specular bounce, else
-        //    weighted against the light-sampling strategy that could also have found it.
-        if emitted != Vec3::ZERO {
-            if specular_bounce {
-                radiance += beta * emitted;
-            } else if let Some(light) = scene.lights.triangle_light(hit.instance, hit.primitive) {
-                let light_pdf = scene.lights.pdf(light, previous_position, surface.position);
-                radiance += beta * emitted * power_heuristic(previous_bsdf_pdf, light_pdf);
-            } else {
-                radiance += beta * emitted;
-            }
-        }
-
-        if depth == max_depth {
-            break;
-        }
-        depth += 1;
-        let v = vertex(scene, surface, wo_world, hit.instance, sampler.next_1d());
-
-        // 3. Next event estimation: one light sample, one shadow ray.
-        let u_pick = sampler.next_1d();
-        let u_light = sampler.next_2d();
-        if !v.bsdf.is_specular()
-            && let Some(light) =
-                scene
-                    .lights
-                    .sample(v.surface.position, u_pick, u_light, |material, uv| {
-                        scene.materials[material as usize].emission_at(&scene.textures, uv)
-                    })
-        {
-            let wi = v.frame.to_local(light.wi);
-            let f = v.bsdf.f(v.wo, wi) * wi.z.abs();
-            if f.max_element() > 0.0 && light.radiance.max_element() > 0.0 {
-                counts.shadow += 1;
-                let shadow = Ray::spawn_to(v.surface.position, v.facing_normal, light.point);
-                if !scene.accel.occluded(&shadow, InstanceMask::SHADOW, &alpha) {
-                    let weight = if light.is_delta {
-                        1.0
-                    } else {
-                        power_heuristic(light.pdf, v.bsdf.pdf(v.wo, wi))
-                    };
-                    radiance += beta * f * light.radiance * (weight / light.pdf);
-                }
-            }
-        }
-
-        // 4. Continue the path by sampling the BSDF.
-        let u_choice = sampler.next_1d();
-        let u_direction = sampler.next_2d();
-        let u_roulette = sampler.next_1d();
-        let Some(sample) = v.bsdf.sample(v.wo, u_choice, u_direction) else {
-            break;
-        };
-        beta *= sample.f * (sample.wi.z.abs() / sample.pdf);
-        specular_bounce = sample.specular;
-        previous_bsdf_pdf = sample.pdf;
-        previous_position = v.surface.position;
-
-        // 5. Russian roulette: survive with probability q, and divide by it.
-        if depth >= ROULETTE_START {
-            let q = beta.max_element().min(0.95);
-            if u_roulette >= q {
-                break;
-            }
-            beta /= q;
-        }
-        if !beta.is_finite() || beta == Vec3::ZERO {
-            break;
-        }
-        let wi_world = v.frame.to_world(sample.wi);
-        ray = Ray::spawn(v.surface.position, v.facing_normal, wi_world);
-        counts.bounce += 1;
-    }
-    radiance
+    continue_path(
+        scene, &alpha, &mut state, camera_ray, sampler, max_depth, counts,
+    );
+    state.radiance
 }
 
 /// Radiance along `ray` with the reference integrator: BSDF sampling only.

@@ -128,6 +128,15 @@ impl RenderMaterial {
         self.base_color * Self::sample(self.base_color_texture, textures, uv)
     }
 
+    /// The fraction of light the surface reflects or transmits at `uv`, ignoring its lobe's
+    /// shape: what the denoiser divides illumination by (SVGF's demodulation). Glass and
+    /// metal take their Fresnel-free weights: base colour for metal and diffuse, 1 for glass.
+    pub fn albedo_at(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
+        let base = self.base_color_at(textures, uv).truncate();
+        let glass = self.transmission.clamp(0.0, 1.0) * (1.0 - self.metallic.clamp(0.0, 1.0));
+        base.lerp(Vec3::ONE, glass)
+    }
+
     /// Emitted radiance at `uv` from the front (and from the back when double-sided).
     pub fn emission_at(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
         if !self.is_emissive() {

@@ -4,15 +4,26 @@
 //!
 //! Per call of `render`:
 //! 1. split the image into 16 x 16 tiles and hand them to rayon;
-//! 2. per pixel and sample: a `PixelSampler` keyed by (seed, frame, pixel, sample), a
-//!    jittered camera ray, and the chosen integrator's radiance estimate;
+//! 2. per tile and sample index, take all the tile's paths through the same phase before
+//!    the next (a wavefront over the tile, so coherent rays are traced together and each
+//!    phase has its own profiler scope and timer):
+//!    - `primary`: a `PixelSampler` keyed by (seed, frame, pixel, sample), a jittered
+//!      camera ray, and its closest hit;
+//!    - `shade`: the first vertex: emission, a light sample and a BSDF sample;
+//!    - `shadow`: the first vertex's shadow rays (all towards the lights);
+//!    - `bounces`: each path onwards, one path at a time, with its own shadow rays;
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
 //!    thread count) and store the mean in the film.
+//!
+//! The phases draw each pixel's sample dimensions in the order `path_radiance` does, so
+//! the wavefront and the one-path-at-a-time integrator give bit-identical images.
 
+pub mod atrous;
 pub mod blue_noise;
 pub mod bsdf;
 pub mod camera;
 pub mod film;
+pub mod guides;
 pub mod integrator;
 pub mod light;
 pub mod material;
@@ -20,6 +31,7 @@ pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod spectrum;
+pub mod temporal;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -29,11 +41,16 @@ use rayon::prelude::*;
 
 pub use camera::Camera;
 pub use film::Film;
+pub use guides::{GuidePixel, Guides};
 pub use integrator::{IntegratorKind, RayCounts};
 pub use sampler::SamplerKind;
 pub use scene::RenderScene;
 
-use integrator::{camera_sample, path_radiance, reference_radiance};
+use crate::accel::Ray;
+use integrator::{
+    NextHit, PathState, VertexOutcome, camera_sample, continue_path, next_hit, path_vertex,
+    reference_radiance,
+};
 use sampler::PixelSampler;
 
 const TILE: u32 = 16;
@@ -86,17 +103,78 @@ impl Default for RenderSettings {
     }
 }
 
+/// Seconds of CPU time each phase of the tiles' work took, summed over the threads that
+/// did it (so on two busy threads they add up to about twice the render's wall time).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PhaseTimes {
+    /// Camera rays and their closest hits.
+    pub primary: f64,
+    /// The first vertex: emission, material, light and BSDF samples.
+    pub shade: f64,
+    /// The first vertex's shadow rays.
+    pub shadow: f64,
+    /// Every later vertex of every path, shadow rays included.
+    pub bounces: f64,
+}
+
+impl PhaseTimes {
+    /// The phases' names, in `as_array` order (the profiler's `render.*` rows).
+    pub const NAMES: [&str; 4] = ["primary", "shade", "shadow", "bounces"];
+
+    pub fn as_array(&self) -> [f64; 4] {
+        [self.primary, self.shade, self.shadow, self.bounces]
+    }
+
+    pub fn total(&self) -> f64 {
+        self.as_array().iter().sum()
+    }
+
+    /// `wall` (the render's wall time, any unit) split over the phases in proportion to
+    /// their CPU time: what each phase cost the frame, adding up to `wall`.
+    pub fn share_of(&self, wall: f64) -> [f64; 4] {
+        let total = self.total();
+        if total <= 0.0 {
+            return [0.0; 4];
+        }
+        self.as_array().map(|phase| wall * phase / total)
+    }
+
+    fn add(&mut self, other: &PhaseTimes) {
+        self.primary += other.primary;
+        self.shade += other.shade;
+        self.shadow += other.shadow;
+        self.bounces += other.bounces;
+    }
+}
+
 /// One tile's mean radiance per pixel (film index, value) and its ray counts.
 struct TileResult {
     pixels: Vec<(u32, Vec3)>,
+    /// Sample 0's guides per pixel, in `pixels` order (empty unless asked for).
+    guides: Vec<GuidePixel>,
     counts: RayCounts,
+    phases: PhaseTimes,
     invalid: u64,
+}
+
+/// Per-thread buffers for a tile's paths, reused from tile to tile.
+#[derive(Default)]
+struct TileScratch<'a> {
+    samplers: Vec<PixelSampler<'a>>,
+    paths: Vec<PathState>,
+    hits: Vec<Option<NextHit>>,
+    outcomes: Vec<VertexOutcome>,
+    sums: Vec<Vec3>,
 }
 
 pub struct RenderOutput {
     pub film: Film,
     pub rays: RayCounts,
     pub seconds: f64,
+    /// Where the tiles' CPU time went.
+    pub phases: PhaseTimes,
+    /// Each pixel's first hit (`render_guided` only).
+    pub guides: Option<Guides>,
     /// Samples whose estimate was NaN or infinite and were dropped (should be 0).
     pub invalid_samples: u64,
 }
@@ -114,6 +192,25 @@ pub fn render(
     settings: &RenderSettings,
     progress: &(dyn Fn(f32) + Sync),
 ) -> RenderOutput {
+    render_tiles(scene, camera, settings, progress, false)
+}
+
+/// `render`, plus each pixel's guides (its first hit) for the film step's filters.
+pub fn render_guided(
+    scene: &RenderScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+) -> RenderOutput {
+    render_tiles(scene, camera, settings, &|_| {}, true)
+}
+
+fn render_tiles(
+    scene: &RenderScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(f32) + Sync),
+    want_guides: bool,
+) -> RenderOutput {
     let start = Instant::now();
     let (width, height) = (settings.width.max(1), settings.height.max(1));
     let tiles_x = width.div_ceil(TILE);
@@ -126,74 +223,254 @@ pub fn render(
 
     let results: Vec<TileResult> = tiles
         .par_iter()
-        .map(|&(x0, y0)| {
-            let mut counts = RayCounts::default();
-            let mut invalid = 0;
-            let mut pixels = Vec::with_capacity((TILE * TILE) as usize);
-            for y in y0..(y0 + TILE).min(height) {
-                for x in x0..(x0 + TILE).min(width) {
-                    let mut sum = Vec3::ZERO;
-                    for s in 0..settings.spp {
-                        let mut sampler = PixelSampler::new(
-                            settings.sampler,
-                            mask,
-                            settings.seed,
-                            settings.frame,
-                            (x, y),
-                            s,
-                            settings.spp,
-                        );
-                        let (jitter, lens) = camera_sample(&mut sampler);
-                        let ray = camera.ray(Vec2::new(x as f32, y as f32) + jitter, lens);
-                        let radiance = match settings.integrator {
-                            IntegratorKind::Path => path_radiance(
-                                scene,
-                                ray,
-                                &mut sampler,
-                                settings.max_depth,
-                                &mut counts,
-                            ),
-                            IntegratorKind::Reference => reference_radiance(
-                                scene,
-                                ray,
-                                &mut sampler,
-                                settings.max_depth,
-                                &mut counts,
-                            ),
-                        };
-                        if radiance.is_finite() {
-                            sum += radiance;
-                        } else {
-                            invalid += 1;
-                        }
-                    }
-                    pixels.push((y * width + x, sum / settings.spp.max(1) as f32));
-                }
-            }
+        .map_init(TileScratch::default, |scratch, &origin| {
+            let tile = Tile {
+                scene,
+                camera,
+                settings,
+                mask,
+                width,
+                height,
+                want_guides,
+            };
+            let result = match settings.integrator {
+                IntegratorKind::Path => tile.path_traced(origin, scratch),
+                IntegratorKind::Reference => tile.reference(origin),
+            };
             let done = finished.fetch_add(1, Ordering::Relaxed) + 1;
             progress(done as f32 / tiles.len() as f32);
-            TileResult {
-                pixels,
-                counts,
-                invalid,
-            }
+            result
         })
         .collect();
 
     let mut film = Film::new(width, height);
+    let mut guides = want_guides.then(|| Guides::new(width, height));
     let mut rays = RayCounts::default();
+    let mut phases = PhaseTimes::default();
     let mut invalid_samples = 0;
     for tile in results {
+        if let Some(guides) = &mut guides {
+            for ((index, _), guide) in tile.pixels.iter().zip(tile.guides) {
+                guides.pixels[*index as usize] = guide;
+            }
+        }
         for (index, value) in tile.pixels {
             film.pixels[index as usize] = value;
         }
         rays.add(&tile.counts);
+        phases.add(&tile.phases);
         invalid_samples += tile.invalid;
     }
     RenderOutput {
         film,
         rays,
         seconds: start.elapsed().as_secs_f64(),
+        phases,
+        guides,
         invalid_samples,
     }
+}
+
+/// What every tile of one render shares.
+struct Tile<'a> {
+    scene: &'a RenderScene,
+    camera: &'a Camera,
+    settings: &'a RenderSettings,
+    mask: Option<&'static blue_noise::BlueNoiseMask>,
+    width: u32,
+    height: u32,
+    want_guides: bool,
+}
+
+impl Tile<'_> {
+    /// The tile's pixels (x, y), row by row.
+    fn pixels(&self, (x0, y0): (u32, u32)) -> impl Iterator<Item = (u32, u32)> + use<> {
+        let (x1, y1) = ((x0 + TILE).min(self.width), (y0 + TILE).min(self.height));
+        (y0..y1).flat_map(move |y| (x0..x1).map(move |x| (x, y)))
+    }
+
+    fn sampler(&self, (x, y): (u32, u32), sample: u32) -> PixelSampler<'static> {
+        let settings = self.settings;
+        PixelSampler::new(
+            settings.sampler,
+            self.mask,
+            settings.seed,
+            settings.frame,
+            (x, y),
+            sample,
+            settings.spp,
+        )
+    }
+
+    fn camera_ray(&self, (x, y): (u32, u32), sampler: &mut PixelSampler) -> Ray {
+        let (jitter, lens) = camera_sample(sampler);
+        self.camera
+            .ray(Vec2::new(x as f32, y as f32) + jitter, lens)
+    }
+
+    /// The path integrator over one tile, phase by phase (see the module doc).
+    fn path_traced(&self, origin: (u32, u32), scratch: &mut TileScratch<'static>) -> TileResult {
+        let (scene, settings) = (self.scene, self.settings);
+        let alpha = scene.alpha();
+        let mut counts = RayCounts::default();
+        let mut phases = PhaseTimes::default();
+        let mut invalid = 0;
+        let mut guides = Vec::new();
+        let count = self.pixels(origin).count();
+        scratch.sums.clear();
+        scratch.sums.resize(count, Vec3::ZERO);
+
+        for sample in 0..settings.spp {
+            // Primary: camera rays and their closest hits.
+            let mut clock = Instant::now();
+            {
+                profiling::scope!("render.primary");
+                scratch.samplers.clear();
+                scratch.paths.clear();
+                scratch.hits.clear();
+                for pixel in self.pixels(origin) {
+                    let mut sampler = self.sampler(pixel, sample);
+                    let ray = self.camera_ray(pixel, &mut sampler);
+                    scratch.paths.push(PathState::new(&ray));
+                    scratch.hits.push(next_hit(scene, &ray, &alpha));
+                    scratch.samplers.push(sampler);
+                }
+                counts.camera += count as u64;
+                if self.want_guides && sample == 0 {
+                    guides.extend(scratch.hits.iter().map(|hit| {
+                        GuidePixel::from_hit(scene, self.camera.position, hit.as_ref())
+                    }));
+                }
+            }
+            phases.primary += lap(&mut clock);
+
+            // Shade: the first vertex of every path.
+            {
+                profiling::scope!("render.shade");
+                scratch.outcomes.clear();
+                for ((path, hit), sampler) in scratch
+                    .paths
+                    .iter_mut()
+                    .zip(scratch.hits.drain(..))
+                    .zip(&mut scratch.samplers)
+                {
+                    let outcome =
+                        path_vertex(scene, path, hit, sampler, settings.max_depth, &mut counts);
+                    scratch.outcomes.push(outcome);
+                }
+            }
+            phases.shade += lap(&mut clock);
+
+            // Shadow: the first vertex's shadow rays, together.
+            {
+                profiling::scope!("render.shadow");
+                for (path, outcome) in scratch.paths.iter_mut().zip(&scratch.outcomes) {
+                    if let Some(shadow) = &outcome.shadow {
+                        shadow.resolve(scene, &alpha, path);
+                    }
+                }
+            }
+            phases.shadow += lap(&mut clock);
+
+            // Bounces: each path onwards to its end.
+            {
+                profiling::scope!("render.bounces");
+                for ((path, outcome), sampler) in scratch
+                    .paths
+                    .iter_mut()
+                    .zip(&scratch.outcomes)
+                    .zip(&mut scratch.samplers)
+                {
+                    if let Some(ray) = outcome.next {
+                        continue_path(
+                            scene,
+                            &alpha,
+                            path,
+                            ray,
+                            sampler,
+                            settings.max_depth,
+                            &mut counts,
+                        );
+                    }
+                }
+                for (sum, path) in scratch.sums.iter_mut().zip(&scratch.paths) {
+                    if path.radiance.is_finite() {
+                        *sum += path.radiance;
+                    } else {
+                        invalid += 1;
+                    }
+                }
+            }
+            phases.bounces += lap(&mut clock);
+        }
+
+        let spp = settings.spp.max(1) as f32;
+        let pixels = self
+            .pixels(origin)
+            .zip(&scratch.sums)
+            .map(|((x, y), sum)| (y * self.width + x, *sum / spp))
+            .collect();
+        TileResult {
+            pixels,
+            guides,
+            counts,
+            phases,
+            invalid,
+        }
+    }
+
+    /// The reference integrator over one tile, one path at a time.
+    fn reference(&self, origin: (u32, u32)) -> TileResult {
+        let settings = self.settings;
+        let mut counts = RayCounts::default();
+        let mut invalid = 0;
+        let mut guides = Vec::new();
+        let clock = Instant::now();
+        let alpha = self.scene.alpha();
+        let pixels = self
+            .pixels(origin)
+            .map(|(x, y)| {
+                let mut sum = Vec3::ZERO;
+                for sample in 0..settings.spp {
+                    let mut sampler = self.sampler((x, y), sample);
+                    let ray = self.camera_ray((x, y), &mut sampler);
+                    if self.want_guides && sample == 0 {
+                        let hit = next_hit(self.scene, &ray, &alpha);
+                        guides.push(GuidePixel::from_hit(self.scene, ray.origin, hit.as_ref()));
+                    }
+                    let radiance = reference_radiance(
+                        self.scene,
+                        ray,
+                        &mut sampler,
+                        settings.max_depth,
+                        &mut counts,
+                    );
+                    if radiance.is_finite() {
+                        sum += radiance;
+                    } else {
+                        invalid += 1;
+                    }
+                }
+                (y * self.width + x, sum / settings.spp.max(1) as f32)
+            })
+            .collect();
+        TileResult {
+            pixels,
+            guides,
+            counts,
+            phases: PhaseTimes {
+                bounces: clock.elapsed().as_secs_f64(),
+                ..PhaseTimes::default()
+            },
+            invalid,
+        }
+    }
+}
+
+/// Seconds since `clock`, which restarts.
+fn lap(clock: &mut Instant) -> f64 {
+    let now = Instant::now();
+    let seconds = (now - *clock).as_secs_f64();
+    *clock = now;
+    seconds
 }

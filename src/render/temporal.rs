@@ -1,0 +1,508 @@
+//! Frame step `film`, first filter: temporal accumulation with reprojection, after SVGF
+//! (Schied et al. 2017, "Spatiotemporal Variance-Guided Filtering: Real-Time
+//! Reconstruction for Path-Traced Global Illumination") with the colour clamp of TAA
+//! (Karis 2014, "High Quality Temporal Supersampling"; Salvi 2016's variance clipping).
+//!
+//! Owns last frame's history (demodulated illumination, luminance moments, history length),
+//! its guides, camera and instance transforms. Per frame, for every pixel:
+//! 1. demodulate: illumination = (radiance - emission) / albedo (`GuidePixel::demodulate`);
+//! 2. motion: carry the first hit back through its instance's previous transform and
+//!    project it with the previous camera; that film point is where history is read;
+//! 3. validate the 2 x 2 bilinear taps there by instance, depth and normal; with no valid
+//!    tap the pixel is disoccluded and its history starts again;
+//! 4. clamp the history to the current 3 x 3 neighbourhood's mean +- `clamp_sigma`
+//!    standard deviations (stale light is pulled towards what the frame shows now);
+//! 5. blend: an exponential moving average whose weight is 1/length until it reaches
+//!    `alpha_min`, for the illumination and its first two luminance moments, whose spread
+//!    is the variance the spatial filter (`atrous`) steers by.
+
+use glam::{Affine3A, Vec2, Vec3, Vec3A};
+use rayon::prelude::*;
+
+use super::camera::Camera;
+use super::film::Film;
+use super::guides::{GuidePixel, Guides};
+
+/// How the history is kept; the defaults are what `gloam flythrough` measured best.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TemporalSettings {
+    /// The newest frame's weight in the moving average never drops below this.
+    pub alpha_min: f32,
+    /// The same for the luminance moments (they need fewer frames to be useful).
+    pub moments_alpha_min: f32,
+    /// History is clamped to the neighbourhood mean +- this many standard deviations.
+    pub clamp_sigma: f32,
+    /// A tap is the same surface when its depth is within this fraction of the expected.
+    pub depth_tolerance: f32,
+    /// ... and its normal is within this cosine of the expected.
+    pub normal_tolerance: f32,
+}
+
+impl Default for TemporalSettings {
+    fn default() -> Self {
+        TemporalSettings {
+            alpha_min: 0.1,
+            moments_alpha_min: 0.2,
+            clamp_sigma: 2.0,
+            depth_tolerance: 0.05,
+            normal_tolerance: 0.9,
+        }
+    }
+}
+
+/// One pixel's history.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct History {
+    /// Demodulated illumination, averaged.
+    pub illumination: Vec3,
+    /// Mean luminance and mean squared luminance.
+    pub moments: Vec2,
+    /// Frames in the average (1 on a fresh or disoccluded pixel).
+    pub length: f32,
+}
+
+/// What this frame's accumulation gives the spatial filter.
+#[derive(Clone, Debug, Default)]
+pub struct Accumulated {
+    pub illumination: Vec<Vec3>,
+    /// Luminance variance per pixel (from the moments, or from the neighbourhood while
+    /// the history is short).
+    pub variance: Vec<f32>,
+    pub history_length: Vec<f32>,
+}
+
+/// History lengths below this use the neighbourhood's variance (SVGF's rule: the moments
+/// of a few frames say little).
+const SHORT_HISTORY: f32 = 4.0;
+
+/// Rows per parallel job in every filter pass: tall enough to amortise the handoff.
+pub(super) const BAND_ROWS: usize = 8;
+
+#[derive(Default)]
+pub struct TemporalFilter {
+    pub settings: TemporalSettings,
+    width: u32,
+    height: u32,
+    history: Vec<History>,
+    guides: Vec<GuidePixel>,
+    camera: Option<Camera>,
+    instances: Vec<Affine3A>,
+}
+
+/// Rec.709 luminance.
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+impl TemporalFilter {
+    pub fn new(settings: TemporalSettings) -> TemporalFilter {
+        TemporalFilter {
+            settings,
+            ..TemporalFilter::default()
+        }
+    }
+
+    /// Forgets everything (a new level, a new resolution): the next frame starts afresh.
+    pub fn reset(&mut self) {
+        self.history.clear();
+        self.guides.clear();
+        self.camera = None;
+        self.instances.clear();
+    }
+
+    /// Accumulates this frame (`radiance` with its `guides`, seen by `camera`, with the
+    /// instances at `instances`' world-from-object transforms) into the history.
+    pub fn accumulate(
+        &mut self,
+        radiance: &Film,
+        guides: &Guides,
+        camera: &Camera,
+        instances: &[Affine3A],
+    ) -> Accumulated {
+        let (width, height) = (radiance.width, radiance.height);
+        debug_assert_eq!((guides.width, guides.height), (width, height));
+        if (width, height) != (self.width, self.height) {
+            self.reset();
+            self.width = width;
+            self.height = height;
+        }
+        let count = (width * height) as usize;
+
+        // 1. Demodulate.
+        let current: Vec<Vec3> = radiance
+            .pixels
+            .par_iter()
+            .zip(&guides.pixels)
+            .map(|(l, g)| g.demodulate(*l))
+            .collect();
+
+        // 2-5. Reproject, validate, clamp, blend.
+        let objects_from_world: Vec<Affine3A> = instances.iter().map(|a| a.inverse()).collect();
+        let reprojection = self.camera.as_ref().map(|previous_camera| Reprojection {
+            camera: previous_camera,
+            guides: &self.guides,
+            history: &self.history,
+            instances_before: &self.instances,
+            objects_from_world: &objects_from_world,
+            width,
+            height,
+            settings: &self.settings,
+        });
+        let mut next = vec![(History::default(), 0.0f32); count];
+        next.par_chunks_mut(width as usize * BAND_ROWS)
+            .enumerate()
+            .for_each(|(band, rows)| {
+                let first = band * width as usize * BAND_ROWS;
+                for (offset, out) in rows.iter_mut().enumerate() {
+                    let index = first + offset;
+                    let (x, y) = (
+                        (index % width as usize) as u32,
+                        (index / width as usize) as u32,
+                    );
+                    let guide = &guides.pixels[index];
+                    if guide.is_sky() {
+                        continue;
+                    }
+                    let c = current[index];
+                    let (mean, sigma, spatial_variance) =
+                        neighbourhood(&current, guides, width, height, x, y);
+                    let lum = luminance(c);
+                    let fresh = Vec2::new(lum, lum * lum);
+                    let settings = &self.settings;
+                    *out = match reprojection.as_ref().and_then(|r| r.history_at(guide)) {
+                        Some(before) => {
+                            let length = before.length + 1.0;
+                            let alpha = (1.0 / length).max(settings.alpha_min);
+                            let moments_alpha = (1.0 / length).max(settings.moments_alpha_min);
+                            let band = if settings.clamp_sigma.is_finite() {
+                                sigma * settings.clamp_sigma
+                            } else {
+                                Vec3::INFINITY
+                            };
+                            let clamped = before
+                                .illumination
+                                .clamp((mean - band).max(Vec3::ZERO), mean + band);
+                            let moments = before.moments.lerp(fresh, moments_alpha);
+                            let variance = if length < SHORT_HISTORY {
+                                spatial_variance
+                            } else {
+                                (moments.y - moments.x * moments.x).max(0.0)
+                            };
+                            (
+                                History {
+                                    illumination: clamped.lerp(c, alpha),
+                                    moments,
+                                    length,
+                                },
+                                variance,
+                            )
+                        }
+                        None => (
+                            History {
+                                illumination: c,
+                                moments: fresh,
+                                length: 1.0,
+                            },
+                            spatial_variance,
+                        ),
+                    };
+                }
+            });
+
+        self.history = next.iter().map(|(h, _)| *h).collect();
+        self.guides.clone_from(&guides.pixels);
+        self.camera = Some(camera.clone());
+        self.instances = instances.to_vec();
+        Accumulated {
+            illumination: self.history.iter().map(|h| h.illumination).collect(),
+            variance: next.iter().map(|(_, v)| *v).collect(),
+            history_length: self.history.iter().map(|h| h.length).collect(),
+        }
+    }
+
+    /// Replaces the history's illumination (SVGF keeps the first a-trous iteration's
+    /// output as history: less noise carried forward).
+    pub fn feed_back(&mut self, illumination: &[Vec3]) {
+        if illumination.len() == self.history.len() {
+            for (history, value) in self.history.iter_mut().zip(illumination) {
+                history.illumination = *value;
+            }
+        }
+    }
+}
+
+/// Last frame, as a pixel of this frame finds it.
+struct Reprojection<'a> {
+    camera: &'a Camera,
+    guides: &'a [GuidePixel],
+    history: &'a [History],
+    instances_before: &'a [Affine3A],
+    objects_from_world: &'a [Affine3A],
+    width: u32,
+    height: u32,
+    settings: &'a TemporalSettings,
+}
+
+impl Reprojection<'_> {
+    /// The history under this pixel's first hit last frame, bilinearly weighted over the
+    /// taps that saw the same surface; None when none did (disocclusion).
+    fn history_at(&self, guide: &GuidePixel) -> Option<History> {
+        let instance = guide.instance as usize;
+        let before = self.instances_before.get(instance)?;
+        let object_from_world = self.objects_from_world.get(instance)?;
+        // Motion: where this point of the instance was last frame, and its normal then.
+        let local: Vec3A = object_from_world.transform_point3a(guide.position);
+        let position = before.transform_point3a(local);
+        let normal =
+            (before.matrix3 * (object_from_world.matrix3 * guide.normal)).normalize_or_zero();
+        let film = self.camera.project(position)?;
+        let depth = (position - self.camera.position).length();
+
+        let corner = film - Vec2::splat(0.5);
+        let (x0, y0) = (corner.x.floor(), corner.y.floor());
+        let (fx, fy) = (corner.x - x0, corner.y - y0);
+        let mut sum = History::default();
+        let mut weight_sum = 0.0;
+        for (dx, dy, weight) in [
+            (0, 0, (1.0 - fx) * (1.0 - fy)),
+            (1, 0, fx * (1.0 - fy)),
+            (0, 1, (1.0 - fx) * fy),
+            (1, 1, fx * fy),
+        ] {
+            let (x, y) = (x0 as i64 + dx, y0 as i64 + dy);
+            if weight <= 0.0 || x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64
+            {
+                continue;
+            }
+            let index = (y as u32 * self.width + x as u32) as usize;
+            let then = &self.guides[index];
+            let same_surface = then.instance == guide.instance
+                && (then.depth - depth).abs() <= self.settings.depth_tolerance * depth
+                && then.normal.dot(normal) >= self.settings.normal_tolerance;
+            if same_surface {
+                let h = &self.history[index];
+                sum.illumination += h.illumination * weight;
+                sum.moments += h.moments * weight;
+                sum.length += h.length * weight;
+                weight_sum += weight;
+            }
+        }
+        (weight_sum > 1e-2).then(|| History {
+            illumination: sum.illumination / weight_sum,
+            moments: sum.moments / weight_sum,
+            length: sum.length / weight_sum,
+        })
+    }
+}
+
+/// Mean and standard deviation (per channel) of the 3 x 3 neighbourhood's illumination,
+/// over pixels that are not sky, and the variance of their luminance.
+fn neighbourhood(
+    current: &[Vec3],
+    guides: &Guides,
+    width: u32,
+    height: u32,
+    x: u32,
+    y: u32,
+) -> (Vec3, Vec3, f32) {
+    let (mut sum, mut sum_squares, mut count) = (Vec3::ZERO, Vec3::ZERO, 0.0f32);
+    let (mut lum_sum, mut lum_squares) = (0.0f32, 0.0f32);
+    for ny in y.saturating_sub(1)..(y + 2).min(height) {
+        for nx in x.saturating_sub(1)..(x + 2).min(width) {
+            let index = (ny * width + nx) as usize;
+            if guides.pixels[index].is_sky() {
+                continue;
+            }
+            let c = current[index];
+            sum += c;
+            sum_squares += c * c;
+            let l = luminance(c);
+            lum_sum += l;
+            lum_squares += l * l;
+            count += 1.0;
+        }
+    }
+    let mean = sum / count;
+    let sigma = (sum_squares / count - mean * mean)
+        .max(Vec3::ZERO)
+        .powf(0.5);
+    let lum_mean = lum_sum / count;
+    (
+        mean,
+        sigma,
+        (lum_squares / count - lum_mean * lum_mean).max(0.0),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::guides::NO_INSTANCE;
+    use crate::scene::world::CameraPlacement;
+    use glam::Mat4;
+
+    fn camera(x: f32) -> Camera {
+        let placement = CameraPlacement {
+            name: String::new(),
+            yfov: 60f32.to_radians(),
+            znear: 0.1,
+            world_from_camera: Mat4::from_translation(glam::Vec3::new(x, 0.0, 0.0)),
+        };
+        Camera::new(&placement, 32, 16)
+    }
+
+    /// A wall at z = -5 facing the camera: instance 0, albedo 0.5.
+    fn wall(camera: &Camera) -> Guides {
+        let mut guides = Guides::new(32, 16);
+        for y in 0..16 {
+            for x in 0..32 {
+                let ray = camera.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), Vec2::ZERO);
+                let t = 5.0 / -ray.direction.z;
+                guides.pixels[(y * 32 + x) as usize] = GuidePixel {
+                    position: ray.origin + ray.direction * t,
+                    normal: Vec3A::Z,
+                    depth: t,
+                    instance: 0,
+                    albedo: Vec3::splat(0.5),
+                    emission: Vec3::ZERO,
+                };
+            }
+        }
+        guides
+    }
+
+    fn film(value: impl Fn(u32, u32) -> Vec3) -> Film {
+        let mut film = Film::new(32, 16);
+        for y in 0..16 {
+            for x in 0..32 {
+                film.pixels[(y * 32 + x) as usize] = value(x, y);
+            }
+        }
+        film
+    }
+
+    #[test]
+    fn a_still_view_averages_frames_and_grows_its_history() {
+        let mut filter = TemporalFilter::new(TemporalSettings {
+            clamp_sigma: f32::INFINITY,
+            ..TemporalSettings::default()
+        });
+        let camera = camera(0.0);
+        let guides = wall(&camera);
+        let identity = [Affine3A::IDENTITY];
+        // Alternate 0.2 and 0.6 radiance: illumination 0.4 and 1.2, mean 0.8.
+        let mut last = Accumulated::default();
+        for frame in 0..10 {
+            let value = if frame % 2 == 0 { 0.2 } else { 0.6 };
+            last = filter.accumulate(
+                &film(|_, _| Vec3::splat(value)),
+                &guides,
+                &camera,
+                &identity,
+            );
+        }
+        assert_eq!(last.history_length[5 * 32 + 7], 10.0);
+        // With weights 1/n (n <= 10 = 1/alpha_min) the average is the plain mean.
+        assert!((last.illumination[5 * 32 + 7].x - 0.8).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_moving_camera_reads_history_where_the_surface_was() {
+        let mut filter = TemporalFilter::new(TemporalSettings {
+            clamp_sigma: f32::INFINITY,
+            ..TemporalSettings::default()
+        });
+        let identity = [Affine3A::IDENTITY];
+        // A pattern fixed on the wall: bright where world x > 0.
+        let pattern = |camera: &Camera, guides: &Guides| {
+            film(|x, y| {
+                let p = guides.pixels[(y * camera.width + x) as usize].position;
+                Vec3::splat(if p.x > 0.0 { 0.5 } else { 0.05 })
+            })
+        };
+        let first = camera(0.0);
+        let guides = wall(&first);
+        filter.accumulate(&pattern(&first, &guides), &guides, &first, &identity);
+        // Move right by 1 m (2.8 pixels' worth of wall), and show black: where history
+        // is found, the average is half the old pattern.
+        let second = camera(1.0);
+        let guides = wall(&second);
+        let out = filter.accumulate(&film(|_, _| Vec3::ZERO), &guides, &second, &identity);
+        for y in 2..14 {
+            for x in 2..28 {
+                let index = (y * 32 + x) as usize;
+                let p = guides.pixels[index].position;
+                if (p.x.abs()) < 0.5 {
+                    continue; // the edge, blended by the bilinear taps
+                }
+                let expected = if p.x > 0.0 { 0.5 } else { 0.05 };
+                assert!(
+                    (out.illumination[index].x - expected).abs() < 1e-3,
+                    "({x}, {y}) at world x {}: {}",
+                    p.x,
+                    out.illumination[index].x
+                );
+                assert_eq!(out.history_length[index], 2.0);
+            }
+        }
+        // The rightmost column came into view: no history.
+        assert_eq!(out.history_length[5 * 32 + 31], 1.0);
+    }
+
+    #[test]
+    fn a_different_surface_is_a_disocclusion() {
+        let mut filter = TemporalFilter::default();
+        let camera = camera(0.0);
+        let guides = wall(&camera);
+        let identity = [Affine3A::IDENTITY, Affine3A::IDENTITY];
+        filter.accumulate(&film(|_, _| Vec3::ONE), &guides, &camera, &identity);
+        // Same place, but now another instance, then the same instance much nearer.
+        let mut other = guides.clone();
+        other.pixels.iter_mut().for_each(|g| g.instance = 1);
+        let out = filter.accumulate(&film(|_, _| Vec3::ONE), &other, &camera, &identity);
+        assert!(out.history_length.iter().all(|&l| l == 1.0));
+        let mut nearer = other.clone();
+        nearer.pixels.iter_mut().for_each(|g| {
+            g.depth *= 0.5;
+            g.position = camera.position + (g.position - camera.position) * 0.5;
+        });
+        let out = filter.accumulate(&film(|_, _| Vec3::ONE), &nearer, &camera, &identity);
+        assert!(out.history_length.iter().all(|&l| l == 1.0));
+        // Sky pixels carry nothing.
+        let mut sky = nearer.clone();
+        sky.pixels[0].instance = NO_INSTANCE;
+        let out = filter.accumulate(&film(|_, _| Vec3::ONE), &sky, &camera, &identity);
+        assert_eq!(out.illumination[0], Vec3::ZERO);
+    }
+
+    #[test]
+    fn a_moving_instance_carries_its_history_with_it() {
+        let mut filter = TemporalFilter::new(TemporalSettings {
+            clamp_sigma: f32::INFINITY,
+            ..TemporalSettings::default()
+        });
+        let camera = camera(0.0);
+        let guides = wall(&camera);
+        // Frame 1: the wall at rest shows a ramp.
+        let ramp = |guides: &Guides, shift: f32| {
+            film(|x, y| {
+                let p = guides.pixels[(y * 32 + x) as usize].position;
+                Vec3::splat(((p.x - shift) * 0.1 + 0.5).clamp(0.0, 1.0) * 0.5)
+            })
+        };
+        filter.accumulate(&ramp(&guides, 0.0), &guides, &camera, &[Affine3A::IDENTITY]);
+        // Frame 2: the wall (instance 0) moved 0.3 m right, its ramp with it.
+        let moved = Affine3A::from_translation(glam::Vec3::new(0.3, 0.0, 0.0));
+        let out = filter.accumulate(&ramp(&guides, 0.3), &guides, &camera, &[moved]);
+        // History came from the same point of the wall: the blend equals the ramp.
+        let current = ramp(&guides, 0.3);
+        for y in 2..14 {
+            for x in 4..28 {
+                let index = (y * 32 + x) as usize;
+                assert_eq!(out.history_length[index], 2.0);
+                let expected = guides.pixels[index].demodulate(current.pixels[index]).x;
+                assert!((out.illumination[index].x - expected).abs() < 2e-3);
+            }
+        }
+    }
+}
