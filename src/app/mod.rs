@@ -9,9 +9,11 @@
 //!    scales it to the window.
 //!
 //! Keys: W A S D fly, Space / C up and down, mouse looks once captured (click), Esc pauses
-//! (and releases the mouse), Q quits, F11 toggles fullscreen, V toggles vsync, F3 the profiler overlay.
+//! (and releases the mouse), Q quits, F11 toggles fullscreen, V toggles vsync, F3 the profiler overlay, F4 cycles the
+//! film's filters (temporal+spatial, temporal, raw).
 
 mod hud;
+pub mod resolution;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -30,8 +32,10 @@ use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 use crate::game::{Accumulation, Action, DeformStats, Engine, Input, StageTimes};
 use crate::profile::{Profile, overlay};
 use crate::render::RenderSettings;
+use crate::render::denoise::FilterMode;
 use crate::render::film::tone_map;
 use crate::scene::world::Scene;
+use resolution::ResolutionController;
 
 pub struct PlayOptions {
     pub level: PathBuf,
@@ -48,6 +52,10 @@ pub struct PlayOptions {
     pub headless: bool,
     /// Start with the profiler overlay (F3) shown.
     pub profiler: bool,
+    /// The film's filters.
+    pub filter: FilterMode,
+    /// Adapt the internal resolution to hold this frame time (None: fixed).
+    pub target_ms: Option<f64>,
 }
 
 /// Per-frame stage times, for the table printed when a `--frames` run ends.
@@ -110,6 +118,7 @@ enum Binding {
     Quit,
     Fullscreen,
     Profiler,
+    Filter,
     Vsync,
 }
 
@@ -125,6 +134,7 @@ const BINDINGS: &[(KeyCode, Binding)] = &[
     (KeyCode::KeyQ, Binding::Quit),
     (KeyCode::F11, Binding::Fullscreen),
     (KeyCode::F3, Binding::Profiler),
+    (KeyCode::F4, Binding::Filter),
     (KeyCode::KeyV, Binding::Vsync),
 ];
 
@@ -145,7 +155,6 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         ));
     }
     let scene = Scene::load(&options.level)?;
-    let settings = frame_settings(&options);
     let title = format!(
         "Gloam - {}",
         if scene.level.name.is_empty() {
@@ -160,7 +169,8 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
     let log = StageLog::new(&options);
     let overlay = options.profiler;
     let mut app = App {
-        engine: Engine::new(&scene, settings),
+        resolution: options.target_ms.map(ResolutionController::new),
+        engine: play_engine(&scene, &options),
         options,
         title,
         window: None,
@@ -192,16 +202,44 @@ fn frame_settings(options: &PlayOptions) -> RenderSettings {
     RenderSettings::real_time(options.width, options.height)
 }
 
+/// The engine as `play` runs it: the level, the real-time settings, the chosen filters.
+fn play_engine(scene: &Scene, options: &PlayOptions) -> Engine {
+    let mut engine = Engine::new(scene, frame_settings(options));
+    engine.world.resource_mut::<Accumulation>().filter.mode = options.filter;
+    engine
+}
+
+/// Feeds a frame's time to the resolution controller and applies a change of step.
+fn adapt_resolution(
+    controller: &mut Option<ResolutionController>,
+    engine: &mut Engine,
+    options: &PlayOptions,
+    frame_ms: f64,
+) {
+    if let Some(controller) = controller
+        && controller.observe(frame_ms).is_some()
+    {
+        let (width, height) = controller.size(options.width, options.height);
+        engine
+            .world
+            .resource_mut::<Accumulation>()
+            .set_resolution(width, height);
+    }
+}
+
 /// The same frame loop with no window: real time drives the simulation as in `play`, and
 /// present costs nothing.
 fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
     let scene = Scene::load(&options.level)?;
-    let mut engine = Engine::new(&scene, frame_settings(&options));
+    let mut engine = play_engine(&scene, &options);
+    let mut controller = options.target_ms.map(ResolutionController::new);
     let mut log = StageLog::new(&options);
     let mut last = Instant::now();
     for _ in 0..options.frames.unwrap_or(60) {
         let now = Instant::now();
-        engine.advance((now - last).as_secs_f64());
+        let elapsed = (now - last).as_secs_f64();
+        adapt_resolution(&mut controller, &mut engine, &options, elapsed * 1e3);
+        engine.advance(elapsed);
         last = now;
         log.push(
             engine.world.resource::<StageTimes>(),
@@ -211,11 +249,20 @@ fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
         );
     }
     log.print("headless");
+    let settings = &engine.world.resource::<Accumulation>().settings;
+    println!(
+        "film: {}, internal resolution {}x{} at the end",
+        options.filter.name(),
+        settings.width,
+        settings.height
+    );
     Ok(())
 }
 
 struct App {
     engine: Engine,
+    /// Adaptive internal resolution (None: fixed).
+    resolution: Option<ResolutionController>,
     options: PlayOptions,
     title: String,
     window: Option<Arc<Window>>,
@@ -286,6 +333,12 @@ impl App {
                 }
             }
             Binding::Profiler if pressed => self.overlay = !self.overlay,
+            Binding::Filter if pressed => {
+                let mut accumulation = self.engine.world.resource_mut::<Accumulation>();
+                accumulation.filter.mode = accumulation.filter.mode.next();
+                accumulation.filter.reset();
+                accumulation.reset = true;
+            }
             Binding::Vsync if pressed => {
                 self.vsync = !self.vsync;
                 if let Some(pixels) = &mut self.pixels {
@@ -306,6 +359,12 @@ impl App {
             .is_some_and(|limit| self.rendered >= limit);
         let advanced = !self.paused && !holding;
         if advanced {
+            adapt_resolution(
+                &mut self.resolution,
+                &mut self.engine,
+                &self.options,
+                elapsed.as_secs_f64() * 1e3,
+            );
             self.engine.advance(elapsed.as_secs_f64());
             self.rendered += 1;
             self.frame_ms.push(elapsed.as_secs_f32() * 1e3);
@@ -319,21 +378,30 @@ impl App {
             return;
         };
         let accumulation = self.engine.world.resource::<Accumulation>();
-        let (width, height) = (accumulation.settings.width, accumulation.settings.height);
-        let image = accumulation.image();
+        let internal = (accumulation.settings.width, accumulation.settings.height);
+        // The buffer keeps the configured size; a lowered internal resolution is scaled up.
+        let (width, height) = (self.options.width, self.options.height);
+        let image = accumulation.image().resized(width, height);
         let frame = pixels.frame_mut();
         for (rgba, radiance) in frame.chunks_exact_mut(4).zip(&image.pixels) {
             let [r, g, b] = tone_map(*radiance, 1.0);
             rgba.copy_from_slice(&[r, g, b, 255]);
         }
         let mean_ms = self.frame_ms.iter().sum::<f32>() / self.frame_ms.len().max(1) as f32;
+        let film = match accumulation.filter.mode {
+            FilterMode::Off => format!("{} spp", accumulation.frames),
+            mode => mode.name().to_string(),
+        };
         let status = format!(
-            "{:.1} fps {:.1} ms {}x{} {} spp{}",
+            "{:.1} fps {:.1} ms {}x{}{} {film}{}",
             1000.0 / mean_ms.max(1e-3),
             mean_ms,
-            width,
-            height,
-            accumulation.frames,
+            internal.0,
+            internal.1,
+            match &self.resolution {
+                Some(controller) => format!(" ({:.0}%)", controller.scale() * 100.0),
+                None => String::new(),
+            },
             if self.vsync { "" } else { " novsync" }
         );
         hud::draw_text(frame, width, height, 2, 2, &status);

@@ -47,6 +47,9 @@ pub struct Options {
     /// Write a PNG chart: stages stacked per frame, and a frame-time histogram.
     #[arg(long)]
     pub chart: Option<PathBuf>,
+    /// The film's filters, as in `play` (their cost is the `film` stage).
+    #[arg(long, value_enum, default_value_t = super::FilterArg::Full)]
+    pub filter: super::FilterArg,
 }
 
 /// The view's offset from its start at `seconds` into the run: a +-20 degree sway and a
@@ -121,6 +124,11 @@ pub fn measure(
         scene,
         RenderSettings::real_time(options.width, options.height),
     );
+    engine
+        .world
+        .resource_mut::<crate::game::Accumulation>()
+        .filter
+        .mode = options.filter.mode();
     let mut views = engine
         .world
         .query_filtered::<(bevy_ecs::entity::Entity, &Transform), bevy_ecs::query::With<ViewCamera>>();

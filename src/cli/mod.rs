@@ -3,6 +3,7 @@
 
 mod bench;
 mod convergence;
+mod flythrough;
 mod raybench;
 
 use std::path::{Path, PathBuf};
@@ -24,6 +25,28 @@ pub struct Cli {
     /// Without a command, `gloam` plays the default level (levels/first-light.ron).
     #[command(subcommand)]
     pub command: Option<Command>,
+}
+
+/// `--filter`: which of the film's real-time filters run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FilterArg {
+    /// The raw frame (still views accumulate).
+    Raw,
+    /// Temporal reprojection only.
+    Temporal,
+    /// Temporal reprojection, then the a-trous spatial filter.
+    Full,
+}
+
+impl FilterArg {
+    pub fn mode(self) -> crate::render::denoise::FilterMode {
+        use crate::render::denoise::FilterMode;
+        match self {
+            FilterArg::Raw => FilterMode::Off,
+            FilterArg::Temporal => FilterMode::Temporal,
+            FilterArg::Full => FilterMode::Full,
+        }
+    }
 }
 
 #[derive(Debug, Subcommand)]
@@ -50,6 +73,15 @@ pub enum Command {
         /// Start with the profiler overlay (F3) shown.
         #[arg(long)]
         profiler: bool,
+        /// The film's filters (F4 cycles them in the window).
+        #[arg(long, value_enum, default_value_t = FilterArg::Full)]
+        filter: FilterArg,
+        /// Keep the internal resolution fixed instead of adapting it to --target-ms.
+        #[arg(long)]
+        fixed_resolution: bool,
+        /// The frame time the adaptive resolution holds, in milliseconds.
+        #[arg(long, default_value_t = 33.3)]
+        target_ms: f64,
     },
     /// Validate a level (.ron) or glTF file: prints `file:line:column: message` per problem,
     /// exit 1 when there are any; otherwise a summary and the load time.
@@ -69,6 +101,10 @@ pub enum Command {
     /// Headless frame-time profile along a fixed camera path: per-stage mean, p50, p95,
     /// p99 and max; JSON, CSV, Chrome trace and PNG chart reports.
     Bench(bench::Options),
+    /// Fly through a level at 1 spp with a warden patrolling, and print each frame's RMSE
+    /// against converged references for the raw frame, temporal filtering, and temporal +
+    /// spatial filtering, plus a ghosting measure over the warden's trail.
+    Flythrough(flythrough::Options),
     /// Compare two .exr renders of the same size: mean radiance of each, RMSE, and the
     /// ratio of their means over a 4 x 4 grid of regions (a local bias shows there).
     Compare {
@@ -159,6 +195,9 @@ pub fn main() -> ExitCode {
         linger_seconds: 0.0,
         headless: false,
         profiler: false,
+        filter: FilterArg::Full,
+        fixed_resolution: false,
+        target_ms: 33.3,
     });
     match run(command) {
         Ok(code) => code,
@@ -184,9 +223,15 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             linger_seconds,
             headless,
             profiler,
+            filter,
+            fixed_resolution,
+            target_ms,
         } => {
             if width == 0 || height == 0 {
                 anyhow::bail!("--width and --height must be at least 1");
+            }
+            if !(target_ms.is_finite() && target_ms > 0.0) {
+                anyhow::bail!("--target-ms must be a positive number of milliseconds");
             }
             let level = level.unwrap_or_else(default_level);
             crate::app::play(crate::app::PlayOptions {
@@ -197,6 +242,8 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 linger: std::time::Duration::from_secs_f64(linger_seconds.max(0.0)),
                 headless,
                 profiler,
+                filter: filter.mode(),
+                target_ms: (!fixed_resolution).then_some(target_ms),
             })?;
             Ok(ExitCode::SUCCESS)
         }
@@ -224,6 +271,10 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         }
         Command::Bench(options) => {
             bench::run(&options)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Flythrough(options) => {
+            flythrough::run(&options)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Compare { image, reference } => {

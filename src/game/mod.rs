@@ -10,9 +10,10 @@
 //!    has run into the next one) -> `deform_meshes` (skinning, morph targets and deformers
 //!    for meshes whose pose changed, then their BLAS refits) -> `update_acceleration`
 //!    (emitters follow, TLAS rebuild when anything moved or deformed);
-//! 3. the frame schedule: `render_frame` (one frame of samples) -> film accumulation:
-//!    while nothing moves, frames add up into a converging image; any change starts it
-//!    again.
+//! 3. the frame schedule: `render_frame` (one frame of samples) -> film: with the filter
+//!    off, frames add up into a converging image while nothing moves and any change starts
+//!    it again; with it on (the window and `bench`), the frame is rendered with its guides
+//!    and goes through `render::denoise` (temporal reprojection, then a-trous).
 //!
 //! Each stage's time lands in the `StageTimes` resource (the profiler issue builds on it).
 //!
@@ -43,7 +44,8 @@ pub use transform::{
 
 use crate::accel::BlasKind;
 use crate::extract::{instance_user_id, refresh_triangle_lights, render_scene};
-use crate::render::{Camera, Film, RenderScene, RenderSettings, render};
+use crate::render::denoise::{FilterMode, FrameFilter};
+use crate::render::{Camera, Film, RenderScene, RenderSettings, render, render_guided};
 use crate::scene::model::NodeTransform;
 use crate::scene::world::{CameraPlacement, Scene};
 
@@ -74,12 +76,17 @@ pub struct RenderState {
     pub moved: Vec<bool>,
 }
 
-/// Frames accumulated since the last change, as a running sum of per-frame means.
+/// The film: frames accumulated since the last change, as a running sum of per-frame
+/// means, or (filter on) the last filtered frame.
 #[derive(Resource)]
 pub struct Accumulation {
     pub settings: RenderSettings,
     sum: Vec<Vec3>,
     pub frames: u32,
+    /// The real-time filter chain (`FilterMode::Off` unless the shell turns it on).
+    pub filter: FrameFilter,
+    /// The last frame through the filter.
+    filtered: Option<Film>,
     /// Set by extract when anything visible moved: the next frame starts a new sum.
     pub reset: bool,
     /// The view the sum was rendered from.
@@ -149,8 +156,30 @@ pub(crate) fn since(start: std::time::Instant) -> f64 {
 }
 
 impl Accumulation {
-    /// The converging image: mean of the accumulated frames.
+    /// Renders at `width` x `height` from the next frame on, starting the image and the
+    /// filter's history again.
+    pub fn set_resolution(&mut self, width: u32, height: u32) {
+        let (width, height) = (width.max(1), height.max(1));
+        if (width, height) == (self.settings.width, self.settings.height) {
+            return;
+        }
+        self.settings.width = width;
+        self.settings.height = height;
+        self.sum = vec![Vec3::ZERO; (width * height) as usize];
+        self.frames = 0;
+        self.reset = true;
+        self.filter.reset();
+        self.filtered = None;
+    }
+
+    /// The image to show: the filtered frame with the filter on, else the mean of the
+    /// accumulated frames.
     pub fn image(&self) -> Film {
+        if self.filter.mode != FilterMode::Off
+            && let Some(filtered) = &self.filtered
+        {
+            return filtered.clone();
+        }
         let scale = 1.0 / self.frames.max(1) as f32;
         Film {
             width: self.settings.width,
@@ -358,6 +387,8 @@ impl Engine {
             settings,
             sum: vec![Vec3::ZERO; pixels],
             frames: 0,
+            filter: FrameFilter::new(FilterMode::Off),
+            filtered: None,
             reset: true,
         });
 
@@ -449,6 +480,13 @@ impl Engine {
     pub fn advance(&mut self, seconds: f64) {
         // A live profiler's frame boundary (the previous frame's present ends before it).
         profiling::finish_frame!();
+        self.simulate(seconds);
+        self.frame.run(&mut self.world);
+    }
+
+    /// `advance` without the frame: the steps owed, then extract, deform and TLAS, so the
+    /// scene is ready to trace from `view_camera` (for tools that render it themselves).
+    pub fn simulate(&mut self, seconds: f64) {
         self.owed += seconds.max(0.0);
         let step = 1.0 / SIMULATION_HZ;
         let mut times = StageTimes::default();
@@ -472,7 +510,20 @@ impl Engine {
         self.world.insert_resource(times);
         self.world.resource_mut::<SimulationClock>().alpha = (self.owed / step) as f32;
         self.prepare.run(&mut self.world);
-        self.frame.run(&mut self.world);
+    }
+
+    /// The camera the next frame renders from, at `width` x `height`.
+    pub fn view_camera(&mut self, width: u32, height: u32) -> Option<Camera> {
+        let alpha = self.world.resource::<SimulationClock>().alpha;
+        let mut views = self
+            .world
+            .query::<(&GlobalTransform, &PreviousGlobalTransform, &ViewCamera)>();
+        let (global, previous, view) = views.iter(&self.world).next()?;
+        Some(Camera::new(
+            &view_placement(global, previous, view, alpha).1,
+            width,
+            height,
+        ))
     }
 
     /// The accumulated image so far.
@@ -530,6 +581,28 @@ pub fn update_acceleration(
     times.tlas_build = since(start);
 }
 
+/// The view's transform interpolated `alpha` of the way from the last step to this one,
+/// and the camera placed there.
+fn view_placement(
+    global: &GlobalTransform,
+    previous: &PreviousGlobalTransform,
+    view: &ViewCamera,
+    alpha: f32,
+) -> (glam::Affine3A, CameraPlacement) {
+    let shown = if previous.0 == global.0 {
+        global.0
+    } else {
+        interpolate(previous.0, global.0, alpha)
+    };
+    let placement = CameraPlacement {
+        name: String::new(),
+        yfov: view.yfov,
+        znear: 0.01,
+        world_from_camera: glam::Mat4::from(shown),
+    };
+    (shown, placement)
+}
+
 /// Render and film: one frame of samples from the view, added to the running sum (or
 /// starting it again after a change).
 pub fn render_frame(
@@ -542,17 +615,7 @@ pub fn render_frame(
     let Some((global, previous, view)) = views.iter().next() else {
         return;
     };
-    let shown = if previous.0 == global.0 {
-        global.0
-    } else {
-        interpolate(previous.0, global.0, clock.alpha)
-    };
-    let placement = crate::scene::world::CameraPlacement {
-        name: String::new(),
-        yfov: view.yfov,
-        znear: 0.01,
-        world_from_camera: glam::Mat4::from(shown),
-    };
+    let (shown, placement) = view_placement(global, previous, view, clock.alpha);
     let accumulation = &mut *accumulation;
     if accumulation.view != Some(shown) {
         accumulation.view = Some(shown);
@@ -566,16 +629,39 @@ pub fn render_frame(
     let mut settings = accumulation.settings.clone();
     settings.frame = accumulation.frames;
     let camera = Camera::new(&placement, settings.width, settings.height);
+    let filtering = accumulation.filter.mode != FilterMode::Off;
     let start = std::time::Instant::now();
     let output = {
         profiling::scope!("render");
-        render(&state.scene, &camera, &settings, &|_| {})
+        if filtering {
+            render_guided(&state.scene, &camera, &settings)
+        } else {
+            render(&state.scene, &camera, &settings, &|_| {})
+        }
     };
     times.render = since(start);
     times.render_phases = output.phases.share_of(times.render);
     times.rays = output.rays.total();
     let start = std::time::Instant::now();
     profiling::scope!("film");
+    if let Some(guides) = &output.guides {
+        let instances: Vec<glam::Affine3A> = state
+            .scene
+            .accel
+            .instances()
+            .iter()
+            .map(|instance| instance.world_from_object())
+            .collect();
+        accumulation.filtered = Some(accumulation.filter.apply(
+            &output.film,
+            guides,
+            &camera,
+            &instances,
+        ));
+        accumulation.frames += 1;
+        times.film = since(start);
+        return;
+    }
     for (sum, pixel) in accumulation.sum.iter_mut().zip(&output.film.pixels) {
         *sum += *pixel;
     }

@@ -43,6 +43,37 @@ impl Film {
         self.pixels.iter().copied().sum::<Vec3>() / self.pixels.len().max(1) as f32
     }
 
+    /// Bilinearly resampled to `width` x `height`, pixel centres aligned (the window shows
+    /// a lowered internal resolution this way).
+    pub fn resized(&self, width: u32, height: u32) -> Film {
+        if (width, height) == (self.width, self.height) {
+            return self.clone();
+        }
+        let (sx, sy) = (
+            self.width as f32 / width as f32,
+            self.height as f32 / height as f32,
+        );
+        let mut pixels = Vec::with_capacity((width * height) as usize);
+        for y in 0..height {
+            let fy = ((y as f32 + 0.5) * sy - 0.5).clamp(0.0, (self.height - 1) as f32);
+            let (y0, ty) = (fy.floor() as u32, fy.fract());
+            let y1 = (y0 + 1).min(self.height - 1);
+            for x in 0..width {
+                let fx = ((x as f32 + 0.5) * sx - 0.5).clamp(0.0, (self.width - 1) as f32);
+                let (x0, tx) = (fx.floor() as u32, fx.fract());
+                let x1 = (x0 + 1).min(self.width - 1);
+                let top = self.pixel(x0, y0).lerp(self.pixel(x1, y0), tx);
+                let bottom = self.pixel(x0, y1).lerp(self.pixel(x1, y1), tx);
+                pixels.push(top.lerp(bottom, ty));
+            }
+        }
+        Film {
+            width,
+            height,
+            pixels,
+        }
+    }
+
     /// Root-mean-square difference from `reference` over all pixels and channels.
     pub fn rmse(&self, reference: &Film) -> f32 {
         debug_assert_eq!(self.pixels.len(), reference.pixels.len());
@@ -98,12 +129,22 @@ impl Film {
 
 /// Linear radiance to display sRGB bytes (see the module doc).
 pub fn tone_map(radiance: Vec3, exposure: f32) -> [u8; 3] {
+    display_value(radiance, exposure)
+        .to_array()
+        .map(|c| (c * 255.0 + 0.5) as u8)
+}
+
+/// Linear radiance to the display's sRGB-encoded values in [0, 1], before quantisation:
+/// what a viewer sees, so image errors are measured on it.
+pub fn display_value(radiance: Vec3, exposure: f32) -> Vec3 {
     let x = (radiance * exposure).max(Vec3::ZERO);
     let mapped = (x * (x * 2.51 + 0.03)) / (x * (x * 2.43 + 0.59) + 0.14);
-    mapped
-        .clamp(Vec3::ZERO, Vec3::ONE)
-        .to_array()
-        .map(|c| (srgb_encode(c) * 255.0 + 0.5) as u8)
+    Vec3::from_array(
+        mapped
+            .clamp(Vec3::ZERO, Vec3::ONE)
+            .to_array()
+            .map(srgb_encode),
+    )
 }
 
 /// The sRGB opto-electronic transfer function (IEC 61966-2-1).
@@ -129,6 +170,25 @@ mod tests {
         }
         assert_eq!(tone_map(Vec3::ZERO, 1.0), [0, 0, 0]);
         assert_eq!(tone_map(Vec3::splat(1e6), 1.0), [255, 255, 255]);
+    }
+
+    #[test]
+    fn resizing_keeps_flat_images_flat_and_samples_between_pixels() {
+        let mut film = Film::new(2, 1);
+        film.pixels = vec![Vec3::ZERO, Vec3::ONE];
+        let wide = film.resized(4, 1);
+        assert_eq!(
+            wide.pixels.iter().map(|p| p.x).collect::<Vec<_>>(),
+            vec![0.0, 0.25, 0.75, 1.0]
+        );
+        let mut flat = Film::new(3, 3);
+        flat.pixels.fill(Vec3::splat(0.5));
+        assert!(
+            flat.resized(7, 5)
+                .pixels
+                .iter()
+                .all(|p| *p == Vec3::splat(0.5))
+        );
     }
 
     #[test]

@@ -22,6 +22,7 @@ pub mod atrous;
 pub mod blue_noise;
 pub mod bsdf;
 pub mod camera;
+pub mod denoise;
 pub mod film;
 pub mod guides;
 pub mod integrator;

@@ -323,9 +323,8 @@ fn neighbourhood(
         }
     }
     let mean = sum / count;
-    let sigma = (sum_squares / count - mean * mean)
-        .max(Vec3::ZERO)
-        .powf(0.5);
+    let spread = (sum_squares / count - mean * mean).max(Vec3::ZERO);
+    let sigma = Vec3::new(spread.x.sqrt(), spread.y.sqrt(), spread.z.sqrt());
     let lum_mean = lum_sum / count;
     (
         mean,

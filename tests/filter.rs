@@ -1,0 +1,120 @@
+//! The real-time film filters as a user meets them: `gloam flythrough` measures them
+//! against converged references, `gloam play --headless` and `gloam bench` run them.
+
+mod common;
+
+use std::process::Command;
+
+use serde_json::Value;
+
+fn gloam(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .args(args)
+        .current_dir(common::repo())
+        .output()
+        .expect("run gloam")
+}
+
+#[test]
+fn flythrough_filters_bring_one_sample_closer_to_the_reference() {
+    let dir = common::scratch_dir("flythrough");
+    let json = dir.join("fly.json").display().to_string();
+    let out = dir.join("images").display().to_string();
+    let output = gloam(&[
+        "flythrough",
+        "--frames",
+        "14",
+        "--warmup",
+        "8",
+        "--every",
+        "2",
+        "--width",
+        "96",
+        "--height",
+        "54",
+        "--reference-spp",
+        "64",
+        "--json",
+        &json,
+        "--out",
+        &out,
+    ]);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rmse = |kind: &str| report["median_rmse_display"][kind].as_f64().unwrap();
+    // Three comparisons (frames 8, 10, 12), each with every figure.
+    assert_eq!(report["compared"].as_array().unwrap().len(), 3);
+    // At this size the 64-spp reference's own noise is a floor under every figure, so the
+    // bounds are looser than the 0.3x (measured 0.56x and 0.50x here; the full
+    // command's figures are in the closing note): each filter must still cut the error.
+    assert!(rmse("raw") > 0.05, "{report}");
+    assert!(rmse("temporal") < 0.75 * rmse("raw"), "{report}");
+    assert!(rmse("full") < rmse("temporal"), "{report}");
+    assert!(report["median_trail_rmse"]["full"].as_f64().unwrap() >= 0.0);
+    for name in ["raw", "temporal", "full", "reference"] {
+        let image = image::open(dir.join("images").join(format!("{name}.png"))).unwrap();
+        assert_eq!((image.width(), image.height()), (96, 54));
+    }
+}
+
+#[test]
+fn flythrough_and_play_reject_bad_flags_in_one_line() {
+    for (args, expected) in [
+        (
+            vec!["flythrough", "--frames", "10", "--warmup", "10"],
+            "leaves no frame to compare",
+        ),
+        (
+            vec![
+                "flythrough",
+                "--mover",
+                "nobody",
+                "--frames",
+                "3",
+                "--warmup",
+                "1",
+            ],
+            "no entity named \"nobody\"",
+        ),
+        (
+            vec!["play", "--headless", "--target-ms=0"],
+            "--target-ms must be a positive",
+        ),
+    ] {
+        let output = gloam(&args);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    }
+}
+
+#[test]
+fn headless_play_filters_and_adapts_its_resolution() {
+    // A 1 ms target no frame can meet: the resolution steps down the ladder.
+    let output = gloam(&[
+        "play",
+        "--headless",
+        "--frames",
+        "40",
+        "--width",
+        "160",
+        "--height",
+        "90",
+        "--target-ms",
+        "1",
+    ]);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}");
+    assert!(stdout.contains("film: temporal+spatial"), "{stdout}");
+    // 40 frames are two decision windows: 0.85, then 0.7 of 160x90.
+    assert!(
+        stdout.contains("internal resolution 112x63 at the end"),
+        "{stdout}"
+    );
+}
