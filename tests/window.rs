@@ -124,6 +124,9 @@ fn the_window_shows_the_headless_frame() {
                 &HEIGHT.to_string(),
             ])
             .args(["--frames", &FRAMES.to_string(), "--linger-seconds", "60"])
+            // The raw, progressively accumulated film at a fixed resolution: what the
+            // headless render below computes exactly.
+            .args(["--filter", "raw", "--fixed-resolution"])
             .env("DISPLAY", &display)
             .env("XDG_RUNTIME_DIR", &runtime)
             .env_remove("WAYLAND_DISPLAY")
