@@ -122,7 +122,7 @@ fn vertex(
 
 /// One path's running sums between vertices: pbrt's `PathIntegrator` locals, kept in a
 /// struct so a tile can take all its paths through one vertex at a time (render/mod.rs)
-/// as well as one path at a time (`path_radiance`). Both orders draw each pixel's sample
+/// as well as one path at a time (`continue_path`). Both orders draw each pixel's sample
 /// dimensions in the same sequence, so they give bit-identical images.
 #[derive(Clone, Copy, Debug)]
 pub struct PathState {
@@ -299,23 +299,6 @@ pub fn continue_path(
             None => break,
         }
     }
-}
-
-/// Radiance along `ray` (a camera ray) with the path integrator, one path at a time.
-pub fn path_radiance(
-    scene: &RenderScene,
-    camera_ray: Ray,
-    sampler: &mut PixelSampler,
-    max_depth: u32,
-    counts: &mut RayCounts,
-) -> Vec3 {
-    let alpha = scene.alpha();
-    let mut state = PathState::new(&camera_ray);
-    counts.camera += 1;
-    continue_path(
-        scene, &alpha, &mut state, camera_ray, sampler, max_depth, counts,
-    );
-    state.radiance
 }
 
 /// Radiance along `ray` with the reference integrator: BSDF sampling only.

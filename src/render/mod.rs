@@ -15,7 +15,8 @@
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
 //!    thread count) and store the mean in the film.
 //!
-//! The phases draw each pixel's sample dimensions in the order `path_radiance` does, so
+//! The phases draw each pixel's sample dimensions in the order one path at a time
+//! (`integrator::continue_path` from the camera ray) does, so
 //! the wavefront and the one-path-at-a-time integrator give bit-identical images.
 
 pub mod atrous;
