@@ -58,6 +58,15 @@ pub struct Options {
     /// Write the last compared frame as raw, temporal, full and reference PNGs here.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Tuning: a-trous passes (the game's default when omitted).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=8))]
+    pub iterations: Option<u32>,
+    /// Tuning: the newest frame's least weight in the temporal average, in (0, 1].
+    #[arg(long)]
+    pub alpha_min: Option<f32>,
+    /// Tuning: the a-trous luminance edge's width, in standard deviations.
+    #[arg(long)]
+    pub sigma_luminance: Option<f32>,
 }
 
 /// Trail length for the ghosting measure, in frames.
@@ -139,6 +148,25 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
 
     let mut temporal = FrameFilter::new(FilterMode::Temporal);
     let mut full = FrameFilter::new(FilterMode::Full);
+    for filter in [&mut temporal, &mut full] {
+        if let Some(alpha) = options.alpha_min {
+            anyhow::ensure!(
+                alpha > 0.0 && alpha <= 1.0,
+                "--alpha-min {alpha}: must be in (0, 1]"
+            );
+            filter.temporal.settings.alpha_min = alpha;
+        }
+        if let Some(iterations) = options.iterations {
+            filter.atrous.iterations = iterations;
+        }
+        if let Some(sigma) = options.sigma_luminance {
+            anyhow::ensure!(
+                sigma.is_finite() && sigma > 0.0,
+                "--sigma-luminance {sigma}: must be positive"
+            );
+            filter.atrous.sigma_luminance = sigma;
+        }
+    }
     let mut settings = RenderSettings::real_time(width, height);
     let mut trail_masks: VecDeque<Vec<bool>> = VecDeque::new();
     let mut rows = Vec::new();

@@ -9,6 +9,7 @@
 //! Reads a frame rendered with `render_guided`; knows nothing of the ECS.
 
 use glam::Affine3A;
+use rayon::prelude::*;
 
 use super::atrous::{self, AtrousSettings};
 use super::camera::Camera;
@@ -55,6 +56,8 @@ pub struct FrameFilter {
     pub atrous: AtrousSettings,
     /// Keep the first a-trous pass as history (SVGF); off keeps the plain temporal average.
     pub feed_back: bool,
+    /// The spatial filter's buffers, kept between frames.
+    atrous_workspace: atrous::Workspace,
 }
 
 impl FrameFilter {
@@ -64,6 +67,7 @@ impl FrameFilter {
             temporal: TemporalFilter::new(TemporalSettings::default()),
             atrous: AtrousSettings::default(),
             feed_back: true,
+            atrous_workspace: atrous::Workspace::default(),
         }
     }
 
@@ -84,32 +88,42 @@ impl FrameFilter {
         if self.mode == FilterMode::Off {
             return radiance.clone();
         }
-        let accumulated = self
-            .temporal
-            .accumulate(radiance, guides, camera, instances);
+        let accumulated = {
+            profiling::scope!("film.temporal");
+            self.temporal
+                .accumulate(radiance, guides, camera, instances)
+        };
+        let mut first_iteration = None;
+        let filtered;
         let illumination = if self.mode == FilterMode::Full && self.atrous.iterations > 0 {
-            let filtered = atrous::filter(
+            profiling::scope!("film.spatial");
+            let output = atrous::filter_with(
+                &mut self.atrous_workspace,
                 &accumulated.illumination,
                 &accumulated.variance,
                 guides,
                 &self.atrous,
             );
-            if self.feed_back {
-                self.temporal.feed_back(&filtered.first_iteration);
-            }
-            filtered.illumination
+            first_iteration = Some(output.first_iteration);
+            filtered = output.illumination;
+            &filtered
         } else {
-            accumulated.illumination
+            &accumulated.illumination
         };
+        // 3. Remodulate.
+        profiling::scope!("film.remodulate");
+        let mut pixels = vec![glam::Vec3::ZERO; illumination.len()];
+        pixels
+            .par_iter_mut()
+            .zip(guides.pixels.par_iter().zip(illumination.par_iter()))
+            .for_each(|(pixel, (g, i))| *pixel = g.modulate(*i));
+        if let Some(first_iteration) = first_iteration.filter(|_| self.feed_back) {
+            self.temporal.feed_back(&first_iteration);
+        }
         Film {
             width: radiance.width,
             height: radiance.height,
-            pixels: guides
-                .pixels
-                .iter()
-                .zip(&illumination)
-                .map(|(g, i)| g.modulate(*i))
-                .collect(),
+            pixels,
         }
     }
 }
