@@ -85,6 +85,14 @@ fn flythrough_and_play_reject_bad_flags_in_one_line() {
             vec!["play", "--headless", "--target-ms=0"],
             "--target-ms must be a positive",
         ),
+        (
+            vec!["flythrough", "--alpha-min", "0"],
+            "--alpha-min 0: must be in (0, 1]",
+        ),
+        (
+            vec!["flythrough", "--sigma-luminance=-1"],
+            "--sigma-luminance -1: must be positive",
+        ),
     ] {
         let output = gloam(&args);
         let stderr = String::from_utf8_lossy(&output.stderr);

@@ -104,6 +104,18 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     if options.width == 0 || options.height == 0 || options.frames == 0 {
         anyhow::bail!("--width, --height and --frames must be at least 1");
     }
+    if let Some(alpha) = options.alpha_min {
+        anyhow::ensure!(
+            alpha > 0.0 && alpha <= 1.0,
+            "--alpha-min {alpha}: must be in (0, 1]"
+        );
+    }
+    if let Some(sigma) = options.sigma_luminance {
+        anyhow::ensure!(
+            sigma.is_finite() && sigma > 0.0,
+            "--sigma-luminance {sigma}: must be positive"
+        );
+    }
     if options.every == 0 || options.reference_spp == 0 {
         anyhow::bail!("--every and --reference-spp must be at least 1");
     }
@@ -150,20 +162,12 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     let mut full = FrameFilter::new(FilterMode::Full);
     for filter in [&mut temporal, &mut full] {
         if let Some(alpha) = options.alpha_min {
-            anyhow::ensure!(
-                alpha > 0.0 && alpha <= 1.0,
-                "--alpha-min {alpha}: must be in (0, 1]"
-            );
             filter.temporal.settings.alpha_min = alpha;
         }
         if let Some(iterations) = options.iterations {
             filter.atrous.iterations = iterations;
         }
         if let Some(sigma) = options.sigma_luminance {
-            anyhow::ensure!(
-                sigma.is_finite() && sigma > 0.0,
-                "--sigma-luminance {sigma}: must be positive"
-            );
             filter.atrous.sigma_luminance = sigma;
         }
     }

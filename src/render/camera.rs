@@ -70,19 +70,43 @@ impl Camera {
     /// The film point (pixels from the top-left, continuous) a world point projects to
     /// through the pinhole: `ray`'s inverse. None behind the camera.
     pub fn project(&self, point: Vec3A) -> Option<Vec2> {
-        let local = self.rotation.transpose() * (point - self.position);
+        self.projection().project(point)
+    }
+
+    /// `project` with its per-camera terms worked out once, for projecting many points.
+    pub fn projection(&self) -> Projection {
+        let (width, height) = (self.width as f32, self.height as f32);
+        let aspect = width / height;
+        Projection {
+            camera_from_world: self.rotation.transpose(),
+            position: self.position,
+            scale: Vec2::new(
+                0.5 * width / (self.tan_half_fov * aspect),
+                -0.5 * height / self.tan_half_fov,
+            ),
+            centre: Vec2::new(0.5 * width, 0.5 * height),
+        }
+    }
+}
+
+/// A camera's world-to-film projection.
+#[derive(Clone, Debug)]
+pub struct Projection {
+    camera_from_world: Mat3A,
+    position: Vec3A,
+    /// Film pixels per unit of x / -z and y / -z (y flipped: film rows run down).
+    scale: Vec2,
+    centre: Vec2,
+}
+
+impl Projection {
+    pub fn project(&self, point: Vec3A) -> Option<Vec2> {
+        let local = self.camera_from_world * (point - self.position);
         if local.z >= -1e-6 {
             return None;
         }
-        let aspect = self.width as f32 / self.height as f32;
-        let ndc = Vec2::new(
-            local.x / (-local.z * self.tan_half_fov * aspect),
-            local.y / (-local.z * self.tan_half_fov),
-        );
-        Some(Vec2::new(
-            (ndc.x + 1.0) * 0.5 * self.width as f32,
-            (1.0 - ndc.y) * 0.5 * self.height as f32,
-        ))
+        let inverse_depth = 1.0 / -local.z;
+        Some(Vec2::new(local.x, local.y) * inverse_depth * self.scale + self.centre)
     }
 }
 

@@ -112,11 +112,12 @@ impl FrameFilter {
         };
         // 3. Remodulate.
         profiling::scope!("film.remodulate");
-        let mut pixels = vec![glam::Vec3::ZERO; illumination.len()];
-        pixels
-            .par_iter_mut()
-            .zip(guides.pixels.par_iter().zip(illumination.par_iter()))
-            .for_each(|(pixel, (g, i))| *pixel = g.modulate(*i));
+        let pixels = guides
+            .pixels
+            .par_iter()
+            .zip(illumination.par_iter())
+            .map(|(g, i)| g.modulate(*i))
+            .collect();
         if let Some(first_iteration) = first_iteration.filter(|_| self.feed_back) {
             self.temporal.feed_back(&first_iteration);
         }

@@ -16,10 +16,10 @@
 //!    `alpha_min`, for the illumination and its first two luminance moments, whose spread
 //!    is the variance the spatial filter (`atrous`) steers by.
 
-use glam::{Affine3A, Vec2, Vec3, Vec4};
+use glam::{Affine3A, Vec2, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
-use super::camera::Camera;
+use super::camera::{Camera, Projection};
 use super::film::Film;
 use super::guides::{GuidePixel, Guides};
 
@@ -164,7 +164,6 @@ impl TemporalFilter {
         }
         let count = (width * height) as usize;
         let band = width as usize * BAND_ROWS;
-
         // 1. Demodulate, and keep this frame's surfaces for the next.
         self.current.resize(count, Vec4::ZERO);
         self.next_surfaces.resize(count, Surface::default());
@@ -181,7 +180,6 @@ impl TemporalFilter {
                     *surface = Surface::of(guide);
                 }
             });
-
         // 2-5. Reproject, validate, clamp, blend.
         let motions: Vec<Motion> = instances
             .iter()
@@ -195,7 +193,8 @@ impl TemporalFilter {
             })
             .collect();
         let reprojection = self.camera.as_ref().map(|previous_camera| Reprojection {
-            camera: previous_camera,
+            projection: previous_camera.projection(),
+            camera_position: previous_camera.position,
             surfaces: &self.surfaces,
             history: &self.history,
             motions: &motions,
@@ -240,7 +239,6 @@ impl TemporalFilter {
                     }
                 },
             );
-
         std::mem::swap(&mut self.history, &mut self.next_history);
         std::mem::swap(&mut self.surfaces, &mut self.next_surfaces);
         self.camera = Some(camera.clone());
@@ -253,9 +251,10 @@ impl TemporalFilter {
     /// output as history: less noise carried forward).
     pub fn feed_back(&mut self, illumination: &[Vec3]) {
         if illumination.len() == self.history.len() {
-            for (history, value) in self.history.iter_mut().zip(illumination) {
-                history.illumination = *value;
-            }
+            self.history
+                .par_iter_mut()
+                .zip(illumination)
+                .for_each(|(history, value)| history.illumination = *value);
         }
     }
 }
@@ -320,7 +319,8 @@ enum Motion {
 
 /// Last frame, as a pixel of this frame finds it.
 struct Reprojection<'a> {
-    camera: &'a Camera,
+    projection: Projection,
+    camera_position: Vec3A,
     surfaces: &'a [Surface],
     history: &'a [History],
     /// Per instance, last frame's world from this frame's.
@@ -342,8 +342,8 @@ impl Reprojection<'_> {
                 (before_from_now.matrix3 * guide.normal).normalize_or_zero(),
             ),
         };
-        let film = self.camera.project(position)?;
-        let depth = (position - self.camera.position).length();
+        let film = self.projection.project(position)?;
+        let depth = (position - self.camera_position).length();
 
         let corner = film - Vec2::splat(0.5);
         // Left of or above the first pixel's centre by a pixel or more: no tap is inside.
@@ -425,7 +425,7 @@ mod tests {
     use super::*;
     use crate::render::guides::NO_INSTANCE;
     use crate::scene::world::CameraPlacement;
-    use glam::{Mat4, Vec3A};
+    use glam::Mat4;
 
     fn camera(x: f32) -> Camera {
         let placement = CameraPlacement {
