@@ -207,12 +207,15 @@ pub fn filter_with(
             settings,
             portable_only: *portable_only,
         };
-        next.bands_mut().for_each(|(first_row, rows)| {
-            let mut scratch = RowScratch::new(width);
-            for (row_in_band, out) in rows.chunks_mut(width * SIGNAL_PLANES).enumerate() {
-                pass.row(first_row + row_in_band, &mut scratch, out);
-            }
-        });
+        // One set of row arrays per worker, not per band.
+        next.bands_mut().for_each_init(
+            || RowScratch::new(width),
+            |scratch, (first_row, rows)| {
+                for (row_in_band, out) in rows.chunks_mut(width * SIGNAL_PLANES).enumerate() {
+                    pass.row(first_row + row_in_band, scratch, out);
+                }
+            },
+        );
         std::mem::swap(signal, next);
         if iteration == 0 {
             first_iteration = Some(colours(signal));
@@ -559,10 +562,10 @@ fn blur_variance(variance: &[f32], guides: &GuideImage, out: &mut Vec<f32>) {
     let (width, height) = (guides.planes.width, guides.planes.height);
     out.resize(width * height, 0.0);
     let instances = &guides.instances;
-    out.par_chunks_mut(width.max(1))
-        .enumerate()
-        .for_each(|(y, out)| {
-            let mut weights = vec![0.0f32; width];
+    out.par_chunks_mut(width.max(1)).enumerate().for_each_init(
+        || vec![0.0f32; width],
+        |weights, (y, out)| {
+            weights.fill(0.0);
             out.fill(0.0);
             for (ky, tap_y) in [y.wrapping_sub(1), y, y + 1].into_iter().enumerate() {
                 // wrapping_sub turns -1 into usize::MAX, which fails the bound.
@@ -592,10 +595,11 @@ fn blur_variance(variance: &[f32], guides: &GuideImage, out: &mut Vec<f32>) {
                     }
                 }
             }
-            for (sum, weight) in out.iter_mut().zip(&weights) {
+            for (sum, weight) in out.iter_mut().zip(weights.iter()) {
                 *sum = if *weight > 0.0 { *sum / weight } else { 0.0 };
             }
-        });
+        },
+    );
 }
 
 #[cfg(test)]

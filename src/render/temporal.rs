@@ -21,7 +21,7 @@ use rayon::prelude::*;
 
 use super::camera::{Camera, Projection};
 use super::film::Film;
-use super::guides::{GuidePixel, Guides};
+use super::guides::{GuidePixel, Guides, NO_INSTANCE};
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
 #[derive(Clone, Debug, PartialEq)]
@@ -102,8 +102,8 @@ pub struct TemporalFilter {
     current: Vec<Vec4>,
 }
 
-/// What history validation reads of a pixel's first hit (20 bytes of the guides' 80: the
-/// copy kept for next frame is a quarter of the memory traffic).
+/// What history validation reads of a pixel's first hit (20 bytes of a guide pixel's 64:
+/// the copy kept for next frame is a third of the memory traffic).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Surface {
     normal: Vec3,
@@ -121,7 +121,7 @@ impl Surface {
     }
 
     fn is_sky(&self) -> bool {
-        self.instance == super::guides::NO_INSTANCE
+        self.instance == NO_INSTANCE
     }
 }
 
@@ -226,7 +226,8 @@ impl TemporalFilter {
                         } else {
                             let guide = &guides.pixels[index];
                             let before = reprojection.as_ref().and_then(|r| r.history_at(guide));
-                            blend(current, surfaces, width, height, x, y, before, settings)
+                            let around = neighbourhood(current, surfaces, width, height, x, y);
+                            blend(current[index], &around, before, settings)
                         };
                         histories[offset] = history;
                         illuminations[offset] = history.illumination;
@@ -259,22 +260,21 @@ impl TemporalFilter {
     }
 }
 
-/// Steps 4 and 5 for pixel (x, y) of the demodulated frame `current`, given its history
-/// `before` (None: disoccluded): the new history and the variance the spatial filter reads.
-#[allow(clippy::too_many_arguments)]
+/// Steps 4 and 5 for a pixel (demodulated illumination `current`, luminance in w, amid
+/// `around`), given its history `before` (None: disoccluded): the new history and the
+/// variance the spatial filter reads.
 fn blend(
-    current: &[Vec4],
-    surfaces: &[Surface],
-    width: u32,
-    height: u32,
-    x: u32,
-    y: u32,
+    current: Vec4,
+    around: &Neighbourhood,
     before: Option<History>,
     settings: &TemporalSettings,
 ) -> (History, f32) {
-    let c4 = current[(y * width + x) as usize];
-    let (c, lum) = (c4.truncate(), c4.w);
-    let (mean, sigma, spatial_variance) = neighbourhood(current, surfaces, width, height, x, y);
+    let (c, lum) = (current.truncate(), current.w);
+    let Neighbourhood {
+        mean,
+        sigma,
+        luminance_variance: spatial_variance,
+    } = *around;
     let fresh = Vec2::new(lum, lum * lum);
     let Some(before) = before else {
         let history = History {
@@ -390,8 +390,16 @@ impl Reprojection<'_> {
     }
 }
 
-/// Mean and standard deviation (per channel) of the 3 x 3 neighbourhood's illumination,
-/// over pixels that are not sky, and the variance of their luminance.
+/// The 3 x 3 neighbourhood's illumination over pixels that are not sky.
+#[derive(Clone, Copy)]
+struct Neighbourhood {
+    mean: Vec3,
+    /// Standard deviation per channel.
+    sigma: Vec3,
+    luminance_variance: f32,
+}
+
+/// Pixel (x, y)'s `Neighbourhood`.
 fn neighbourhood(
     current: &[Vec4],
     surfaces: &[Surface],
@@ -399,7 +407,7 @@ fn neighbourhood(
     height: u32,
     x: u32,
     y: u32,
-) -> (Vec3, Vec3, f32) {
+) -> Neighbourhood {
     // Colour and luminance together: four lanes of sums and of sums of squares.
     let (mut sum, mut sum_squares, mut count) = (Vec4::ZERO, Vec4::ZERO, 0.0f32);
     for ny in y.saturating_sub(1)..(y + 2).min(height) {
@@ -417,13 +425,16 @@ fn neighbourhood(
     let mean = sum / count;
     let spread = (sum_squares / count - mean * mean).max(Vec4::ZERO);
     let sigma = Vec3::new(spread.x.sqrt(), spread.y.sqrt(), spread.z.sqrt());
-    (mean.truncate(), sigma, spread.w)
+    Neighbourhood {
+        mean: mean.truncate(),
+        sigma,
+        luminance_variance: spread.w,
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::guides::NO_INSTANCE;
     use crate::scene::world::CameraPlacement;
     use glam::Mat4;
 
