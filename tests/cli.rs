@@ -209,8 +209,11 @@ fn raybench_writes_the_documented_json() {
             "baseline {key}"
         );
         for layout in [
+            "gloam_tlas_blas_wide8",
+            "gloam_tlas_blas_wide8_portable",
             "gloam_tlas_blas_bvh2",
             "obvhs_bvh2_flat",
+            "wide8_flat",
             "obvhs_cwbvh_flat",
         ] {
             for threads in ["threads_1", "threads_2"] {

@@ -4,8 +4,10 @@
 //! are refit every frame (leaf boxes in parallel, then a single bottom-up sweep) and rebuilt
 //! when refitting has let the tree decay. Built on obvhs's `Bvh2` (PLOC + reinsertion +
 //! leaf collapse; Meister & Bittner 2018, "Parallel Locally-Ordered Clustering for Bounding
-//! Volume Hierarchy Construction"). Measured on this machine, BVH2 traces faster than
-//! obvhs's CWBVH (see `gloam raybench`'s layouts table), so both kinds use BVH2.
+//! Volume Hierarchy Construction"). Static, opaque meshes collapse it into an 8-wide BVH
+//! (`wide`), which `gloam raybench` measures at about twice the BVH2's throughput; deforming
+//! meshes (which refit their BVH2 in parallel subtrees) and alpha-tested ones (which need
+//! the per-triangle `AlphaTest`) trace the BVH2.
 //!
 //! Triangles are stored in BVH leaf order as `RtTriangle` (base vertex, two edges, normal):
 //! the traversal closure indexes them directly, with no `primitive_indices` indirection.
@@ -20,6 +22,7 @@ use obvhs::ray::{Ray as ObvhsRay, RayHit};
 use obvhs::rt_triangle::RtTriangle;
 use rayon::prelude::*;
 
+use super::wide::{Kernels, WideBvh};
 use super::{AlphaTest, barycentrics};
 
 /// Triangle geometry handed to accel: object-space vertices and per-triangle data.
@@ -76,12 +79,26 @@ pub enum RefitOutcome {
     Rebuilt,
 }
 
+/// How a BLAS's rays are traced (`gloam raybench` measures each).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Traversal {
+    /// The 8-wide BVH collapsed from the BVH2 (`wide`), with these kernels.
+    Wide(Kernels),
+    /// obvhs's own BVH2 traversal.
+    Bvh2,
+}
+
 /// A bottom-level BVH with its triangles in leaf order.
 #[derive(Clone)]
 pub struct Blas {
     pub kind: BlasKind,
     pub geometry: MeshGeometry,
+    /// Which tree rays walk; the wide one unless it could not be built (see `wide`).
+    pub traversal: Traversal,
     pub(crate) bvh: Bvh2,
+    /// The BVH2 collapsed to 8-wide nodes, for static meshes without alpha-tested
+    /// triangles (None otherwise: those trace the BVH2).
+    pub(crate) wide: Option<WideBvh>,
     /// Triangles in BVH leaf order (`bvh.primitive_indices` applied).
     pub(crate) ordered: Vec<RtTriangle>,
     /// Original triangle index of each entry of `ordered`.
@@ -128,7 +145,7 @@ impl Blas {
             bvh.reorder_in_stack_traversal_order();
         }
         let ordered_ids = bvh.primitive_indices.clone();
-        let ordered = ordered_ids.iter().map(|&i| triangles[i as usize]).collect();
+        let ordered: Vec<RtTriangle> = ordered_ids.iter().map(|&i| triangles[i as usize]).collect();
         let ordered_alpha = if geometry.alpha_tested.iter().any(|&a| a) {
             ordered_ids
                 .iter()
@@ -137,9 +154,16 @@ impl Blas {
         } else {
             Vec::new()
         };
+        // Static, opaque meshes trace an 8-wide BVH. Deforming ones keep the BVH2, which
+        // refits in parallel subtrees; alpha-tested ones need the per-triangle callback.
+        let wide = (kind == BlasKind::Static && ordered_alpha.is_empty())
+            .then(|| WideBvh::build(&bvh, &ordered).ok())
+            .flatten();
         let mut blas = Blas {
             kind,
             geometry,
+            traversal: Traversal::Wide(Kernels::Best),
+            wide,
             bvh,
             ordered,
             ordered_ids,
@@ -292,6 +316,15 @@ impl Blas {
         if self.bvh.nodes.is_empty() {
             return None;
         }
+        if let (Some(wide), Traversal::Wide(kernels)) = (&self.wide, self.traversal) {
+            let (t, id) = wide.intersect(ray, kernels)?;
+            let id = id as usize;
+            return Some((
+                t,
+                self.ordered_ids[id],
+                barycentrics(&self.ordered[id], ray),
+            ));
+        }
         let mut hit = RayHit::none();
         let found = if self.ordered_alpha.is_empty() {
             self.bvh
@@ -318,6 +351,9 @@ impl Blas {
     pub fn occluded<A: AlphaTest>(&self, ray: &ObvhsRay, alpha: &A) -> bool {
         if self.bvh.nodes.is_empty() {
             return false;
+        }
+        if let (Some(wide), Traversal::Wide(kernels)) = (&self.wide, self.traversal) {
+            return wide.occluded(ray, kernels);
         }
         let missed = if self.ordered_alpha.is_empty() {
             self.bvh

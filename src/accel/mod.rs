@@ -7,7 +7,8 @@
 //! 4. `intersect` (closest hit) and `occluded` (any hit, early exit) from many threads.
 //!
 //! Rays are traced TLAS -> instance (ray moved into object space, direction not
-//! renormalised, so t is the same in both spaces) -> BLAS. Instance masks select what a
+//! renormalised, so t is the same in both spaces) -> BLAS (its 8-wide BVH, `wide`, or its
+//! BVH2). Instance masks select what a
 //! query sees (camera-visible, casts-shadow, pickable); materials with alpha-masked holes
 //! are honoured through the caller's `AlphaTest`.
 //!
@@ -17,9 +18,11 @@
 
 mod blas;
 mod tlas;
+pub mod wide;
 
-pub use blas::{Blas, BlasKind, MeshGeometry, REBUILD_RATIO, RefitOutcome};
+pub use blas::{Blas, BlasKind, MeshGeometry, REBUILD_RATIO, RefitOutcome, Traversal};
 pub use tlas::{AccelScene, Instance};
+pub use wide::{Kernels, WideBvh};
 
 use glam::{Vec2, Vec3A};
 use obvhs::ray::Ray as ObvhsRay;

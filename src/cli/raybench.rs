@@ -27,7 +27,8 @@ use rayon::prelude::*;
 use serde_json::{Value, json};
 
 use crate::accel::{
-    AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry, Opaque, Ray, RefitOutcome,
+    AccelScene, Blas, BlasKind, Instance, InstanceMask, Kernels, MeshGeometry, Opaque, Ray,
+    RefitOutcome, Traversal, WideBvh,
 };
 use crate::extract::render_scene;
 use crate::render::light::Light;
@@ -167,25 +168,30 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         options.repeats
     );
 
-    // 4. Throughput: gloam's two-level traversal, then obvhs's flat layouts.
-    let closest = |ray: &Ray| accel.intersect(ray, InstanceMask::ALL, &Opaque).is_some();
-    let any = |ray: &Ray| accel.occluded(ray, InstanceMask::ALL, &Opaque);
+    // 4. Throughput. Every layout is built first, then measured in interleaved rounds (each
+    //    round times every layout once), so the machine's slow and fast spells fall on all
+    //    of them alike and the ratios of medians compare like with like.
     let mut thread_counts = vec![1];
     if options.threads > 1 {
         thread_counts.push(options.threads);
     }
-    let mut layouts: Vec<(&str, Vec<Throughput>, f64)> = Vec::new();
-    let gloam: Vec<Throughput> = thread_counts
-        .iter()
-        .map(|&t| measure_all(&rays, t, options.repeats, &closest, &any))
-        .collect::<anyhow::Result<_>>()?;
-    layouts.push(("gloam_tlas_blas_bvh2", gloam.clone(), blas_build_ms));
-
+    // gloam's TLAS over BLASes, once per BLAS traversal (copies differ only in that).
+    let with_traversal = |traversal: Traversal| {
+        let mut blases = accel.blases.clone();
+        for blas in &mut blases {
+            blas.traversal = traversal;
+        }
+        let mut copy = AccelScene::new(blases, accel.instances().to_vec());
+        copy.rebuild_tlas();
+        copy
+    };
+    let portable = with_traversal(Traversal::Wide(Kernels::Portable));
+    let bvh2 = with_traversal(Traversal::Bvh2);
     let flat_count = accel.instanced_triangle_count();
     let mut agreement = None;
-    if flat_count <= MAX_FLAT_TRIANGLES {
+    let flat = (flat_count <= MAX_FLAT_TRIANGLES).then(|| {
         let world = flat_triangles(&accel);
-        // obvhs BVH2, the same build preset as static BLASes.
+        // obvhs BVH2, the same build preset as static BLASes: the baseline.
         let start = Instant::now();
         let rt: Vec<RtTriangle> = world
             .iter()
@@ -198,25 +204,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             .iter()
             .map(|&i| rt[i as usize])
             .collect();
-        let bvh_closest = |ray: &Ray| {
-            bvh.ray_traverse(ray.to_obvhs(), &mut RayHit::none(), |r, id| {
-                ordered[id].intersect(r)
-            })
-        };
-        let bvh_any =
-            |ray: &Ray| !bvh.ray_traverse_miss(ray.to_obvhs(), |r, id| ordered[id].intersect(r));
-        let flat: Vec<Throughput> = thread_counts
-            .iter()
-            .map(|&t| measure_all(&rays, t, options.repeats, &bvh_closest, &bvh_any))
-            .collect::<anyhow::Result<_>>()?;
-        layouts.push(("obvhs_bvh2_flat", flat, bvh_ms));
-        agreement = Some(agreement_with_flat(&accel, &rays.diffuse, |ray| {
-            let mut hit = RayHit::none();
-            bvh.ray_traverse(ray.to_obvhs(), &mut hit, |r, id| ordered[id].intersect(r))
-                .then_some(hit.t)
-        }));
-
-        // obvhs CWBVH (8-wide compressed nodes), measured to choose the BLAS layout.
+        // The same BVH2 collapsed 8 wide: gloam's BLAS traversal without the TLAS.
+        let start = Instant::now();
+        let wide = WideBvh::build(&bvh, &ordered).ok();
+        let collapse_ms = milliseconds(start);
+        // obvhs CWBVH (8-wide compressed nodes).
         let start = Instant::now();
         let cwbvh = build_cwbvh_from_tris(
             &world,
@@ -229,24 +221,98 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             .iter()
             .map(|&i| rt[i as usize])
             .collect();
-        let cw_closest = |ray: &Ray| {
-            cwbvh.ray_traverse(ray.to_obvhs(), &mut RayHit::none(), |r, id| {
-                cw_ordered[id].intersect(r)
-            })
-        };
-        let cw_any = |ray: &Ray| {
-            !cwbvh.ray_traverse_miss(ray.to_obvhs(), |r, id| cw_ordered[id].intersect(r))
-        };
-        let cw: Vec<Throughput> = thread_counts
-            .iter()
-            .map(|&t| measure_all(&rays, t, options.repeats, &cw_closest, &cw_any))
-            .collect::<anyhow::Result<_>>()?;
-        layouts.push(("obvhs_cwbvh_flat", cw, cwbvh_ms));
+        (
+            bvh,
+            ordered,
+            bvh_ms,
+            wide,
+            collapse_ms,
+            cwbvh,
+            cw_ordered,
+            cwbvh_ms,
+        )
+    });
+    let mut contenders: Vec<Contender> = Vec::new();
+    for (name, scene) in [
+        ("gloam_tlas_blas_wide8", &accel),
+        ("gloam_tlas_blas_wide8_portable", &portable),
+        ("gloam_tlas_blas_bvh2", &bvh2),
+    ] {
+        contenders.push(Contender {
+            name,
+            build_ms: blas_build_ms,
+            closest: Box::new(move |ray: &Ray| {
+                scene.intersect(ray, InstanceMask::ALL, &Opaque).is_some()
+            }),
+            any: Box::new(move |ray: &Ray| scene.occluded(ray, InstanceMask::ALL, &Opaque)),
+        });
+    }
+
+    if let Some((bvh, ordered, bvh_ms, wide, collapse_ms, cwbvh, cw_ordered, cwbvh_ms)) = &flat {
+        contenders.push(Contender {
+            name: "obvhs_bvh2_flat",
+            build_ms: *bvh_ms,
+            closest: Box::new(|ray: &Ray| {
+                bvh.ray_traverse(ray.to_obvhs(), &mut RayHit::none(), |r, id| {
+                    ordered[id].intersect(r)
+                })
+            }),
+            any: Box::new(|ray: &Ray| {
+                !bvh.ray_traverse_miss(ray.to_obvhs(), |r, id| ordered[id].intersect(r))
+            }),
+        });
+        if let Some(wide) = wide {
+            contenders.push(Contender {
+                name: "wide8_flat",
+                build_ms: bvh_ms + collapse_ms,
+                closest: Box::new(|ray: &Ray| {
+                    wide.intersect(&ray.to_obvhs(), Kernels::Best).is_some()
+                }),
+                any: Box::new(|ray: &Ray| wide.occluded(&ray.to_obvhs(), Kernels::Best)),
+            });
+        }
+        contenders.push(Contender {
+            name: "obvhs_cwbvh_flat",
+            build_ms: *cwbvh_ms,
+            closest: Box::new(|ray: &Ray| {
+                cwbvh.ray_traverse(ray.to_obvhs(), &mut RayHit::none(), |r, id| {
+                    cw_ordered[id].intersect(r)
+                })
+            }),
+            any: Box::new(|ray: &Ray| {
+                !cwbvh.ray_traverse_miss(ray.to_obvhs(), |r, id| cw_ordered[id].intersect(r))
+            }),
+        });
+        agreement = Some(agreement_with_flat(&accel, &rays.diffuse, |ray| {
+            let mut hit = RayHit::none();
+            bvh.ray_traverse(ray.to_obvhs(), &mut hit, |r, id| ordered[id].intersect(r))
+                .then_some(hit.t)
+        }));
     } else {
         println!(
             "(baseline skipped: flattening {flat_count} triangles would exceed {MAX_FLAT_TRIANGLES})"
         );
     }
+    let mut per_threads = Vec::new();
+    for &threads in &thread_counts {
+        per_threads.push(measure_interleaved(
+            &rays,
+            threads,
+            options.repeats,
+            &contenders,
+        )?);
+    }
+    let layouts: Vec<(&str, Vec<Throughput>, f64)> = contenders
+        .iter()
+        .enumerate()
+        .map(|(index, c)| {
+            let measured = per_threads.iter().map(|all| all[index]).collect();
+            (c.name, measured, c.build_ms)
+        })
+        .collect();
+    let gloam = layouts[0].1.clone();
+    // The contenders borrow `accel`; step 5 changes it.
+    drop(contenders);
 
     // 5. TLAS rebuilds and deforming refits, on `threads` (as in a frame).
     let pool = rayon::ThreadPoolBuilder::new()
@@ -295,7 +361,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     }
 
     if let Some(path) = &options.json {
-        let single = |i: usize| layouts.get(i).map(|l| l.1[0]);
+        let single = |name: &str| layouts.iter().find(|l| l.0 == name).map(|l| l.1[0]);
         let mut layout_json = serde_json::Map::new();
         for (layout, per_threads, build_ms) in &layouts {
             let mut entry = serde_json::Map::new();
@@ -321,7 +387,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             "blas_build_ms": round(blas_build_ms),
             "blas_refit_ms": deforming_report.as_ref().map(|r| r["refit_ms"].clone()),
             "deforming": deforming_report,
-            "baseline_obvhs_bvh2": single(1).map(|t| t.json()),
+            "baseline_obvhs_bvh2": single("obvhs_bvh2_flat").map(|t| t.json()),
             "agreement_with_baseline": agreement,
             "layouts": layout_json,
         });
@@ -332,14 +398,22 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Times the three ray types on `threads` threads: median Mrays/s of `repeats` runs each.
-fn measure_all(
+/// One way of tracing the rays, with what it cost to build.
+struct Contender<'a> {
+    name: &'static str,
+    build_ms: f64,
+    closest: Box<dyn Fn(&Ray) -> bool + Sync + 'a>,
+    any: Box<dyn Fn(&Ray) -> bool + Sync + 'a>,
+}
+
+/// Times the three ray types of every contender on `threads` threads, `repeats` rounds
+/// each timing every contender once; the median Mrays/s per contender and ray type.
+fn measure_interleaved(
     rays: &RaySet,
     threads: usize,
     repeats: usize,
-    closest: &(impl Fn(&Ray) -> bool + Sync),
-    any: &(impl Fn(&Ray) -> bool + Sync),
-) -> anyhow::Result<Throughput> {
+    contenders: &[Contender],
+) -> anyhow::Result<Vec<Throughput>> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -348,27 +422,32 @@ fn measure_all(
         if set.is_empty() {
             return 0.0;
         }
-        median(
-            (0..repeats)
-                .map(|_| {
-                    let start = Instant::now();
-                    // The hit count keeps the work observable to the optimiser.
-                    let hits: usize = pool.install(|| {
-                        set.par_chunks(1024)
-                            .map(|chunk| chunk.iter().filter(|r| trace(r)).count())
-                            .sum()
-                    });
-                    std::hint::black_box(hits);
-                    set.len() as f64 / start.elapsed().as_secs_f64() / 1e6
-                })
-                .collect(),
-        )
+        let start = Instant::now();
+        // The hit count keeps the work observable to the optimiser.
+        let hits: usize = pool.install(|| {
+            set.par_chunks(1024)
+                .map(|chunk| chunk.iter().filter(|r| trace(r)).count())
+                .sum()
+        });
+        std::hint::black_box(hits);
+        set.len() as f64 / start.elapsed().as_secs_f64() / 1e6
     };
-    Ok(Throughput {
-        primary: rate(&rays.primary, closest),
-        shadow: rate(&rays.shadow, any),
-        diffuse: rate(&rays.diffuse, closest),
-    })
+    let mut samples = vec![[Vec::new(), Vec::new(), Vec::new()]; contenders.len()];
+    for _ in 0..repeats {
+        for (contender, samples) in contenders.iter().zip(&mut samples) {
+            samples[0].push(rate(&rays.primary, &*contender.closest));
+            samples[1].push(rate(&rays.shadow, &*contender.any));
+            samples[2].push(rate(&rays.diffuse, &*contender.closest));
+        }
+    }
+    Ok(samples
+        .into_iter()
+        .map(|[primary, shadow, diffuse]| Throughput {
+            primary: median(primary),
+            shadow: median(shadow),
+            diffuse: median(diffuse),
+        })
+        .collect())
 }
 
 fn print_table(layouts: &[(&str, Vec<Throughput>, f64)], thread_counts: &[usize]) {

@@ -1,0 +1,968 @@
+//! Frame step `accel`, inside a BLAS: the 8-wide BVH that rays actually traverse.
+//!
+//! Built once per BLAS build by collapsing obvhs's SAH-built BVH2 (Wald, Benthin & Boulos
+//! 2008, "Getting Rid of Packets: Efficient SIMD Single-Ray Traversal using Multi-branching
+//! BVHs"): a wide node starts from a BVH2 node's two children and repeatedly opens the
+//! inner child of largest surface area, the one a random ray is likeliest to enter, until it
+//! has 8 children. Each BVH2 leaf (at most 8 triangles by the build preset) becomes one
+//! `TriangleBlock`, 8 triangles as SoA lanes.
+//!
+//! Per ray: one AVX2 slab test of a node's 8 child boxes, the hit children visited nearest
+//! first (sorted by entry distance), and one AVX2 Moller-Trumbore test (Moller & Trumbore
+//! 1997) of a leaf's 8 triangles. Rays that start on a surface are offset off it by
+//! `Ray::spawn` before they get here, so the test needs no epsilon: t must lie in
+//! (t_min, t_max), and a ray in a triangle's plane (determinant zero) misses it.
+//!
+//! Every kernel has a portable twin written to do the same IEEE operations in the same order
+//! (no FMA anywhere: Rust never contracts a * b + c, and the AVX2 code does not either), so
+//! a machine without AVX2, or an aarch64 one, finds bit-identical hits.
+//!
+//! Deforming meshes refit the wide nodes in place, children before parents, the topology
+//! unchanged (`refit`).
+
+use std::mem::MaybeUninit;
+
+use glam::Vec3A;
+use obvhs::bvh2::Bvh2;
+use obvhs::ray::Ray as ObvhsRay;
+use obvhs::rt_triangle::RtTriangle;
+
+/// Children per node and triangles per block.
+pub(crate) const WIDTH: usize = 8;
+
+/// A child slot with nothing in it.
+const EMPTY: u32 = u32::MAX;
+/// Set on a child reference that names a leaf (a range of triangle blocks).
+const LEAF: u32 = 1 << 31;
+/// Leaf references: block index in the low bits, block count - 1 in these three.
+const LEAF_COUNT_SHIFT: u32 = 28;
+const MAX_LEAF_BLOCKS: usize = 8;
+
+/// Entries on the traversal stack. A node pushes at most 7 (it continues into the 8th), so
+/// this holds a tree 145 nodes deep; `WideBvh::build` refuses deeper trees (rule: every
+/// tree built passes `depth * 7 + 1 <= STACK`, so the traversal never checks).
+const STACK: usize = 1024;
+
+/// Far distances are widened by this factor so a box whose entry and exit round to the same
+/// t, or a triangle lying on its box's face, is not missed (Ize 2013, "Robust BVH Ray
+/// Traversal": 1 + 2 gamma(3)).
+const ROBUST_FAR: f32 = 1.0 + 2.0 * 3.0 * f32::EPSILON * 0.5;
+
+/// Eight child boxes as lanes: `bounds[axis]` are the minima, `bounds[3 + axis]` the
+/// maxima. Empty lanes hold an inverted box (+inf, -inf) that no ray enters.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub(crate) struct WideNode {
+    bounds: [[f32; WIDTH]; 6],
+    children: [u32; WIDTH],
+}
+
+impl WideNode {
+    const EMPTY: WideNode = WideNode {
+        bounds: [
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+            [f32::NEG_INFINITY; WIDTH],
+        ],
+        children: [EMPTY; WIDTH],
+    };
+
+    fn set_box(&mut self, lane: usize, min: Vec3A, max: Vec3A) {
+        for axis in 0..3 {
+            self.bounds[axis][lane] = min[axis];
+            self.bounds[3 + axis][lane] = max[axis];
+        }
+    }
+
+    /// The union of the node's children's boxes.
+    fn union(&self) -> (Vec3A, Vec3A) {
+        let mut min = Vec3A::INFINITY;
+        let mut max = Vec3A::NEG_INFINITY;
+        for lane in 0..WIDTH {
+            if self.children[lane] != EMPTY {
+                min = min.min(Vec3A::new(
+                    self.bounds[0][lane],
+                    self.bounds[1][lane],
+                    self.bounds[2][lane],
+                ));
+                max = max.max(Vec3A::new(
+                    self.bounds[3][lane],
+                    self.bounds[4][lane],
+                    self.bounds[5][lane],
+                ));
+            }
+        }
+        (min, max)
+    }
+}
+
+/// Eight triangles as lanes, as obvhs's `RtTriangle` keeps one: base vertex v0, edges
+/// e1 = v0 - v1 and e2 = v2 - v0, and the unnormalised normal ng = e1 x e2. The lane test
+/// repeats `RtTriangle::intersect`'s arithmetic operation for operation, so the wide tree
+/// finds the very hits (to the bit) of obvhs's BVH2 and of a brute-force loop over
+/// `RtTriangle`s. Unused lanes hold NaN, which fails every comparison, so they never hit.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub(crate) struct TriangleBlock {
+    /// v0 x, y, z, e1 x, y, z, e2 x, y, z, ng x, y, z.
+    planes: [[f32; WIDTH]; 12],
+    /// Per lane, the triangle's index in the BLAS's leaf order (`EMPTY` for unused lanes).
+    ids: [u32; WIDTH],
+}
+
+impl TriangleBlock {
+    const EMPTY: TriangleBlock = TriangleBlock {
+        planes: [[f32::NAN; WIDTH]; 12],
+        ids: [EMPTY; WIDTH],
+    };
+
+    fn set(&mut self, lane: usize, id: u32, triangle: &RtTriangle) {
+        for axis in 0..3 {
+            self.planes[axis][lane] = triangle.v0[axis];
+            self.planes[3 + axis][lane] = triangle.e1[axis];
+            self.planes[6 + axis][lane] = triangle.e2[axis];
+            self.planes[9 + axis][lane] = triangle.ng[axis];
+        }
+        self.ids[lane] = id;
+    }
+
+    /// The box of the block's triangles, over the vertices their planes stand for (as
+    /// `RtTriangle::aabb` finds them: v0, v0 - e1, v0 + e2).
+    fn bounds(&self) -> (Vec3A, Vec3A) {
+        let mut min = Vec3A::INFINITY;
+        let mut max = Vec3A::NEG_INFINITY;
+        for lane in 0..WIDTH {
+            if self.ids[lane] == EMPTY {
+                continue;
+            }
+            let p = &self.planes;
+            let v0 = Vec3A::new(p[0][lane], p[1][lane], p[2][lane]);
+            let e1 = Vec3A::new(p[3][lane], p[4][lane], p[5][lane]);
+            let e2 = Vec3A::new(p[6][lane], p[7][lane], p[8][lane]);
+            for v in [v0, v0 - e1, v0 + e2] {
+                min = min.min(v);
+                max = max.max(v);
+            }
+        }
+        (min, max)
+    }
+}
+
+/// Which kernels a traversal runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernels {
+    /// AVX2 where the CPU has it, else portable.
+    Best,
+    /// Plain Rust (what a CPU without AVX2, or aarch64, runs).
+    Portable,
+}
+
+impl Kernels {
+    fn avx2(self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self == Kernels::Best && std::arch::is_x86_feature_detected!("avx2")
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    }
+}
+
+/// An 8-wide BVH over a BLAS's triangles (in the BLAS's leaf order).
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    /// Node 0 is the root; every node comes before its children (so a reverse sweep refits).
+    nodes: Vec<WideNode>,
+    blocks: Vec<TriangleBlock>,
+    /// Levels of nodes (the root is 1).
+    depth: usize,
+}
+
+/// Why a BVH2 was not collapsed (the BLAS keeps tracing its BVH2).
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum CollapseError {
+    #[error("the tree is {0} levels deep, more than the traversal stack holds")]
+    TooDeep(usize),
+    #[error("a leaf holds {0} triangles, more than 64")]
+    LeafTooLarge(usize),
+}
+
+impl WideBvh {
+    /// Collapses `bvh` (over `ordered`, its triangles in leaf order) into 8-wide nodes.
+    pub fn build(bvh: &Bvh2, ordered: &[RtTriangle]) -> Result<WideBvh, CollapseError> {
+        let mut wide = WideBvh::default();
+        let Some(root) = bvh.nodes.first() else {
+            return Ok(wide);
+        };
+        wide.nodes.push(WideNode::EMPTY);
+        if root.is_leaf() {
+            // A one-leaf tree: a root with a single leaf child.
+            let child = wide.leaf(bvh, 0, ordered)?;
+            wide.nodes[0].children[0] = child;
+            wide.nodes[0].set_box(0, root.aabb.min, root.aabb.max);
+            wide.depth = 1;
+            return Ok(wide);
+        }
+        wide.depth = wide.collapse(bvh, 0, 0, ordered, 1)?;
+        if wide.depth * (WIDTH - 1) + 1 > STACK {
+            return Err(CollapseError::TooDeep(wide.depth));
+        }
+        Ok(wide)
+    }
+
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    pub fn block_count(&self) -> usize {
+        self.blocks.len()
+    }
+
+    /// Fills wide node `target` from BVH2 inner node `source`; returns the depth below.
+    fn collapse(
+        &mut self,
+        bvh: &Bvh2,
+        source: usize,
+        target: usize,
+        ordered: &[RtTriangle],
+        depth: usize,
+    ) -> Result<usize, CollapseError> {
+        if depth * (WIDTH - 1) + 1 > STACK {
+            return Err(CollapseError::TooDeep(depth));
+        }
+        // Open the largest inner child until there are 8 (Wald et al. 2008's greedy rule).
+        let first = bvh.nodes[source].first_index as usize;
+        let mut children: Vec<usize> = vec![first, first + 1];
+        while children.len() < WIDTH {
+            let largest = (0..children.len())
+                .filter(|&slot| !bvh.nodes[children[slot]].is_leaf())
+                .max_by(|&a, &b| {
+                    let area = |slot: usize| bvh.nodes[children[slot]].aabb.half_area();
+                    area(a).total_cmp(&area(b))
+                });
+            let Some(slot) = largest else { break };
+            let opened = children.swap_remove(slot);
+            let grand = bvh.nodes[opened].first_index as usize;
+            children.push(grand);
+            children.push(grand + 1);
+        }
+        // Leaves first, then inner nodes, each in their own slots; inner nodes are
+        // allocated together so siblings are adjacent in memory.
+        let mut deepest = depth;
+        let mut inner = Vec::new();
+        for (lane, &child) in children.iter().enumerate() {
+            let node = &bvh.nodes[child];
+            self.nodes[target].set_box(lane, node.aabb.min, node.aabb.max);
+            if node.is_leaf() {
+                self.nodes[target].children[lane] = self.leaf(bvh, child, ordered)?;
+            } else {
+                let index = self.nodes.len();
+                self.nodes.push(WideNode::EMPTY);
+                self.nodes[target].children[lane] = index as u32;
+                inner.push((child, index));
+            }
+        }
+        for (child, index) in inner {
+            deepest = deepest.max(self.collapse(bvh, child, index, ordered, depth + 1)?);
+        }
+        Ok(deepest)
+    }
+
+    /// Blocks for BVH2 leaf `source`; returns the child reference naming them.
+    fn leaf(
+        &mut self,
+        bvh: &Bvh2,
+        source: usize,
+        ordered: &[RtTriangle],
+    ) -> Result<u32, CollapseError> {
+        let node = &bvh.nodes[source];
+        let (first, count) = (node.first_index as usize, node.prim_count as usize);
+        let block_count = count.div_ceil(WIDTH).max(1);
+        if block_count > MAX_LEAF_BLOCKS {
+            return Err(CollapseError::LeafTooLarge(count));
+        }
+        let first_block = self.blocks.len();
+        for block in 0..block_count {
+            let mut triangles = TriangleBlock::EMPTY;
+            for lane in 0..WIDTH {
+                let id = first + block * WIDTH + lane;
+                if id < first + count {
+                    triangles.set(lane, id as u32, &ordered[id]);
+                }
+            }
+            self.blocks.push(triangles);
+        }
+        Ok(LEAF | ((block_count as u32 - 1) << LEAF_COUNT_SHIFT) | first_block as u32)
+    }
+
+    /// Moves the triangles to `triangle(id)` (id in leaf order) and refits every box, children
+    /// before parents (the topology is kept: same nodes, same blocks).
+    pub fn refit(&mut self, triangle: impl Fn(usize) -> RtTriangle + Sync) {
+        use rayon::prelude::*;
+        self.blocks
+            .par_iter_mut()
+            .with_min_len(256)
+            .for_each(|block| {
+                for lane in 0..WIDTH {
+                    let id = block.ids[lane];
+                    if id != EMPTY {
+                        block.set(lane, id, &triangle(id as usize));
+                    }
+                }
+            });
+        for index in (0..self.nodes.len()).rev() {
+            for lane in 0..WIDTH {
+                let child = self.nodes[index].children[lane];
+                if child == EMPTY {
+                    continue;
+                }
+                let (min, max) = if child & LEAF != 0 {
+                    let (first, count) = leaf_blocks(child);
+                    self.blocks[first..first + count].iter().fold(
+                        (Vec3A::INFINITY, Vec3A::NEG_INFINITY),
+                        |(min, max), block| {
+                            let (lo, hi) = block.bounds();
+                            (min.min(lo), max.max(hi))
+                        },
+                    )
+                } else {
+                    // Children come after their parent, so this one is already refit.
+                    self.nodes[child as usize].union()
+                };
+                self.nodes[index].set_box(lane, min, max);
+            }
+        }
+    }
+
+    /// SAH cost relative to the root's area (as `Blas::sah_cost`, counted per wide node and
+    /// per triangle).
+    pub fn sah_cost(&self) -> f32 {
+        let Some(root) = self.nodes.first() else {
+            return 0.0;
+        };
+        let half_area = |min: Vec3A, max: Vec3A| {
+            let d = (max - min).max(Vec3A::ZERO);
+            d.x * d.y + d.y * d.z + d.z * d.x
+        };
+        let (min, max) = root.union();
+        let root_area = half_area(min, max).max(f32::MIN_POSITIVE);
+        let mut total = root_area;
+        for node in &self.nodes {
+            for lane in 0..WIDTH {
+                let child = node.children[lane];
+                if child == EMPTY {
+                    continue;
+                }
+                let b = &node.bounds;
+                let area = half_area(
+                    Vec3A::new(b[0][lane], b[1][lane], b[2][lane]),
+                    Vec3A::new(b[3][lane], b[4][lane], b[5][lane]),
+                );
+                let triangles = if child & LEAF != 0 {
+                    let (first, count) = leaf_blocks(child);
+                    self.blocks[first..first + count]
+                        .iter()
+                        .map(|block| block.ids.iter().filter(|&&id| id != EMPTY).count())
+                        .sum::<usize>()
+                } else {
+                    0
+                };
+                total += area * triangles as f32;
+            }
+        }
+        total / root_area
+    }
+
+    /// Closest hit within (t_min, t_max): (t, triangle in leaf order).
+    #[inline]
+    pub fn intersect(&self, ray: &ObvhsRay, kernels: Kernels) -> Option<(f32, u32)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if kernels.avx2() {
+            // SAFETY: the CPU has AVX2, the only feature the function enables.
+            return unsafe { self.intersect_avx2(ray) };
+        }
+        let _ = kernels;
+        self.traverse::<Portable, false>(ray)
+    }
+
+    /// True when a triangle lies within (t_min, t_max) (stops at the first found).
+    #[inline]
+    pub fn occluded(&self, ray: &ObvhsRay, kernels: Kernels) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if kernels.avx2() {
+            // SAFETY: as in `intersect`.
+            return unsafe { self.occluded_avx2(ray) };
+        }
+        let _ = kernels;
+        self.traverse::<Portable, true>(ray).is_some()
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn intersect_avx2(&self, ray: &ObvhsRay) -> Option<(f32, u32)> {
+        self.traverse::<avx2::Avx2, false>(ray)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn occluded_avx2(&self, ray: &ObvhsRay) -> bool {
+        self.traverse::<avx2::Avx2, true>(ray).is_some()
+    }
+
+    /// The traversal both queries share: with `ANY`, the first hit ends it.
+    #[inline(always)]
+    fn traverse<K: Lanes, const ANY: bool>(&self, ray: &ObvhsRay) -> Option<(f32, u32)> {
+        let lanes = RayLanes::new(ray);
+        let mut t_max = ray.tmax;
+        let mut found = None;
+        // Uninitialised: zeroing 8 KB per ray cost more than the traversal of a short ray.
+        // Rule: entries below `depth` are always written before they are read.
+        let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK];
+        // SAFETY: `read` is only called at indices below `depth` (see the rule above).
+        let read = |stack: &[MaybeUninit<(u32, f32)>; STACK], at: usize| unsafe {
+            stack[at].assume_init()
+        };
+        let mut depth = 0usize;
+        let mut current = 0u32;
+        loop {
+            if current & LEAF == 0 {
+                let node = &self.nodes[current as usize];
+                let (mut hits, entry) = K::node(node, &lanes, t_max);
+                if hits != 0 {
+                    let count = hits.count_ones();
+                    if count == 1 {
+                        current = node.children[hits.trailing_zeros() as usize];
+                        continue;
+                    }
+                    if ANY {
+                        // Any hit ends the search, so order does not matter: no sorting.
+                        while hits != 0 {
+                            let lane = hits.trailing_zeros() as usize;
+                            hits &= hits - 1;
+                            stack[depth].write((node.children[lane], entry[lane]));
+                            depth += 1;
+                        }
+                        depth -= 1;
+                        current = read(&stack, depth).0;
+                        continue;
+                    }
+                    // Push the hit children farthest first, then carry on with the nearest
+                    // (insertion sort: two or three hits are the common case).
+                    let base = depth;
+                    while hits != 0 {
+                        let lane = hits.trailing_zeros() as usize;
+                        hits &= hits - 1;
+                        let item = (node.children[lane], entry[lane]);
+                        let mut at = depth;
+                        while at > base && read(&stack, at - 1).1 < item.1 {
+                            stack[at] = stack[at - 1];
+                            at -= 1;
+                        }
+                        stack[at].write(item);
+                        depth += 1;
+                    }
+                    depth -= 1;
+                    current = read(&stack, depth).0;
+                    continue;
+                }
+            } else {
+                let (first, count) = leaf_blocks(current);
+                for block in &self.blocks[first..first + count] {
+                    let (mut hits, t) = K::block(block, &lanes, t_max);
+                    while hits != 0 {
+                        let lane = hits.trailing_zeros() as usize;
+                        hits &= hits - 1;
+                        if ANY {
+                            return Some((t[lane], block.ids[lane]));
+                        }
+                        if t[lane] < t_max {
+                            t_max = t[lane];
+                            found = Some((t[lane], block.ids[lane]));
+                        }
+                    }
+                }
+            }
+            // Next: the nearest pending child still nearer than the closest hit.
+            loop {
+                if depth == 0 {
+                    return found;
+                }
+                depth -= 1;
+                let (child, entry) = read(&stack, depth);
+                if entry <= t_max {
+                    current = child;
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// (first block, block count) of a leaf reference.
+#[inline(always)]
+fn leaf_blocks(child: u32) -> (usize, usize) {
+    (
+        (child & ((1 << LEAF_COUNT_SHIFT) - 1)) as usize,
+        ((child & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1,
+    )
+}
+
+/// A ray as the kernels read it: per axis, which bound is the near plane (by the sign of
+/// the direction, so an empty lane's inverted box is entered at +inf and never hit).
+pub(crate) struct RayLanes {
+    origin: [f32; 3],
+    direction: [f32; 3],
+    inverse: [f32; 3],
+    /// Index into `WideNode::bounds` of each axis's near and far planes.
+    near: [usize; 3],
+    far: [usize; 3],
+    t_min: f32,
+}
+
+impl RayLanes {
+    #[inline(always)]
+    fn new(ray: &ObvhsRay) -> RayLanes {
+        let direction = ray.direction.to_array();
+        // A true reciprocal: 1/0 is an infinity of the zero's sign, and the slab test drops
+        // the NaN of 0 * inf (a ray in a slab's plane is inside that slab).
+        let inverse = direction.map(|d| 1.0 / d);
+        let near = [0, 1, 2].map(|axis| {
+            if inverse[axis].is_sign_negative() {
+                3 + axis
+            } else {
+                axis
+            }
+        });
+        RayLanes {
+            origin: ray.origin.to_array(),
+            direction,
+            inverse,
+            near,
+            far: near.map(|plane| (plane + 3) % 6),
+            t_min: ray.tmin,
+        }
+    }
+}
+
+/// The two kernels, per implementation.
+trait Lanes {
+    /// Lanes whose box the ray enters before `t_max`, and each one's entry distance.
+    fn node(node: &WideNode, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]);
+    /// Lanes whose triangle the ray crosses within (t_min, t_max), and the distances.
+    fn block(block: &TriangleBlock, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]);
+}
+
+/// x86's maxps: `a` when a > b, else `b` (so a NaN in `a` is dropped).
+#[inline(always)]
+fn max_dropping_nan(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// x86's minps: `a` when a < b, else `b`.
+#[inline(always)]
+fn min_dropping_nan(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+struct Portable;
+
+// Lane loops index several arrays by the lane, as the SIMD kernels do.
+#[allow(clippy::needless_range_loop)]
+impl Lanes for Portable {
+    #[inline(always)]
+    fn node(node: &WideNode, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
+        let mut entry = [0.0; WIDTH];
+        let mut hits = 0;
+        for lane in 0..WIDTH {
+            let mut near = ray.t_min;
+            let mut far = t_max;
+            for axis in 0..3 {
+                let t_near =
+                    (node.bounds[ray.near[axis]][lane] - ray.origin[axis]) * ray.inverse[axis];
+                let t_far =
+                    (node.bounds[ray.far[axis]][lane] - ray.origin[axis]) * ray.inverse[axis];
+                near = max_dropping_nan(t_near, near);
+                far = min_dropping_nan(t_far, far);
+            }
+            entry[lane] = near;
+            if near <= far * ROBUST_FAR {
+                hits |= 1 << lane;
+            }
+        }
+        (hits, entry)
+    }
+
+    #[inline(always)]
+    fn block(block: &TriangleBlock, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
+        let p = &block.planes;
+        let [ox, oy, oz] = ray.origin;
+        let [dx, dy, dz] = ray.direction;
+        let mut distance = [0.0; WIDTH];
+        let mut hits = 0;
+        for lane in 0..WIDTH {
+            let (e1x, e1y, e1z) = (p[3][lane], p[4][lane], p[5][lane]);
+            let (e2x, e2y, e2z) = (p[6][lane], p[7][lane], p[8][lane]);
+            let (nx, ny, nz) = (p[9][lane], p[10][lane], p[11][lane]);
+            // c = v0 - o; r = d x c; 1 / det = 1 / (ng . d).
+            let (cx, cy, cz) = (p[0][lane] - ox, p[1][lane] - oy, p[2][lane] - oz);
+            let rx = dy * cz - dz * cy;
+            let ry = dz * cx - dx * cz;
+            let rz = dx * cy - dy * cx;
+            let inverse_det = 1.0 / (nx * dx + ny * dy + nz * dz);
+            // Barycentrics u = (r . e2) / det, v = (r . e1) / det, w = 1 - u - v: inside
+            // when none has its sign bit set (so -0 is outside, as in obvhs).
+            let u = (rx * e2x + ry * e2y + rz * e2z) * inverse_det;
+            let v = (rx * e1x + ry * e1y + rz * e1z) * inverse_det;
+            let w = 1.0 - u - v;
+            let inside = (u.to_bits() | v.to_bits() | w.to_bits()) & 0x8000_0000 == 0;
+            // t = (ng . c) / det, within [t_min, t_max].
+            let t = (nx * cx + ny * cy + nz * cz) * inverse_det;
+            distance[lane] = t;
+            if inverse_det != 0.0 && inside && t >= ray.t_min && t <= t_max {
+                hits |= 1 << lane;
+            }
+        }
+        (hits, distance)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    //! The kernels in AVX2 intrinsics: the portable ones' operations, lane for lane.
+
+    use std::arch::x86_64::*;
+
+    use super::{Lanes, ROBUST_FAR, RayLanes, TriangleBlock, WIDTH, WideNode};
+
+    pub(super) struct Avx2;
+
+    impl Lanes for Avx2 {
+        #[inline(always)]
+        fn node(node: &WideNode, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
+            // SAFETY: only reached from `#[target_feature(enable = "avx2")]` functions;
+            // `WideNode` is 32-byte aligned, so its rows are aligned loads.
+            unsafe {
+                let mut near = _mm256_set1_ps(ray.t_min);
+                let mut far = _mm256_set1_ps(t_max);
+                for axis in 0..3 {
+                    let origin = _mm256_set1_ps(ray.origin[axis]);
+                    let inverse = _mm256_set1_ps(ray.inverse[axis]);
+                    let near_plane = _mm256_load_ps(node.bounds[ray.near[axis]].as_ptr());
+                    let far_plane = _mm256_load_ps(node.bounds[ray.far[axis]].as_ptr());
+                    let t_near = _mm256_mul_ps(_mm256_sub_ps(near_plane, origin), inverse);
+                    let t_far = _mm256_mul_ps(_mm256_sub_ps(far_plane, origin), inverse);
+                    // maxps(a, b) is b when either is NaN: as `max_dropping_nan`.
+                    near = _mm256_max_ps(t_near, near);
+                    far = _mm256_min_ps(t_far, far);
+                }
+                let far = _mm256_mul_ps(far, _mm256_set1_ps(ROBUST_FAR));
+                let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, far);
+                let mut entry = [0.0f32; WIDTH];
+                _mm256_storeu_ps(entry.as_mut_ptr(), near);
+                (_mm256_movemask_ps(hit) as u32, entry)
+            }
+        }
+
+        #[inline(always)]
+        fn block(block: &TriangleBlock, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
+            // SAFETY: as in `node`; `TriangleBlock` is 32-byte aligned.
+            unsafe {
+                let p = &block.planes;
+                let load = |plane: usize| _mm256_load_ps(p[plane].as_ptr());
+                let splat = |value: f32| _mm256_set1_ps(value);
+                let (mul, sub, add) = (
+                    |a, b| _mm256_mul_ps(a, b),
+                    |a, b| _mm256_sub_ps(a, b),
+                    |a, b| _mm256_add_ps(a, b),
+                );
+                let (dx, dy, dz) = (
+                    splat(ray.direction[0]),
+                    splat(ray.direction[1]),
+                    splat(ray.direction[2]),
+                );
+                let cx = sub(load(0), splat(ray.origin[0]));
+                let cy = sub(load(1), splat(ray.origin[1]));
+                let cz = sub(load(2), splat(ray.origin[2]));
+                let rx = sub(mul(dy, cz), mul(dz, cy));
+                let ry = sub(mul(dz, cx), mul(dx, cz));
+                let rz = sub(mul(dx, cy), mul(dy, cx));
+                let (nx, ny, nz) = (load(9), load(10), load(11));
+                let det = add(add(mul(nx, dx), mul(ny, dy)), mul(nz, dz));
+                let inverse_det = _mm256_div_ps(splat(1.0), det);
+                let u = mul(
+                    add(add(mul(rx, load(6)), mul(ry, load(7))), mul(rz, load(8))),
+                    inverse_det,
+                );
+                let v = mul(
+                    add(add(mul(rx, load(3)), mul(ry, load(4))), mul(rz, load(5))),
+                    inverse_det,
+                );
+                let w = sub(sub(splat(1.0), u), v);
+                let t = mul(add(add(mul(nx, cx), mul(ny, cy)), mul(nz, cz)), inverse_det);
+                // Sign bits of u | v | w: a lane is outside when any is set.
+                let signs = _mm256_movemask_ps(_mm256_or_ps(_mm256_or_ps(u, v), w)) as u32;
+                let zero = _mm256_setzero_ps();
+                // NEQ_UQ: a NaN determinant's reciprocal counts as non-zero, as `!=` does.
+                let mut hit = _mm256_cmp_ps::<_CMP_NEQ_UQ>(inverse_det, zero);
+                hit = _mm256_and_ps(hit, _mm256_cmp_ps::<_CMP_GE_OQ>(t, splat(ray.t_min)));
+                hit = _mm256_and_ps(hit, _mm256_cmp_ps::<_CMP_LE_OQ>(t, splat(t_max)));
+                let mut distance = [0.0f32; WIDTH];
+                _mm256_storeu_ps(distance.as_mut_ptr(), t);
+                (_mm256_movemask_ps(hit) as u32 & !signs, distance)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::Ray;
+    use obvhs::BvhBuildParams;
+    use obvhs::bvh2::builder::build_bvh2;
+
+    /// A small deterministic generator (xorshift32), so failures reproduce.
+    struct Random(u32);
+
+    impl Random {
+        fn next(&mut self) -> f32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 17;
+            self.0 ^= self.0 << 5;
+            (self.0 >> 8) as f32 / (1u32 << 24) as f32
+        }
+
+        fn range(&mut self, low: f32, high: f32) -> f32 {
+            low + (high - low) * self.next()
+        }
+
+        fn point(&mut self, extent: f32) -> Vec3A {
+            Vec3A::new(
+                self.range(-extent, extent),
+                self.range(-extent, extent),
+                self.range(-extent, extent),
+            )
+        }
+    }
+
+    /// A triangle soup with the awkward cases mixed in: zero-area (repeated vertex and
+    /// collinear), huge, axis-aligned (flat boxes) and tiny triangles.
+    fn soup(random: &mut Random, count: usize) -> Vec<[Vec3A; 3]> {
+        (0..count)
+            .map(|i| {
+                let centre = random.point(10.0);
+                let size = match i % 10 {
+                    0 => 100.0,
+                    1 => 1e-3,
+                    _ => random.range(0.05, 2.0),
+                };
+                let a = centre + random.point(size);
+                let b = centre + random.point(size);
+                let c = centre + random.point(size);
+                match i % 13 {
+                    3 => [a, a, c],
+                    4 => [a, b, a + (b - a) * 0.5],
+                    5 => [a, Vec3A::new(b.x, a.y, b.z), Vec3A::new(c.x, a.y, c.z)],
+                    _ => [a, b, c],
+                }
+            })
+            .collect()
+    }
+
+    fn build(triangles: &[[Vec3A; 3]]) -> (WideBvh, Vec<u32>, Vec<RtTriangle>) {
+        let rt: Vec<RtTriangle> = triangles
+            .iter()
+            .map(|&[a, b, c]| RtTriangle::new(a, b, c))
+            .collect();
+        let bvh = build_bvh2(&rt, BvhBuildParams::medium_build(), &mut Default::default());
+        let ordered: Vec<RtTriangle> = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| rt[i as usize])
+            .collect();
+        let wide = WideBvh::build(&bvh, &ordered).expect("collapse");
+        (wide, bvh.primitive_indices.clone(), ordered)
+    }
+
+    /// Every triangle through the same portable lane arithmetic, one at a time: the closest
+    /// (t, leaf-order id) and whether any lies in (t_min, t_max).
+    fn brute_force(ordered: &[RtTriangle], ray: &ObvhsRay) -> (Option<(f32, u32)>, bool) {
+        let lanes = RayLanes::new(ray);
+        let mut closest: Option<(f32, u32)> = None;
+        for (id, triangle) in ordered.iter().enumerate() {
+            let mut block = TriangleBlock::EMPTY;
+            block.set(0, id as u32, triangle);
+            let (hits, t) = Portable::block(&block, &lanes, ray.tmax);
+            if hits & 1 != 0 && closest.is_none_or(|(best, _)| t[0] < best) {
+                closest = Some((t[0], id as u32));
+            }
+        }
+        (closest, closest.is_some())
+    }
+
+    fn rays(random: &mut Random, triangles: &[[Vec3A; 3]], count: usize) -> Vec<ObvhsRay> {
+        let axes = [
+            Vec3A::X,
+            Vec3A::NEG_X,
+            Vec3A::Y,
+            Vec3A::NEG_Y,
+            Vec3A::Z,
+            Vec3A::NEG_Z,
+        ];
+        (0..count)
+            .map(|i| {
+                let ray = match i % 4 {
+                    // From anywhere, anywhere.
+                    0 => Ray::new(random.point(15.0), random.point(1.0)),
+                    // Axis-parallel (zero direction components: infinite reciprocals).
+                    1 => Ray::new(random.point(12.0), axes[i / 4 % 6]),
+                    // Leaving a surface, as bounce and shadow rays do.
+                    2 => {
+                        let [a, b, c] = triangles[i / 4 % triangles.len()];
+                        let (u, v) = (random.next() * 0.5, random.next() * 0.5);
+                        let point = a + (b - a) * u + (c - a) * v;
+                        let normal = (b - a).cross(c - a).normalize_or_zero();
+                        Ray::spawn(point, normal, random.point(1.0))
+                    }
+                    // A short segment, as a shadow ray to a nearby light.
+                    _ => {
+                        let origin = random.point(12.0);
+                        let mut ray = Ray::new(origin, random.point(3.0));
+                        ray.t_max = random.range(0.1, 2.0);
+                        ray
+                    }
+                };
+                ray.to_obvhs()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn every_kernel_finds_exactly_the_brute_force_hit() {
+        let mut random = Random(0x1234_5678);
+        let mut avx2_checked = false;
+        for count in [1, 7, 9, 100, 3000] {
+            let triangles = soup(&mut random, count);
+            let (wide, _, ordered) = build(&triangles);
+            for ray in rays(&mut random, &triangles, 2000) {
+                if !ray.direction.is_finite() || ray.direction == Vec3A::ZERO {
+                    continue;
+                }
+                let (expected, blocked) = brute_force(&ordered, &ray);
+                for kernels in [Kernels::Portable, Kernels::Best] {
+                    avx2_checked |= kernels.avx2();
+                    let found = wide.intersect(&ray, kernels);
+                    // The same t to the bit; the same triangle unless two tie.
+                    match (found, expected) {
+                        (None, None) => {}
+                        (Some((t, id)), Some((t_expected, id_expected))) => {
+                            assert!(!t.is_nan());
+                            assert_eq!(t.to_bits(), t_expected.to_bits(), "{ray:?} {kernels:?}");
+                            if id != id_expected {
+                                let lanes = RayLanes::new(&ray);
+                                let mut block = TriangleBlock::EMPTY;
+                                block.set(0, id, &ordered[id as usize]);
+                                let (_, other) = Portable::block(&block, &lanes, f32::INFINITY);
+                                assert_eq!(other[0], t_expected);
+                            }
+                        }
+                        _ => panic!(
+                            "{count} triangles, {kernels:?}: {found:?} against {expected:?} for {ray:?}"
+                        ),
+                    }
+                    assert_eq!(wide.occluded(&ray, kernels), blocked, "{ray:?}");
+                }
+            }
+        }
+        if !avx2_checked {
+            println!("(this CPU has no AVX2: only the portable kernels were checked)");
+        }
+    }
+
+    #[test]
+    fn the_wide_tree_finds_what_obvhs_triangles_find_to_the_bit() {
+        // An independent reference: obvhs's own `RtTriangle::intersect` over every triangle
+        // (the lanes repeat its arithmetic, so even the rounding agrees).
+        let mut random = Random(0x9e37_79b9);
+        let triangles = soup(&mut random, 500);
+        let (wide, _, ordered) = build(&triangles);
+        let rays = rays(&mut random, &triangles, 4000);
+        let mut hits = 0;
+        for ray in &rays {
+            let reference = ordered
+                .iter()
+                .map(|t| t.intersect(ray))
+                .filter(|t| t.is_finite())
+                .min_by(f32::total_cmp);
+            for kernels in [Kernels::Portable, Kernels::Best] {
+                let found = wide.intersect(ray, kernels).map(|(t, _)| t);
+                assert_eq!(found, reference, "{ray:?} {kernels:?}");
+            }
+            hits += reference.is_some() as usize;
+        }
+        assert!(
+            hits > rays.len() / 10,
+            "the rays must hit something: {hits}"
+        );
+    }
+
+    #[test]
+    fn a_refit_tree_finds_what_a_rebuilt_one_finds() {
+        let mut random = Random(42);
+        // A 40 x 40 height field, then the same grid waved.
+        let grid = |phase: f32| -> Vec<[Vec3A; 3]> {
+            let height = |x: f32, z: f32| 0.5 * (x * 0.7 + phase).sin() * (z * 0.4 - phase).cos();
+            let mut triangles = Vec::new();
+            for i in 0..40 {
+                for j in 0..40 {
+                    let p = |a: i32, b: i32| {
+                        let (x, z) = ((i + a) as f32 * 0.5 - 10.0, (j + b) as f32 * 0.5 - 10.0);
+                        Vec3A::new(x, height(x, z), z)
+                    };
+                    triangles.push([p(0, 0), p(1, 0), p(1, 1)]);
+                    triangles.push([p(0, 0), p(1, 1), p(0, 1)]);
+                }
+            }
+            triangles
+        };
+        let (mut wide, order, _) = build(&grid(0.0));
+        let moved = grid(1.3);
+        wide.refit(|id| {
+            let [a, b, c] = moved[order[id] as usize];
+            RtTriangle::new(a, b, c)
+        });
+        let (rebuilt, rebuilt_order, rebuilt_ordered) = build(&moved);
+        for ray in rays(&mut random, &moved, 3000) {
+            let refit_hit = wide.intersect(&ray, Kernels::Best);
+            let rebuilt_hit = rebuilt.intersect(&ray, Kernels::Best);
+            assert_eq!(
+                refit_hit.map(|(t, _)| t.to_bits()),
+                rebuilt_hit.map(|(t, _)| t.to_bits()),
+                "{ray:?}"
+            );
+            // The same triangle (by its original index), or one at the same distance.
+            if let (Some((_, a)), Some((t, b))) = (refit_hit, rebuilt_hit)
+                && order[a as usize] != rebuilt_order[b as usize]
+            {
+                let (expected, _) = brute_force(&rebuilt_ordered, &ray);
+                assert_eq!(expected.map(|e| e.0), Some(t));
+            }
+            assert_eq!(
+                wide.occluded(&ray, Kernels::Best),
+                rebuilt.occluded(&ray, Kernels::Best)
+            );
+        }
+        assert!(wide.sah_cost() > 0.0);
+    }
+}
