@@ -10,8 +10,8 @@
 
 use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
 use gloam::accel::{
-    AccelScene, Blas, BlasKind, Hit, Instance, InstanceMask, MeshGeometry, Opaque, Ray,
-    RefitOutcome,
+    AccelScene, Blas, BlasKind, Hit, Instance, InstanceMask, Kernels, MeshGeometry, Opaque, Ray,
+    RefitOutcome, Traversal,
 };
 use obvhs::ray::Ray as ObvhsRay;
 use obvhs::rt_triangle::RtTriangle;
@@ -300,44 +300,59 @@ fn waved(positions: &[Vec3], phase: f32, amplitude: f32) -> Vec<Vec3> {
 
 #[test]
 fn refit_keeps_queries_exact_and_matches_a_rebuild() {
-    let mut scene = random_scene(9, BlasKind::Deforming);
-    let mut rng = Rng(99);
-    let rays = test_rays(&mut rng, 250);
-    for frame in 1..=4 {
+    // Every tree a BLAS can trace: the wide one with each kernel set, and the BVH2.
+    for traversal in [
+        Traversal::Wide(Kernels::Best),
+        Traversal::Wide(Kernels::Portable),
+        Traversal::Bvh2,
+    ] {
+        let mut scene = random_scene(9, BlasKind::Deforming);
         for blas in &mut scene.blases {
-            let moved = waved(&blas.geometry.positions, frame as f32, 0.1);
-            assert_eq!(
-                blas.refit(&moved, None),
-                RefitOutcome::Refit,
-                "moderate motion should refit, not rebuild"
-            );
+            blas.set_traversal(traversal);
         }
-        scene.rebuild_tlas();
-        // A fresh build of the same deformed meshes answers every query identically.
-        let rebuilt = AccelScene::new(
-            scene
-                .blases
-                .iter()
-                .map(|b| Blas::build(b.geometry.clone(), BlasKind::Deforming))
-                .collect(),
-            scene.instances().to_vec(),
-        );
-        for (i, ray) in rays.iter().enumerate() {
-            assert_matches_brute_force(
-                &scene,
-                ray,
-                InstanceMask::ALL,
-                &format!("frame {frame} ray {i}"),
+        let mut rng = Rng(99);
+        let rays = test_rays(&mut rng, 250);
+        for frame in 1..=4 {
+            for blas in &mut scene.blases {
+                // Waved, and carried upwards out of the box it was built in (the TLAS must
+                // see the refit bounds).
+                let moved: Vec<Vec3> = waved(&blas.geometry.positions, frame as f32, 0.1)
+                    .into_iter()
+                    .map(|p| p + Vec3::Y * 0.4)
+                    .collect();
+                assert_eq!(
+                    blas.refit(&moved, None),
+                    RefitOutcome::Refit,
+                    "moderate motion should refit, not rebuild"
+                );
+            }
+            scene.rebuild_tlas();
+            // A fresh build of the same deformed meshes answers every query identically.
+            let rebuilt = AccelScene::new(
+                scene
+                    .blases
+                    .iter()
+                    .map(|b| Blas::build(b.geometry.clone(), BlasKind::Deforming))
+                    .collect(),
+                scene.instances().to_vec(),
             );
-            let (a, b) = (
-                scene.intersect(ray, InstanceMask::ALL, &Opaque),
-                rebuilt.intersect(ray, InstanceMask::ALL, &Opaque),
-            );
-            assert_eq!(
-                a.map(|h| h.t),
-                b.map(|h| h.t),
-                "refit and rebuild disagree on ray {i}"
-            );
+            for (i, ray) in rays.iter().enumerate() {
+                assert_matches_brute_force(
+                    &scene,
+                    ray,
+                    InstanceMask::ALL,
+                    &format!("{traversal:?} frame {frame} ray {i}"),
+                );
+                let (a, b) = (
+                    scene.intersect(ray, InstanceMask::ALL, &Opaque),
+                    rebuilt.intersect(ray, InstanceMask::ALL, &Opaque),
+                );
+                assert_eq!(
+                    a.map(|h| h.t),
+                    b.map(|h| h.t),
+                    "{traversal:?}: refit and rebuild disagree on ray {i}"
+                );
+            }
         }
     }
 }

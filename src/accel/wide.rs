@@ -181,6 +181,14 @@ pub struct WideBvh {
     blocks: Vec<TriangleBlock>,
     /// Levels of nodes (the root is 1).
     depth: usize,
+    /// Refit scratch, per block: its box and how many lanes it uses.
+    block_bounds: Vec<(Vec3A, Vec3A, u32)>,
+}
+
+/// Half the surface area of a box (zero for an empty one).
+fn half_area(min: Vec3A, max: Vec3A) -> f32 {
+    let d = (max - min).max(Vec3A::ZERO);
+    d.x * d.y + d.y * d.z + d.z * d.x
 }
 
 /// Why a BVH2 was not collapsed (the BLAS keeps tracing its BVH2).
@@ -192,6 +200,60 @@ pub enum CollapseError {
     LeafTooLarge(usize),
 }
 
+/// The BVH2 being collapsed, with the triangle count under each of its nodes.
+struct Source<'a> {
+    bvh: &'a Bvh2,
+    ordered: &'a [RtTriangle],
+    triangles_below: Vec<u32>,
+}
+
+impl<'a> Source<'a> {
+    fn new(bvh: &'a Bvh2, ordered: &'a [RtTriangle]) -> Source<'a> {
+        // Parents before children (a depth-first order), then counted in reverse.
+        let mut order = Vec::with_capacity(bvh.nodes.len());
+        let mut pending = vec![0usize];
+        while let Some(node) = pending.pop() {
+            order.push(node);
+            if !bvh.nodes[node].is_leaf() {
+                let first = bvh.nodes[node].first_index as usize;
+                pending.extend([first, first + 1]);
+            }
+        }
+        let mut triangles_below = vec![0u32; bvh.nodes.len()];
+        for &node in order.iter().rev() {
+            let n = &bvh.nodes[node];
+            triangles_below[node] = if n.is_leaf() {
+                n.prim_count
+            } else {
+                let first = n.first_index as usize;
+                triangles_below[first] + triangles_below[first + 1]
+            };
+        }
+        Source {
+            bvh,
+            ordered,
+            triangles_below,
+        }
+    }
+
+    /// Whether BVH2 node `node` becomes one wide leaf: a BVH2 leaf, or a subtree small enough
+    /// for one block (its 8 triangles cost one SIMD test, less than the nodes above them).
+    fn is_wide_leaf(&self, node: usize) -> bool {
+        self.bvh.nodes[node].is_leaf() || self.triangles_below[node] as usize <= WIDTH
+    }
+
+    /// The leaf-order ids of the triangles under `node`.
+    fn gather(&self, node: usize, ids: &mut Vec<u32>) {
+        let n = &self.bvh.nodes[node];
+        if n.is_leaf() {
+            ids.extend(n.first_index..n.first_index + n.prim_count);
+        } else {
+            self.gather(n.first_index as usize, ids);
+            self.gather(n.first_index as usize + 1, ids);
+        }
+    }
+}
+
 impl WideBvh {
     /// Collapses `bvh` (over `ordered`, its triangles in leaf order) into 8-wide nodes.
     pub fn build(bvh: &Bvh2, ordered: &[RtTriangle]) -> Result<WideBvh, CollapseError> {
@@ -199,20 +261,28 @@ impl WideBvh {
         let Some(root) = bvh.nodes.first() else {
             return Ok(wide);
         };
+        let source = Source::new(bvh, ordered);
         wide.nodes.push(WideNode::EMPTY);
-        if root.is_leaf() {
+        if source.is_wide_leaf(0) {
             // A one-leaf tree: a root with a single leaf child.
-            let child = wide.leaf(bvh, 0, ordered)?;
+            let child = wide.leaf(&source, 0)?;
             wide.nodes[0].children[0] = child;
             wide.nodes[0].set_box(0, root.aabb.min, root.aabb.max);
             wide.depth = 1;
             return Ok(wide);
         }
-        wide.depth = wide.collapse(bvh, 0, 0, ordered, 1)?;
+        wide.depth = wide.collapse(&source, 0, 0, 1)?;
         if wide.depth * (WIDTH - 1) + 1 > STACK {
             return Err(CollapseError::TooDeep(wide.depth));
         }
         Ok(wide)
+    }
+
+    /// The box around everything (empty for an empty tree).
+    pub fn bounds(&self) -> (Vec3A, Vec3A) {
+        self.nodes
+            .first()
+            .map_or((Vec3A::INFINITY, Vec3A::NEG_INFINITY), WideNode::union)
     }
 
     pub fn node_count(&self) -> usize {
@@ -223,43 +293,56 @@ impl WideBvh {
         self.blocks.len()
     }
 
-    /// Fills wide node `target` from BVH2 inner node `source`; returns the depth below.
+    /// Triangles in the tree (the used lanes of its blocks).
+    pub fn triangle_count(&self) -> usize {
+        self.blocks
+            .iter()
+            .map(|block| block.ids.iter().filter(|&&id| id != EMPTY).count())
+            .sum()
+    }
+
+    /// Levels of nodes, the root's counted as 1.
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+
+    /// Fills wide node `target` from BVH2 inner node `node`; returns the depth below.
     fn collapse(
         &mut self,
-        bvh: &Bvh2,
-        source: usize,
+        source: &Source,
+        node: usize,
         target: usize,
-        ordered: &[RtTriangle],
         depth: usize,
     ) -> Result<usize, CollapseError> {
         if depth * (WIDTH - 1) + 1 > STACK {
             return Err(CollapseError::TooDeep(depth));
         }
-        // Open the largest inner child until there are 8 (Wald et al. 2008's greedy rule).
-        let first = bvh.nodes[source].first_index as usize;
+        let nodes = &source.bvh.nodes;
+        // Open the largest child that is not a wide leaf until there are 8 (Wald et al.
+        // 2008's greedy rule: the largest box is the one a ray is likeliest to enter).
+        let first = nodes[node].first_index as usize;
         let mut children: Vec<usize> = vec![first, first + 1];
         while children.len() < WIDTH {
             let largest = (0..children.len())
-                .filter(|&slot| !bvh.nodes[children[slot]].is_leaf())
+                .filter(|&slot| !source.is_wide_leaf(children[slot]))
                 .max_by(|&a, &b| {
-                    let area = |slot: usize| bvh.nodes[children[slot]].aabb.half_area();
+                    let area = |slot: usize| nodes[children[slot]].aabb.half_area();
                     area(a).total_cmp(&area(b))
                 });
             let Some(slot) = largest else { break };
             let opened = children.swap_remove(slot);
-            let grand = bvh.nodes[opened].first_index as usize;
+            let grand = nodes[opened].first_index as usize;
             children.push(grand);
             children.push(grand + 1);
         }
-        // Leaves first, then inner nodes, each in their own slots; inner nodes are
-        // allocated together so siblings are adjacent in memory.
+        // Inner children are allocated together, so siblings sit side by side in memory.
         let mut deepest = depth;
         let mut inner = Vec::new();
         for (lane, &child) in children.iter().enumerate() {
-            let node = &bvh.nodes[child];
-            self.nodes[target].set_box(lane, node.aabb.min, node.aabb.max);
-            if node.is_leaf() {
-                self.nodes[target].children[lane] = self.leaf(bvh, child, ordered)?;
+            let child_node = &nodes[child];
+            self.nodes[target].set_box(lane, child_node.aabb.min, child_node.aabb.max);
+            if source.is_wide_leaf(child) {
+                self.nodes[target].children[lane] = self.leaf(source, child)?;
             } else {
                 let index = self.nodes.len();
                 self.nodes.push(WideNode::EMPTY);
@@ -268,101 +351,103 @@ impl WideBvh {
             }
         }
         for (child, index) in inner {
-            deepest = deepest.max(self.collapse(bvh, child, index, ordered, depth + 1)?);
+            deepest = deepest.max(self.collapse(source, child, index, depth + 1)?);
         }
         Ok(deepest)
     }
 
-    /// Blocks for BVH2 leaf `source`; returns the child reference naming them.
-    fn leaf(
-        &mut self,
-        bvh: &Bvh2,
-        source: usize,
-        ordered: &[RtTriangle],
-    ) -> Result<u32, CollapseError> {
-        let node = &bvh.nodes[source];
-        let (first, count) = (node.first_index as usize, node.prim_count as usize);
-        let block_count = count.div_ceil(WIDTH).max(1);
+    /// Blocks for the triangles under BVH2 node `node`; returns the child reference.
+    fn leaf(&mut self, source: &Source, node: usize) -> Result<u32, CollapseError> {
+        let mut ids = Vec::with_capacity(WIDTH);
+        source.gather(node, &mut ids);
+        let block_count = ids.len().div_ceil(WIDTH).max(1);
         if block_count > MAX_LEAF_BLOCKS {
-            return Err(CollapseError::LeafTooLarge(count));
+            return Err(CollapseError::LeafTooLarge(ids.len()));
         }
         let first_block = self.blocks.len();
-        for block in 0..block_count {
-            let mut triangles = TriangleBlock::EMPTY;
-            for lane in 0..WIDTH {
-                let id = first + block * WIDTH + lane;
-                if id < first + count {
-                    triangles.set(lane, id as u32, &ordered[id]);
-                }
+        for block_ids in ids.chunks(WIDTH) {
+            let mut block = TriangleBlock::EMPTY;
+            for (lane, &id) in block_ids.iter().enumerate() {
+                block.set(lane, id, &source.ordered[id as usize]);
             }
-            self.blocks.push(triangles);
+            self.blocks.push(block);
+        }
+        if ids.is_empty() {
+            self.blocks.push(TriangleBlock::EMPTY);
         }
         Ok(LEAF | ((block_count as u32 - 1) << LEAF_COUNT_SHIFT) | first_block as u32)
     }
 
     /// Moves the triangles to `triangle(id)` (id in leaf order) and refits every box, children
-    /// before parents (the topology is kept: same nodes, same blocks).
-    pub fn refit(&mut self, triangle: impl Fn(usize) -> RtTriangle + Sync) {
+    /// before parents (the topology is kept: same nodes, same blocks). Returns the refit
+    /// tree's `sah_cost`, summed on the way.
+    pub fn refit(&mut self, triangle: impl Fn(usize) -> RtTriangle + Sync) -> f32 {
         use rayon::prelude::*;
+        // 1. The blocks and their boxes, in parallel (most of the work: every triangle).
+        self.block_bounds
+            .resize(self.blocks.len(), (Vec3A::ZERO, Vec3A::ZERO, 0));
         self.blocks
             .par_iter_mut()
+            .zip(self.block_bounds.par_iter_mut())
             .with_min_len(256)
-            .for_each(|block| {
+            .for_each(|(block, bounds)| {
+                let mut used = 0;
                 for lane in 0..WIDTH {
                     let id = block.ids[lane];
                     if id != EMPTY {
                         block.set(lane, id, &triangle(id as usize));
+                        used += 1;
                     }
                 }
+                let (min, max) = block.bounds();
+                *bounds = (min, max, used);
             });
+        // 2. The nodes, last first: children come after their parents, so every child's
+        //    box is final before its parent reads it.
+        let mut cost = 0.0;
         for index in (0..self.nodes.len()).rev() {
             for lane in 0..WIDTH {
                 let child = self.nodes[index].children[lane];
                 if child == EMPTY {
                     continue;
                 }
-                let (min, max) = if child & LEAF != 0 {
+                let (min, max, triangles) = if child & LEAF != 0 {
                     let (first, count) = leaf_blocks(child);
-                    self.blocks[first..first + count].iter().fold(
-                        (Vec3A::INFINITY, Vec3A::NEG_INFINITY),
-                        |(min, max), block| {
-                            let (lo, hi) = block.bounds();
-                            (min.min(lo), max.max(hi))
-                        },
+                    self.block_bounds[first..first + count].iter().fold(
+                        (Vec3A::INFINITY, Vec3A::NEG_INFINITY, 0),
+                        |(min, max, used), &(lo, hi, n)| (min.min(lo), max.max(hi), used + n),
                     )
                 } else {
-                    // Children come after their parent, so this one is already refit.
-                    self.nodes[child as usize].union()
+                    let (min, max) = self.nodes[child as usize].union();
+                    (min, max, 0)
                 };
                 self.nodes[index].set_box(lane, min, max);
+                cost += half_area(min, max) * triangles.max(1) as f32;
             }
         }
+        let (min, max) = self
+            .nodes
+            .first()
+            .map_or((Vec3A::ZERO, Vec3A::ZERO), WideNode::union);
+        let root_area = half_area(min, max).max(f32::MIN_POSITIVE);
+        (root_area + cost) / root_area
     }
 
-    /// SAH cost relative to the root's area (as `Blas::sah_cost`, counted per wide node and
-    /// per triangle).
+    /// SAH cost relative to the root's area (Goldsmith & Salmon 1987, as `Blas::sah_cost`):
+    /// the root, each child box's area once per node entered, a leaf's area per triangle.
     pub fn sah_cost(&self) -> f32 {
         let Some(root) = self.nodes.first() else {
             return 0.0;
         };
-        let half_area = |min: Vec3A, max: Vec3A| {
-            let d = (max - min).max(Vec3A::ZERO);
-            d.x * d.y + d.y * d.z + d.z * d.x
-        };
         let (min, max) = root.union();
         let root_area = half_area(min, max).max(f32::MIN_POSITIVE);
-        let mut total = root_area;
+        let mut cost = 0.0;
         for node in &self.nodes {
             for lane in 0..WIDTH {
                 let child = node.children[lane];
                 if child == EMPTY {
                     continue;
                 }
-                let b = &node.bounds;
-                let area = half_area(
-                    Vec3A::new(b[0][lane], b[1][lane], b[2][lane]),
-                    Vec3A::new(b[3][lane], b[4][lane], b[5][lane]),
-                );
                 let triangles = if child & LEAF != 0 {
                     let (first, count) = leaf_blocks(child);
                     self.blocks[first..first + count]
@@ -370,27 +455,62 @@ impl WideBvh {
                         .map(|block| block.ids.iter().filter(|&&id| id != EMPTY).count())
                         .sum::<usize>()
                 } else {
-                    0
+                    1
                 };
-                total += area * triangles as f32;
+                let b = &node.bounds;
+                let area = half_area(
+                    Vec3A::new(b[0][lane], b[1][lane], b[2][lane]),
+                    Vec3A::new(b[3][lane], b[4][lane], b[5][lane]),
+                );
+                cost += area * triangles.max(1) as f32;
             }
         }
-        total / root_area
+        (root_area + cost) / root_area
     }
 
-    /// Closest hit within (t_min, t_max): (t, triangle in leaf order).
+    /// Closest hit within [t_min, t_max]: (t, triangle in leaf order).
     #[inline]
     pub fn intersect(&self, ray: &ObvhsRay, kernels: Kernels) -> Option<(f32, u32)> {
+        self.intersect_triangle(ray, kernels)
+            .map(|(t, id, _)| (t, id))
+    }
+
+    /// `intersect`, with the triangle as the tree holds it (what a deforming BLAS's
+    /// barycentrics come from: its leaf-ordered copy is not updated while rays walk this).
+    #[inline]
+    pub fn intersect_triangle(
+        &self,
+        ray: &ObvhsRay,
+        kernels: Kernels,
+    ) -> Option<(f32, u32, RtTriangle)> {
         if self.nodes.is_empty() {
             return None;
         }
         #[cfg(target_arch = "x86_64")]
-        if kernels.avx2() {
+        let found = if kernels.avx2() {
             // SAFETY: the CPU has AVX2, the only feature the function enables.
-            return unsafe { self.intersect_avx2(ray) };
-        }
-        let _ = kernels;
-        self.traverse::<Portable, false>(ray)
+            unsafe { self.intersect_avx2(ray) }
+        } else {
+            self.traverse::<Portable, false>(ray)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let found = {
+            let _ = kernels;
+            self.traverse::<Portable, false>(ray)
+        };
+        let (t, slot) = found?;
+        let block = &self.blocks[slot as usize / WIDTH];
+        let lane = slot as usize % WIDTH;
+        let p = &block.planes;
+        let lane_vector =
+            |first: usize| Vec3A::new(p[first][lane], p[first + 1][lane], p[first + 2][lane]);
+        let triangle = RtTriangle {
+            v0: lane_vector(0),
+            e1: lane_vector(3),
+            e2: lane_vector(6),
+            ng: lane_vector(9),
+        };
+        Some((t, block.ids[lane], triangle))
     }
 
     /// True when a triangle lies within (t_min, t_max) (stops at the first found).
@@ -478,17 +598,19 @@ impl WideBvh {
                 }
             } else {
                 let (first, count) = leaf_blocks(current);
-                for block in &self.blocks[first..first + count] {
+                for (index, block) in self.blocks[first..first + count].iter().enumerate() {
                     let (mut hits, t) = K::block(block, &lanes, t_max);
                     while hits != 0 {
                         let lane = hits.trailing_zeros() as usize;
                         hits &= hits - 1;
+                        // The hit's slot: its block and lane, block * WIDTH + lane.
+                        let slot = ((first + index) * WIDTH + lane) as u32;
                         if ANY {
-                            return Some((t[lane], block.ids[lane]));
+                            return Some((t[lane], slot));
                         }
                         if t[lane] < t_max {
                             t_max = t[lane];
-                            found = Some((t[lane], block.ids[lane]));
+                            found = Some((t[lane], slot));
                         }
                     }
                 }
@@ -938,10 +1060,12 @@ mod tests {
         };
         let (mut wide, order, _) = build(&grid(0.0));
         let moved = grid(1.3);
-        wide.refit(|id| {
+        let refit_cost = wide.refit(|id| {
             let [a, b, c] = moved[order[id] as usize];
             RtTriangle::new(a, b, c)
         });
+        // The cost summed during the refit is the refit tree's.
+        assert!((refit_cost - wide.sah_cost()).abs() <= 1e-4 * refit_cost);
         let (rebuilt, rebuilt_order, rebuilt_ordered) = build(&moved);
         for ray in rays(&mut random, &moved, 3000) {
             let refit_hit = wide.intersect(&ray, Kernels::Best);

@@ -179,7 +179,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     let with_traversal = |traversal: Traversal| {
         let mut blases = accel.blases.clone();
         for blas in &mut blases {
-            blas.traversal = traversal;
+            blas.set_traversal(traversal);
         }
         let mut copy = AccelScene::new(blases, accel.instances().to_vec());
         copy.rebuild_tlas();
@@ -208,6 +208,16 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         let start = Instant::now();
         let wide = WideBvh::build(&bvh, &ordered).ok();
         let collapse_ms = milliseconds(start);
+        let wide_stats = wide.as_ref().map(|wide| {
+            json!({
+                "bvh2_build_ms": round(bvh_ms),
+                "collapse_ms": round(collapse_ms),
+                "nodes": wide.node_count(),
+                "blocks": wide.block_count(),
+                "lanes_used": round(wide.triangle_count() as f64 / (wide.block_count() * 8).max(1) as f64),
+                "depth": wide.depth(),
+            })
+        });
         // obvhs CWBVH (8-wide compressed nodes).
         let start = Instant::now();
         let cwbvh = build_cwbvh_from_tris(
@@ -221,16 +231,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             .iter()
             .map(|&i| rt[i as usize])
             .collect();
-        (
-            bvh,
-            ordered,
-            bvh_ms,
-            wide,
-            collapse_ms,
-            cwbvh,
-            cw_ordered,
-            cwbvh_ms,
-        )
+        (bvh, ordered, bvh_ms, wide, collapse_ms, cwbvh, cw_ordered, cwbvh_ms, wide_stats)
     });
     let mut contenders: Vec<Contender> = Vec::new();
     for (name, scene) in [
@@ -248,7 +249,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         });
     }
 
-    if let Some((bvh, ordered, bvh_ms, wide, collapse_ms, cwbvh, cw_ordered, cwbvh_ms)) = &flat {
+    let mut wide_stats = None;
+    if let Some((bvh, ordered, bvh_ms, wide, collapse_ms, cwbvh, cw_ordered, cwbvh_ms, stats)) =
+        &flat
+    {
+        wide_stats = stats.clone();
         contenders.push(Contender {
             name: "obvhs_bvh2_flat",
             build_ms: *bvh_ms,
@@ -341,6 +346,17 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         accel.instances().len(),
         options.threads
     );
+    if let Some(stats) = &wide_stats {
+        println!(
+            "wide8 over the flat triangles: BVH2 build {} ms + collapse {} ms (one thread); {} nodes, {} leaf blocks, {:.0}% of triangle lanes used, {} levels",
+            stats["bvh2_build_ms"],
+            stats["collapse_ms"],
+            stats["nodes"],
+            stats["blocks"],
+            stats["lanes_used"].as_f64().unwrap_or(0.0) * 100.0,
+            stats["depth"]
+        );
+    }
     if let Some(agreement) = agreement {
         println!(
             "agreement with the flat baseline on diffuse rays: {:.4}% same hit distance",
@@ -389,6 +405,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             "deforming": deforming_report,
             "baseline_obvhs_bvh2": single("obvhs_bvh2_flat").map(|t| t.json()),
             "agreement_with_baseline": agreement,
+            "wide8_flat_build": wide_stats,
             "layouts": layout_json,
         });
         let text = serde_json::to_string_pretty(&report).context("encoding the report")? + "\n";
