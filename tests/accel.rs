@@ -196,12 +196,21 @@ fn test_rays(rng: &mut Rng, count: usize) -> Vec<Ray> {
 
 #[test]
 fn closest_and_any_hit_match_brute_force() {
-    for seed in 0..6 {
-        let scene = random_scene(seed, BlasKind::Static);
-        let mut rng = Rng(seed + 100);
-        for (i, ray) in test_rays(&mut rng, 300).iter().enumerate() {
-            let mask = [InstanceMask::ALL, InstanceMask(1), InstanceMask(2 | 4)][i % 3];
-            assert_matches_brute_force(&scene, ray, mask, &format!("seed {seed} ray {i}"));
+    // Every way through: wide TLAS and BLASes with each kernel set, and obvhs's BVH2s.
+    for traversal in [
+        Traversal::Wide(Kernels::Best),
+        Traversal::Wide(Kernels::Portable),
+        Traversal::Bvh2,
+    ] {
+        for seed in 0..6 {
+            let mut scene = random_scene(seed, BlasKind::Static);
+            scene.set_traversal(traversal);
+            let mut rng = Rng(seed + 100);
+            for (i, ray) in test_rays(&mut rng, 300).iter().enumerate() {
+                let mask = [InstanceMask::ALL, InstanceMask(1), InstanceMask(2 | 4)][i % 3];
+                let context = format!("{traversal:?} seed {seed} ray {i}");
+                assert_matches_brute_force(&scene, ray, mask, &context);
+            }
         }
     }
 }
@@ -307,9 +316,7 @@ fn refit_keeps_queries_exact_and_matches_a_rebuild() {
         Traversal::Bvh2,
     ] {
         let mut scene = random_scene(9, BlasKind::Deforming);
-        for blas in &mut scene.blases {
-            blas.set_traversal(traversal);
-        }
+        scene.set_traversal(traversal);
         let mut rng = Rng(99);
         let rays = test_rays(&mut rng, 250);
         for frame in 1..=4 {

@@ -22,7 +22,7 @@ pub mod wide;
 
 pub use blas::{Blas, BlasKind, MeshGeometry, REBUILD_RATIO, RefitOutcome, Traversal};
 pub use tlas::{AccelScene, Instance};
-pub use wide::{Kernels, WideBvh};
+pub use wide::{Kernels, WideBvh, WideTlas};
 
 use glam::{Vec2, Vec3A};
 use obvhs::ray::Ray as ObvhsRay;

@@ -3,6 +3,8 @@
 //! Frame step `accel`, second half. The TLAS is a PLOC-built BVH2 over the instances'
 //! world-space boxes (Meister & Bittner 2018); the builder, the box list and the index list
 //! are kept between frames so a rebuild allocates nothing once the instance count settles.
+//! Rays walk it collapsed 8 wide (`WideTlas`, rebuilt from the BVH2 each frame) with the
+//! same kernels as the BLASes; `Traversal::Bvh2` walks obvhs's BVH2 instead.
 
 use glam::{Affine3A, Mat3A, Vec2, Vec3A};
 use obvhs::aabb::Aabb;
@@ -10,7 +12,8 @@ use obvhs::bvh2::Bvh2;
 use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 use obvhs::ray::{Ray as ObvhsRay, RayHit};
 
-use super::blas::Blas;
+use super::blas::{Blas, Traversal};
+use super::wide::{Kernels, WideTlas};
 use super::{AlphaTest, Hit, InstanceMask, Ray, SurfaceHit};
 
 /// A placed copy of a BLAS.
@@ -92,6 +95,10 @@ pub struct AccelScene {
     tlas: Bvh2,
     builder: PlocBuilder,
     instance_boxes: Vec<Aabb>,
+    /// `tlas` collapsed 8 wide (None: rays walk `tlas`).
+    wide_tlas: Option<WideTlas>,
+    /// How rays walk the TLAS (the BLASes keep their own, set with them by `set_traversal`).
+    traversal: Traversal,
 }
 
 impl AccelScene {
@@ -102,6 +109,8 @@ impl AccelScene {
             tlas: Bvh2::default(),
             builder: PlocBuilder::new(),
             instance_boxes: Vec::new(),
+            wide_tlas: None,
+            traversal: Traversal::Wide(Kernels::Best),
         };
         scene.rebuild_tlas();
         scene
@@ -150,6 +159,7 @@ impl AccelScene {
         }
         if self.instance_boxes.is_empty() {
             self.tlas = Bvh2::default();
+            self.wide_tlas = None;
             return;
         }
         // Reuse last frame's index allocation.
@@ -167,6 +177,23 @@ impl AccelScene {
             SortPrecision::U64,
             1,
         );
+        self.wide_tlas = match self.traversal {
+            Traversal::Wide(_) => {
+                let mut wide = self.wide_tlas.take().unwrap_or_default();
+                // A tree too deep for the wide stack keeps the BVH2 walk.
+                wide.rebuild(&self.tlas).is_ok().then_some(wide)
+            }
+            Traversal::Bvh2 => None,
+        };
+    }
+
+    /// Chooses how rays walk the TLAS and every BLAS (`gloam raybench` compares them).
+    pub fn set_traversal(&mut self, traversal: Traversal) {
+        self.traversal = traversal;
+        for blas in &mut self.blases {
+            blas.set_traversal(traversal);
+        }
+        self.rebuild_tlas();
     }
 
     /// The closest hit along `ray` among instances sharing a bit with `mask`.
@@ -175,6 +202,32 @@ impl AccelScene {
             return None;
         }
         let mut closest: Option<Hit> = None;
+        if let (Some(wide), Traversal::Wide(kernels)) = (&self.wide_tlas, self.traversal) {
+            let world_ray = ray.to_obvhs();
+            wide.walk(&world_ray, kernels, false, |slot, t_max| {
+                let index = self.tlas.primitive_indices[slot];
+                let instance = &self.instances[index as usize];
+                if !instance.mask.intersects(mask) {
+                    return None;
+                }
+                // t_max is the closest hit so far: the BLAS prunes against it.
+                let mut object_ray = instance.object_ray(&world_ray);
+                object_ray.tmax = t_max;
+                match self.blases[instance.blas as usize].intersect(&object_ray, alpha) {
+                    Some((t, primitive, barycentrics)) if t < t_max => {
+                        closest = Some(Hit {
+                            t,
+                            instance: index,
+                            primitive,
+                            barycentrics,
+                        });
+                        Some(t)
+                    }
+                    _ => None,
+                }
+            });
+            return closest;
+        }
         let mut tlas_hit = RayHit::none();
         self.tlas
             .ray_traverse(ray.to_obvhs(), &mut tlas_hit, |world_ray, id| {
@@ -206,6 +259,19 @@ impl AccelScene {
     pub fn occluded<A: AlphaTest>(&self, ray: &Ray, mask: InstanceMask, alpha: &A) -> bool {
         if self.tlas.nodes.is_empty() {
             return false;
+        }
+        if let (Some(wide), Traversal::Wide(kernels)) = (&self.wide_tlas, self.traversal) {
+            let world_ray = ray.to_obvhs();
+            return wide.walk(&world_ray, kernels, true, |slot, _| {
+                let instance = &self.instances[self.tlas.primitive_indices[slot] as usize];
+                if !instance.mask.intersects(mask) {
+                    return None;
+                }
+                let blas = &self.blases[instance.blas as usize];
+                // Any t inside the segment ends the walk; its value does not matter.
+                blas.occluded(&instance.object_ray(&world_ray), alpha)
+                    .then_some(world_ray.tmin)
+            });
         }
         !self
             .tlas

@@ -254,27 +254,140 @@ impl<'a> Source<'a> {
     }
 }
 
+/// What a collapse makes of a BVH2's leaves: triangle blocks (a BLAS) or instance ranges
+/// (the TLAS).
+trait LeafMaker {
+    fn bvh(&self) -> &Bvh2;
+    /// Whether BVH2 node `node` becomes one wide leaf.
+    fn is_leaf(&self, node: usize) -> bool;
+    /// The child reference of the leaf made of `node`.
+    fn leaf(&mut self, node: usize) -> Result<u32, CollapseError>;
+}
+
+/// A BLAS's leaves: blocks of its triangles.
+struct TriangleLeaves<'a, 'b> {
+    source: &'b Source<'a>,
+    blocks: &'b mut Vec<TriangleBlock>,
+}
+
+impl LeafMaker for TriangleLeaves<'_, '_> {
+    fn bvh(&self) -> &Bvh2 {
+        self.source.bvh
+    }
+
+    fn is_leaf(&self, node: usize) -> bool {
+        self.source.is_wide_leaf(node)
+    }
+
+    /// Blocks for the triangles under BVH2 node `node`.
+    fn leaf(&mut self, node: usize) -> Result<u32, CollapseError> {
+        let mut ids = Vec::with_capacity(WIDTH);
+        self.source.gather(node, &mut ids);
+        let block_count = ids.len().div_ceil(WIDTH).max(1);
+        if block_count > MAX_LEAF_BLOCKS {
+            return Err(CollapseError::LeafTooLarge(ids.len()));
+        }
+        let first_block = self.blocks.len();
+        for block_ids in ids.chunks(WIDTH) {
+            let mut block = TriangleBlock::EMPTY;
+            for (lane, &id) in block_ids.iter().enumerate() {
+                block.set(lane, id, &self.source.ordered[id as usize]);
+            }
+            self.blocks.push(block);
+        }
+        if ids.is_empty() {
+            self.blocks.push(TriangleBlock::EMPTY);
+        }
+        Ok(LEAF | ((block_count as u32 - 1) << LEAF_COUNT_SHIFT) | first_block as u32)
+    }
+}
+
+/// Collapses `leaves.bvh()` into `nodes` (cleared first); returns the depth.
+fn collapse_tree(
+    nodes: &mut Vec<WideNode>,
+    leaves: &mut impl LeafMaker,
+) -> Result<usize, CollapseError> {
+    nodes.clear();
+    let Some(root) = leaves.bvh().nodes.first().copied() else {
+        return Ok(0);
+    };
+    nodes.push(WideNode::EMPTY);
+    if leaves.is_leaf(0) {
+        // A one-leaf tree: a root with a single leaf child.
+        nodes[0].children[0] = leaves.leaf(0)?;
+        nodes[0].set_box(0, root.aabb.min, root.aabb.max);
+        return Ok(1);
+    }
+    collapse_node(nodes, leaves, 0, 0, 1)
+}
+
+/// Fills wide node `target` from BVH2 inner node `node`; returns the depth below.
+fn collapse_node(
+    nodes: &mut Vec<WideNode>,
+    leaves: &mut impl LeafMaker,
+    node: usize,
+    target: usize,
+    depth: usize,
+) -> Result<usize, CollapseError> {
+    if depth * (WIDTH - 1) + 1 > STACK {
+        return Err(CollapseError::TooDeep(depth));
+    }
+    // Open the largest child that is not a wide leaf until there are 8 (Wald et al.
+    // 2008's greedy rule: the largest box is the one a ray is likeliest to enter).
+    let first = leaves.bvh().nodes[node].first_index as usize;
+    let mut children = [0usize; WIDTH];
+    children[..2].copy_from_slice(&[first, first + 1]);
+    let mut count = 2;
+    while count < WIDTH {
+        let bvh = leaves.bvh();
+        let largest = (0..count)
+            .filter(|&slot| !leaves.is_leaf(children[slot]))
+            .max_by(|&a, &b| {
+                let area = |slot: usize| bvh.nodes[children[slot]].aabb.half_area();
+                area(a).total_cmp(&area(b))
+            });
+        let Some(slot) = largest else { break };
+        let grand = bvh.nodes[children[slot]].first_index as usize;
+        children[slot] = grand;
+        children[count] = grand + 1;
+        count += 1;
+    }
+    // Inner children are allocated together, so siblings sit side by side in memory.
+    let mut deepest = depth;
+    let mut inner = [(0usize, 0usize); WIDTH];
+    let mut inner_count = 0;
+    for (lane, &child) in children[..count].iter().enumerate() {
+        let aabb = leaves.bvh().nodes[child].aabb;
+        nodes[target].set_box(lane, aabb.min, aabb.max);
+        if leaves.is_leaf(child) {
+            nodes[target].children[lane] = leaves.leaf(child)?;
+        } else {
+            let index = nodes.len();
+            nodes.push(WideNode::EMPTY);
+            nodes[target].children[lane] = index as u32;
+            inner[inner_count] = (child, index);
+            inner_count += 1;
+        }
+    }
+    for &(child, index) in &inner[..inner_count] {
+        deepest = deepest.max(collapse_node(nodes, leaves, child, index, depth + 1)?);
+    }
+    Ok(deepest)
+}
+
 impl WideBvh {
     /// Collapses `bvh` (over `ordered`, its triangles in leaf order) into 8-wide nodes.
     pub fn build(bvh: &Bvh2, ordered: &[RtTriangle]) -> Result<WideBvh, CollapseError> {
         let mut wide = WideBvh::default();
-        let Some(root) = bvh.nodes.first() else {
+        if bvh.nodes.is_empty() {
             return Ok(wide);
-        };
+        }
         let source = Source::new(bvh, ordered);
-        wide.nodes.push(WideNode::EMPTY);
-        if source.is_wide_leaf(0) {
-            // A one-leaf tree: a root with a single leaf child.
-            let child = wide.leaf(&source, 0)?;
-            wide.nodes[0].children[0] = child;
-            wide.nodes[0].set_box(0, root.aabb.min, root.aabb.max);
-            wide.depth = 1;
-            return Ok(wide);
-        }
-        wide.depth = wide.collapse(&source, 0, 0, 1)?;
-        if wide.depth * (WIDTH - 1) + 1 > STACK {
-            return Err(CollapseError::TooDeep(wide.depth));
-        }
+        let mut leaves = TriangleLeaves {
+            source: &source,
+            blocks: &mut wide.blocks,
+        };
+        wide.depth = collapse_tree(&mut wide.nodes, &mut leaves)?;
         Ok(wide)
     }
 
@@ -304,78 +417,6 @@ impl WideBvh {
     /// Levels of nodes, the root's counted as 1.
     pub fn depth(&self) -> usize {
         self.depth
-    }
-
-    /// Fills wide node `target` from BVH2 inner node `node`; returns the depth below.
-    fn collapse(
-        &mut self,
-        source: &Source,
-        node: usize,
-        target: usize,
-        depth: usize,
-    ) -> Result<usize, CollapseError> {
-        if depth * (WIDTH - 1) + 1 > STACK {
-            return Err(CollapseError::TooDeep(depth));
-        }
-        let nodes = &source.bvh.nodes;
-        // Open the largest child that is not a wide leaf until there are 8 (Wald et al.
-        // 2008's greedy rule: the largest box is the one a ray is likeliest to enter).
-        let first = nodes[node].first_index as usize;
-        let mut children: Vec<usize> = vec![first, first + 1];
-        while children.len() < WIDTH {
-            let largest = (0..children.len())
-                .filter(|&slot| !source.is_wide_leaf(children[slot]))
-                .max_by(|&a, &b| {
-                    let area = |slot: usize| nodes[children[slot]].aabb.half_area();
-                    area(a).total_cmp(&area(b))
-                });
-            let Some(slot) = largest else { break };
-            let opened = children.swap_remove(slot);
-            let grand = nodes[opened].first_index as usize;
-            children.push(grand);
-            children.push(grand + 1);
-        }
-        // Inner children are allocated together, so siblings sit side by side in memory.
-        let mut deepest = depth;
-        let mut inner = Vec::new();
-        for (lane, &child) in children.iter().enumerate() {
-            let child_node = &nodes[child];
-            self.nodes[target].set_box(lane, child_node.aabb.min, child_node.aabb.max);
-            if source.is_wide_leaf(child) {
-                self.nodes[target].children[lane] = self.leaf(source, child)?;
-            } else {
-                let index = self.nodes.len();
-                self.nodes.push(WideNode::EMPTY);
-                self.nodes[target].children[lane] = index as u32;
-                inner.push((child, index));
-            }
-        }
-        for (child, index) in inner {
-            deepest = deepest.max(self.collapse(source, child, index, depth + 1)?);
-        }
-        Ok(deepest)
-    }
-
-    /// Blocks for the triangles under BVH2 node `node`; returns the child reference.
-    fn leaf(&mut self, source: &Source, node: usize) -> Result<u32, CollapseError> {
-        let mut ids = Vec::with_capacity(WIDTH);
-        source.gather(node, &mut ids);
-        let block_count = ids.len().div_ceil(WIDTH).max(1);
-        if block_count > MAX_LEAF_BLOCKS {
-            return Err(CollapseError::LeafTooLarge(ids.len()));
-        }
-        let first_block = self.blocks.len();
-        for block_ids in ids.chunks(WIDTH) {
-            let mut block = TriangleBlock::EMPTY;
-            for (lane, &id) in block_ids.iter().enumerate() {
-                block.set(lane, id, &source.ordered[id as usize]);
-            }
-            self.blocks.push(block);
-        }
-        if ids.is_empty() {
-            self.blocks.push(TriangleBlock::EMPTY);
-        }
-        Ok(LEAF | ((block_count as u32 - 1) << LEAF_COUNT_SHIFT) | first_block as u32)
     }
 
     /// Moves the triangles to `triangle(id)` (id in leaf order) and refits every box, children
@@ -540,94 +581,212 @@ impl WideBvh {
         self.traverse::<avx2::Avx2, true>(ray).is_some()
     }
 
-    /// The traversal both queries share: with `ANY`, the first hit ends it.
+    /// The traversal both queries share: with `ANY`, the first hit ends it. Returns the
+    /// hit's t and slot (block * WIDTH + lane).
     #[inline(always)]
     fn traverse<K: Lanes, const ANY: bool>(&self, ray: &ObvhsRay) -> Option<(f32, u32)> {
         let lanes = RayLanes::new(ray);
-        let mut t_max = ray.tmax;
         let mut found = None;
-        // Uninitialised: zeroing 8 KB per ray cost more than the traversal of a short ray.
-        // Rule: entries below `depth` are always written before they are read.
-        let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK];
-        // SAFETY: `read` is only called at indices below `depth` (see the rule above).
-        let read = |stack: &[MaybeUninit<(u32, f32)>; STACK], at: usize| unsafe {
-            stack[at].assume_init()
-        };
-        let mut depth = 0usize;
-        let mut current = 0u32;
-        loop {
-            if current & LEAF == 0 {
-                let node = &self.nodes[current as usize];
-                let (mut hits, entry) = K::node(node, &lanes, t_max);
-                if hits != 0 {
-                    let count = hits.count_ones();
-                    if count == 1 {
-                        current = node.children[hits.trailing_zeros() as usize];
-                        continue;
-                    }
+        walk::<K, ANY>(&self.nodes, &lanes, ray.tmax, |leaf, t_max| {
+            let (first, count) = leaf_blocks(leaf);
+            for (index, block) in self.blocks[first..first + count].iter().enumerate() {
+                let (mut hits, t) = K::block(block, &lanes, *t_max);
+                while hits != 0 {
+                    let lane = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    let slot = ((first + index) * WIDTH + lane) as u32;
                     if ANY {
-                        // Any hit ends the search, so order does not matter: no sorting.
-                        while hits != 0 {
-                            let lane = hits.trailing_zeros() as usize;
-                            hits &= hits - 1;
-                            stack[depth].write((node.children[lane], entry[lane]));
-                            depth += 1;
-                        }
-                        depth -= 1;
-                        current = read(&stack, depth).0;
-                        continue;
+                        found = Some((t[lane], slot));
+                        return true;
                     }
-                    // Push the hit children farthest first, then carry on with the nearest
-                    // (insertion sort: two or three hits are the common case).
-                    let base = depth;
+                    if t[lane] < *t_max {
+                        *t_max = t[lane];
+                        found = Some((t[lane], slot));
+                    }
+                }
+            }
+            false
+        });
+        found
+    }
+}
+
+/// Walks `nodes` along the ray, nearest child first (with `ANY`, in any order), calling
+/// `leaf(reference, t_max)` for each leaf the ray enters before `t_max`; `leaf` may lower
+/// `t_max` (a closer hit), and returning true ends the walk.
+#[inline(always)]
+fn walk<K: Lanes, const ANY: bool>(
+    nodes: &[WideNode],
+    lanes: &RayLanes,
+    mut t_max: f32,
+    mut leaf: impl FnMut(u32, &mut f32) -> bool,
+) {
+    if nodes.is_empty() {
+        return;
+    }
+    // Uninitialised: zeroing 8 KB per ray cost more than the traversal of a short ray.
+    // Rule: entries below `depth` are always written before they are read.
+    let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK];
+    // SAFETY: `read` is only called at indices below `depth` (see the rule above).
+    let read =
+        |stack: &[MaybeUninit<(u32, f32)>; STACK], at: usize| unsafe { stack[at].assume_init() };
+    let mut depth = 0usize;
+    let mut current = 0u32;
+    loop {
+        if current & LEAF == 0 {
+            let node = &nodes[current as usize];
+            let (mut hits, entry) = K::node(node, lanes, t_max);
+            if hits != 0 {
+                if hits.count_ones() == 1 {
+                    current = node.children[hits.trailing_zeros() as usize];
+                    continue;
+                }
+                if ANY {
+                    // Any hit ends the search, so order does not matter: no sorting.
                     while hits != 0 {
                         let lane = hits.trailing_zeros() as usize;
                         hits &= hits - 1;
-                        let item = (node.children[lane], entry[lane]);
-                        let mut at = depth;
-                        while at > base && read(&stack, at - 1).1 < item.1 {
-                            stack[at] = stack[at - 1];
-                            at -= 1;
-                        }
-                        stack[at].write(item);
+                        stack[depth].write((node.children[lane], entry[lane]));
                         depth += 1;
                     }
                     depth -= 1;
                     current = read(&stack, depth).0;
                     continue;
                 }
-            } else {
-                let (first, count) = leaf_blocks(current);
-                for (index, block) in self.blocks[first..first + count].iter().enumerate() {
-                    let (mut hits, t) = K::block(block, &lanes, t_max);
-                    while hits != 0 {
-                        let lane = hits.trailing_zeros() as usize;
-                        hits &= hits - 1;
-                        // The hit's slot: its block and lane, block * WIDTH + lane.
-                        let slot = ((first + index) * WIDTH + lane) as u32;
-                        if ANY {
-                            return Some((t[lane], slot));
-                        }
-                        if t[lane] < t_max {
-                            t_max = t[lane];
-                            found = Some((t[lane], slot));
-                        }
+                // Push the hit children farthest first, then carry on with the nearest
+                // (insertion sort: two or three hits are the common case).
+                let base = depth;
+                while hits != 0 {
+                    let lane = hits.trailing_zeros() as usize;
+                    hits &= hits - 1;
+                    let item = (node.children[lane], entry[lane]);
+                    let mut at = depth;
+                    while at > base && read(&stack, at - 1).1 < item.1 {
+                        stack[at] = stack[at - 1];
+                        at -= 1;
                     }
-                }
-            }
-            // Next: the nearest pending child still nearer than the closest hit.
-            loop {
-                if depth == 0 {
-                    return found;
+                    stack[at].write(item);
+                    depth += 1;
                 }
                 depth -= 1;
-                let (child, entry) = read(&stack, depth);
-                if entry <= t_max {
-                    current = child;
-                    break;
-                }
+                current = read(&stack, depth).0;
+                continue;
+            }
+        } else if leaf(current, &mut t_max) {
+            return;
+        }
+        // Next: the nearest pending child still nearer than the closest hit.
+        loop {
+            if depth == 0 {
+                return;
+            }
+            depth -= 1;
+            let (child, entry) = read(&stack, depth);
+            if entry <= t_max {
+                current = child;
+                break;
             }
         }
+    }
+}
+
+/// The TLAS as an 8-wide tree: obvhs's PLOC-built BVH2 over instance boxes, collapsed the
+/// way a BLAS's is; a leaf names a range of that BVH2's `primitive_indices`.
+#[derive(Clone, Debug, Default)]
+pub struct WideTlas {
+    nodes: Vec<WideNode>,
+}
+
+/// A TLAS's leaves: ranges of its BVH2's primitive slots (instances).
+struct InstanceLeaves<'a> {
+    bvh: &'a Bvh2,
+}
+
+impl LeafMaker for InstanceLeaves<'_> {
+    fn bvh(&self) -> &Bvh2 {
+        self.bvh
+    }
+
+    fn is_leaf(&self, node: usize) -> bool {
+        self.bvh.nodes[node].is_leaf()
+    }
+
+    fn leaf(&mut self, node: usize) -> Result<u32, CollapseError> {
+        let n = &self.bvh.nodes[node];
+        if n.prim_count as usize > MAX_LEAF_BLOCKS {
+            return Err(CollapseError::LeafTooLarge(n.prim_count as usize));
+        }
+        Ok(LEAF | ((n.prim_count.max(1) - 1) << LEAF_COUNT_SHIFT) | n.first_index)
+    }
+}
+
+impl WideTlas {
+    /// Rebuilds from `bvh` (every frame, after the BVH2 over the instances is rebuilt),
+    /// keeping the allocation.
+    pub fn rebuild(&mut self, bvh: &Bvh2) -> Result<(), CollapseError> {
+        collapse_tree(&mut self.nodes, &mut InstanceLeaves { bvh }).map(|_| ())
+    }
+
+    /// Calls `visit(slot, t_max)` for each primitive slot (index into the BVH2's
+    /// `primitive_indices`) whose box `ray` enters before `t_max`, nearest first; `visit`
+    /// returns the hit distance it found (lowering `t_max`), or None. With `any`, the first
+    /// hit ends the walk. Returns whether anything was hit.
+    #[inline]
+    pub fn walk(
+        &self,
+        ray: &ObvhsRay,
+        kernels: Kernels,
+        any: bool,
+        visit: impl FnMut(usize, f32) -> Option<f32>,
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if kernels.avx2() {
+            // SAFETY: the CPU has AVX2, the only feature the function enables.
+            return unsafe { self.walk_avx2(ray, any, visit) };
+        }
+        let _ = kernels;
+        self.walk_with::<Portable>(ray, any, visit)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn walk_avx2(
+        &self,
+        ray: &ObvhsRay,
+        any: bool,
+        visit: impl FnMut(usize, f32) -> Option<f32>,
+    ) -> bool {
+        self.walk_with::<avx2::Avx2>(ray, any, visit)
+    }
+
+    #[inline(always)]
+    fn walk_with<K: Lanes>(
+        &self,
+        ray: &ObvhsRay,
+        any: bool,
+        mut visit: impl FnMut(usize, f32) -> Option<f32>,
+    ) -> bool {
+        let lanes = RayLanes::new(ray);
+        let mut hit = false;
+        let mut leaf = |reference: u32, t_max: &mut f32| {
+            let (first, count) = leaf_blocks(reference);
+            for slot in first..first + count {
+                if let Some(t) = visit(slot, *t_max) {
+                    hit = true;
+                    if any {
+                        return true;
+                    }
+                    *t_max = t_max.min(t);
+                }
+            }
+            false
+        };
+        if any {
+            walk::<K, true>(&self.nodes, &lanes, ray.tmax, &mut leaf);
+        } else {
+            walk::<K, false>(&self.nodes, &lanes, ray.tmax, &mut leaf);
+        }
+        hit
     }
 }
 

@@ -177,12 +177,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     }
     // gloam's TLAS over BLASes, once per BLAS traversal (copies differ only in that).
     let with_traversal = |traversal: Traversal| {
-        let mut blases = accel.blases.clone();
-        for blas in &mut blases {
-            blas.set_traversal(traversal);
-        }
-        let mut copy = AccelScene::new(blases, accel.instances().to_vec());
-        copy.rebuild_tlas();
+        let mut copy = AccelScene::new(accel.blases.clone(), accel.instances().to_vec());
+        copy.set_traversal(traversal);
         copy
     };
     let portable = with_traversal(Traversal::Wide(Kernels::Portable));
