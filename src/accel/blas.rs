@@ -200,7 +200,6 @@ impl Blas {
     pub fn set_traversal(&mut self, traversal: Traversal) {
         self.traversal = traversal;
         if !self.uses_wide() && self.bvh_stale {
-            self.update_ordered();
             self.refit_bvh2();
         }
     }
@@ -319,10 +318,7 @@ impl Blas {
                     RtTriangle::new(a, b, c)
                 })
             }
-            _ => {
-                self.update_ordered();
-                self.refit_bvh2()
-            }
+            _ => self.refit_bvh2(),
         };
         // 3. Rebuild when quality has decayed (same cost as `sah_cost`).
         self.refit_cost = cost;
@@ -336,31 +332,21 @@ impl Blas {
         RefitOutcome::Refit
     }
 
-    /// Leaf-ordered triangles from the mesh's positions (parallel).
-    fn update_ordered(&mut self) {
-        let geometry = &self.geometry;
-        self.ordered
-            .par_iter_mut()
-            .zip(self.ordered_ids.par_iter())
-            .with_min_len(MIN_TASK)
-            .for_each(|(triangle, &id)| {
-                let [a, b, c] = geometry.triangle_vertices(id as usize);
-                *triangle = RtTriangle::new(a, b, c);
-            });
-    }
-
-    /// Refits the BVH2 to the mesh's positions; returns its `bvh2_cost`.
+    /// Refits the BVH2 (and the leaf-ordered triangles it traces) to the mesh's positions;
+    /// returns its `bvh2_cost`.
     fn refit_bvh2(&mut self) -> f32 {
-        // 1. Each triangle's box (parallel).
+        // 1. Leaf-ordered triangles and their boxes, one pass over the vertices (parallel).
         let geometry = &self.geometry;
         self.triangle_boxes
             .resize(self.ordered.len(), Aabb::empty());
-        self.triangle_boxes
+        self.ordered
             .par_iter_mut()
+            .zip(self.triangle_boxes.par_iter_mut())
             .zip(self.ordered_ids.par_iter())
             .with_min_len(MIN_TASK)
-            .for_each(|(aabb, &id)| {
+            .for_each(|((triangle, aabb), &id)| {
                 let [a, b, c] = geometry.triangle_vertices(id as usize);
+                *triangle = RtTriangle::new(a, b, c);
                 *aabb = Aabb::new(a.min(b).min(c), a.max(b).max(c));
             });
         // 2. Every node's box in a reverse sweep (the build ordered every child after its
