@@ -215,6 +215,111 @@ fn closest_and_any_hit_match_brute_force() {
     }
 }
 
+/// Bundles of rays as the renderer groups them, and worse: a pinhole's rays through a
+/// narrow patch (one octant) or a wide one (straddling axes, so packets split by octant);
+/// segments from nearby points to one target (shadow rays); rays leaving surfaces towards
+/// one point; incoherent and axis-parallel rays mixed in; and sizes that are not a whole
+/// packet (100 = 64 + 36) or smaller than a shared walk takes (3).
+fn coherent_bundles(scene: &AccelScene, rng: &mut Rng) -> Vec<Vec<Ray>> {
+    let mut bundles = Vec::new();
+    for kind in 0..8 {
+        let count = [64, 100, 3, 64, 64][kind % 5];
+        let origin = Vec3A::from(rng.vec3(-12.0, 12.0));
+        let target = Vec3A::from(rng.vec3(-4.0, 4.0));
+        let spread = [0.04, 0.8][kind % 2];
+        let forward = (target - origin).normalize();
+        let side = forward.any_orthonormal_vector();
+        let up = forward.cross(side);
+        let rays: Vec<Ray> = (0..count)
+            .map(|i| {
+                let (x, y) = ((i % 16) as f32 / 16.0 - 0.5, (i / 16) as f32 / 4.0 - 0.5);
+                match kind % 4 {
+                    // Camera rays through a 16 x 4 grid.
+                    0 | 1 => Ray::new(origin, (forward + (side * x + up * y) * spread).normalize()),
+                    // Shadow-like segments: a patch of origins, one target.
+                    2 => {
+                        let from = target + forward * -6.0 + (side * x + up * y) * (spread * 4.0);
+                        let mut ray = Ray::new(from, target - from);
+                        ray.t_max = 0.999;
+                        ray
+                    }
+                    // Incoherent, some axis-parallel.
+                    _ => test_rays(rng, 1)[0],
+                }
+            })
+            .collect();
+        bundles.push(rays);
+    }
+    // Copies of one ray: the packet's intervals are exact, so its node test is as tight as
+    // a single ray's (any less conservative packet test fails here).
+    bundles.extend(test_rays(rng, 60).into_iter().map(|ray| vec![ray; 8]));
+    // Rays leaving surfaces towards one point (next event estimation's shadow rays).
+    let light = Vec3A::from(rng.vec3(-8.0, 8.0));
+    let mut spawned = Vec::new();
+    while spawned.len() < 64 {
+        let ray = test_rays(rng, 1)[0];
+        if let Some(hit) = scene.intersect(&ray, InstanceMask::ALL, &Opaque) {
+            let surface = scene.surface(&hit);
+            spawned.push(Ray::spawn_to(
+                surface.position,
+                surface.geometric_normal,
+                light,
+            ));
+        } else if rng.unit() < 0.05 {
+            spawned.push(Ray::spawn_to(ray.origin, Vec3A::Y, light));
+        }
+    }
+    bundles.push(spawned);
+    bundles
+}
+
+#[test]
+fn packets_find_exactly_what_single_rays_find() {
+    // Every traversal (the BVH2 one falls back to single rays), random instanced scenes
+    // with a third of the instances untransformed (their packets are not re-made in object
+    // space) and the rest rotated, scaled and mirrored (they are).
+    for traversal in [
+        Traversal::Wide(Kernels::Best),
+        Traversal::Wide(Kernels::Portable),
+        Traversal::Bvh2,
+    ] {
+        for seed in 0..4 {
+            let mut scene = random_scene(seed + 20, BlasKind::Static);
+            for (i, instance) in scene.instances_mut().iter_mut().enumerate() {
+                if i % 3 == 0 {
+                    instance.set_transform(Affine3A::IDENTITY);
+                }
+            }
+            scene.set_traversal(traversal);
+            let mut rng = Rng(seed + 300);
+            let mut hits_found = 0;
+            for (b, bundle) in coherent_bundles(&scene, &mut rng).iter().enumerate() {
+                let mask = [InstanceMask::ALL, InstanceMask(1 | 2), InstanceMask(4)][b % 3];
+                let mut hits = vec![None; bundle.len()];
+                let mut occluded = vec![false; bundle.len()];
+                scene.intersect_coherent(bundle, mask, &Opaque, &mut hits);
+                scene.occluded_coherent(bundle, mask, &Opaque, &mut occluded);
+                for (i, ray) in bundle.iter().enumerate() {
+                    let context = format!("{traversal:?} seed {seed} bundle {b} ray {i}");
+                    assert_eq!(
+                        hits[i],
+                        scene.intersect(ray, mask, &Opaque),
+                        "{context}: packet and single ray differ ({ray:?})"
+                    );
+                    assert_eq!(
+                        occluded[i],
+                        scene.occluded(ray, mask, &Opaque),
+                        "{context}: packet and single ray disagree on occlusion ({ray:?})"
+                    );
+                    assert_matches_brute_force(&scene, ray, mask, &context);
+                    hits_found += hits[i].is_some() as usize;
+                }
+            }
+            assert!(hits_found > 100, "too few hits to compare: {hits_found}");
+        }
+    }
+}
+
 #[test]
 fn hits_agree_with_world_space_triangles() {
     let scene = random_scene(42, BlasKind::Static);
@@ -451,6 +556,20 @@ fn alpha_masked_triangles_have_holes() {
             .is_some()
     );
     assert!(scene.occluded(&through_solid, InstanceMask::ALL, &holes));
+    // Packets take alpha-tested meshes one ray at a time, with the same holes.
+    let rays = [
+        through_hole,
+        through_solid,
+        through_hole,
+        through_solid,
+        through_solid,
+    ];
+    let mut hits = [None; 5];
+    let mut occluded = [false; 5];
+    scene.intersect_coherent(&rays, InstanceMask::ALL, &holes, &mut hits);
+    scene.occluded_coherent(&rays, InstanceMask::ALL, &holes, &mut occluded);
+    assert_eq!(hits.map(|h| h.is_some()), [false, true, false, true, true]);
+    assert_eq!(occluded, [false, true, false, true, true]);
     // Without the alpha test both rays hit.
     assert!(
         scene

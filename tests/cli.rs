@@ -209,6 +209,9 @@ fn raybench_writes_the_documented_json() {
             "baseline {key}"
         );
         for layout in [
+            "gloam_renderer",
+            "gloam_packets",
+            "gloam_packets_portable",
             "gloam_tlas_blas_wide8",
             "gloam_tlas_blas_wide8_portable",
             "gloam_tlas_blas_bvh2",

@@ -79,6 +79,15 @@ pub enum RefitOutcome {
     Rebuilt,
 }
 
+/// A BLAS hit whose triangle and barycentrics are not worked out yet.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum PendingHit {
+    /// A slot of the wide tree (`WideBvh::triangle_at`).
+    Wide(u32),
+    /// Known already: (triangle, barycentrics).
+    Known(u32, Vec2),
+}
+
 /// How a BLAS's rays are traced (`gloam raybench` measures each).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Traversal {
@@ -392,16 +401,25 @@ impl Blas {
     /// Closest hit of an object-space ray within [tmin, tmax]: (t, triangle, barycentrics).
     #[inline]
     pub fn intersect<A: AlphaTest>(&self, ray: &ObvhsRay, alpha: &A) -> Option<(f32, u32, Vec2)> {
+        let (t, pending) = self.intersect_pending(ray, alpha)?;
+        let (triangle, barycentrics) = self.resolve(pending, ray);
+        Some((t, triangle, barycentrics))
+    }
+
+    /// `intersect`, leaving the triangle's id and barycentrics for `resolve`: a ray through
+    /// several instances needs them only for the last, closest hit.
+    #[inline]
+    pub(crate) fn intersect_pending<A: AlphaTest>(
+        &self,
+        ray: &ObvhsRay,
+        alpha: &A,
+    ) -> Option<(f32, PendingHit)> {
         if self.bvh.nodes.is_empty() {
             return None;
         }
         if let (Some(wide), Traversal::Wide(kernels)) = (&self.wide, self.traversal) {
-            let (t, id, triangle) = wide.intersect_triangle(ray, kernels)?;
-            return Some((
-                t,
-                self.ordered_ids[id as usize],
-                barycentrics(&triangle, ray),
-            ));
+            let (t, slot) = wide.intersect_slot(ray, kernels)?;
+            return Some((t, PendingHit::Wide(slot)));
         }
         let mut hit = RayHit::none();
         let found = if self.ordered_alpha.is_empty() {
@@ -418,9 +436,32 @@ impl Blas {
         let id = hit.primitive_id as usize;
         Some((
             hit.t,
-            self.ordered_ids[id],
-            barycentrics(&self.ordered[id], ray),
+            PendingHit::Known(self.ordered_ids[id], barycentrics(&self.ordered[id], ray)),
         ))
+    }
+
+    /// The triangle and barycentrics of a hit `intersect_pending` (or a packet query) found
+    /// for `ray`.
+    #[inline]
+    pub(crate) fn resolve(&self, pending: PendingHit, ray: &ObvhsRay) -> (u32, Vec2) {
+        match (pending, &self.wide) {
+            (PendingHit::Known(triangle, barycentrics), _) => (triangle, barycentrics),
+            (PendingHit::Wide(slot), Some(wide)) => {
+                let (id, triangle) = wide.triangle_at(slot);
+                (self.ordered_ids[id as usize], barycentrics(&triangle, ray))
+            }
+            (PendingHit::Wide(_), None) => unreachable!("a wide-tree hit from a BLAS without one"),
+        }
+    }
+
+    /// The tree packets of rays walk, when rays walk the wide tree (alpha-tested BLASes and
+    /// the BVH2 traversal take rays one at a time).
+    #[inline]
+    pub(crate) fn packet_tree(&self) -> Option<(&WideBvh, Kernels)> {
+        match (&self.wide, self.traversal) {
+            (Some(wide), Traversal::Wide(kernels)) => Some((wide, kernels)),
+            _ => None,
+        }
     }
 
     /// True when anything blocks the object-space ray within [tmin, tmax] (stops at the

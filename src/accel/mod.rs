@@ -17,10 +17,12 @@
 //! pbrt-v4's `OffsetRayOrigin`, simplified to a conservative relative epsilon).
 
 mod blas;
+pub mod packet;
 mod tlas;
 pub mod wide;
 
 pub use blas::{Blas, BlasKind, MeshGeometry, REBUILD_RATIO, RefitOutcome, Traversal};
+pub use packet::{PACKET, RayPacket};
 pub use tlas::{AccelScene, Instance};
 pub use wide::{Kernels, WideBvh, WideTlas};
 

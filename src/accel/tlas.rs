@@ -12,7 +12,8 @@ use obvhs::bvh2::Bvh2;
 use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 use obvhs::ray::{Ray as ObvhsRay, RayHit};
 
-use super::blas::{Blas, Traversal};
+use super::blas::{Blas, PendingHit, Traversal};
+use super::packet::{PACKET, RayPacket, first_lanes, lanes_of};
 use super::wide::{Kernels, WideTlas};
 use super::{AlphaTest, Hit, InstanceMask, Ray, SurfaceHit};
 
@@ -201,58 +202,193 @@ impl AccelScene {
         if self.tlas.nodes.is_empty() {
             return None;
         }
-        let mut closest: Option<Hit> = None;
+        let world_ray = ray.to_obvhs();
+        // The closest so far: (t, instance, its BLAS's pending hit). Triangle id and
+        // barycentrics are worked out once, for the last one.
+        let mut closest: Option<(f32, u32, PendingHit)> = None;
+        let mut visit = |slot: usize, object_tmax: f32| {
+            let index = self.tlas.primitive_indices[slot];
+            let instance = &self.instances[index as usize];
+            if !instance.mask.intersects(mask) {
+                return None;
+            }
+            // t_max is the closest hit so far: the BLAS prunes against it.
+            let mut object_ray = instance.object_ray(&world_ray);
+            object_ray.tmax = object_tmax;
+            match self.blases[instance.blas as usize].intersect_pending(&object_ray, alpha) {
+                Some((t, pending)) if t < object_tmax => {
+                    closest = Some((t, index, pending));
+                    Some(t)
+                }
+                _ => None,
+            }
+        };
         if let (Some(wide), Traversal::Wide(kernels)) = (&self.wide_tlas, self.traversal) {
-            let world_ray = ray.to_obvhs();
-            wide.walk(&world_ray, kernels, false, |slot, t_max| {
-                let index = self.tlas.primitive_indices[slot];
-                let instance = &self.instances[index as usize];
-                if !instance.mask.intersects(mask) {
-                    return None;
-                }
-                // t_max is the closest hit so far: the BLAS prunes against it.
-                let mut object_ray = instance.object_ray(&world_ray);
-                object_ray.tmax = t_max;
-                match self.blases[instance.blas as usize].intersect(&object_ray, alpha) {
-                    Some((t, primitive, barycentrics)) if t < t_max => {
-                        closest = Some(Hit {
-                            t,
-                            instance: index,
-                            primitive,
-                            barycentrics,
-                        });
-                        Some(t)
-                    }
-                    _ => None,
-                }
-            });
-            return closest;
+            wide.walk(&world_ray, kernels, false, visit);
+        } else {
+            let mut tlas_hit = RayHit::none();
+            self.tlas
+                .ray_traverse(world_ray, &mut tlas_hit, |world_ray, id| {
+                    // obvhs accepts only t < tmax; `visit` keeps `closest` in step with it.
+                    visit(id, world_ray.tmax).unwrap_or(f32::INFINITY)
+                });
         }
-        let mut tlas_hit = RayHit::none();
-        self.tlas
-            .ray_traverse(ray.to_obvhs(), &mut tlas_hit, |world_ray, id| {
-                let index = self.tlas.primitive_indices[id];
-                let instance = &self.instances[index as usize];
-                if !instance.mask.intersects(mask) {
-                    return f32::INFINITY;
-                }
-                // world_ray.tmax is the closest hit so far: the BLAS prunes against it.
-                let object_ray = instance.object_ray(world_ray);
-                match self.blases[instance.blas as usize].intersect(&object_ray, alpha) {
-                    // obvhs accepts only t < tmax; keep `closest` in step with it.
-                    Some((t, primitive, barycentrics)) if t < world_ray.tmax => {
-                        closest = Some(Hit {
-                            t,
-                            instance: index,
-                            primitive,
-                            barycentrics,
-                        });
-                        t
+        let (t, index, pending) = closest?;
+        Some(self.finish_hit(&world_ray, t, index, pending))
+    }
+
+    /// The `Hit` for a BLAS's pending closest hit along a world ray.
+    #[inline]
+    fn finish_hit(&self, world_ray: &ObvhsRay, t: f32, index: u32, pending: PendingHit) -> Hit {
+        let instance = &self.instances[index as usize];
+        let object_ray = instance.object_ray(world_ray);
+        let (primitive, barycentrics) =
+            self.blases[instance.blas as usize].resolve(pending, &object_ray);
+        Hit {
+            t,
+            instance: index,
+            primitive,
+            barycentrics,
+        }
+    }
+
+    /// `intersect` for many rays at once, `hits[i]` for `rays[i]`, each exactly what
+    /// `intersect` finds. Rays that travel together (a tile's camera rays, in rows) are
+    /// traced in packets of 64 (`packet`), which share their walks through the trees.
+    pub fn intersect_coherent<A: AlphaTest>(
+        &self,
+        rays: &[Ray],
+        mask: InstanceMask,
+        alpha: &A,
+        hits: &mut [Option<Hit>],
+    ) {
+        debug_assert_eq!(rays.len(), hits.len());
+        let (Some(wide), Traversal::Wide(kernels)) = (&self.wide_tlas, self.traversal) else {
+            for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+                *hit = self.intersect(ray, mask, alpha);
+            }
+            return;
+        };
+        for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
+            let mut packet = RayPacket::default();
+            let mut t_max = [0.0; PACKET];
+            for (lane, ray) in rays.iter().enumerate() {
+                packet.set(lane, &ray.to_obvhs());
+                t_max[lane] = ray.t_max;
+            }
+            // Per ray, the closest so far: its instance and the BLAS's pending hit.
+            let mut closest = [(0u32, PendingHit::Wide(0)); PACKET];
+            let mut slots = [0u32; PACKET];
+            let found = wide.walk_packet(
+                &packet,
+                first_lanes(rays.len()),
+                kernels,
+                false,
+                &mut t_max,
+                |slot, lanes, t_max| {
+                    let index = self.tlas.primitive_indices[slot];
+                    let instance = &self.instances[index as usize];
+                    if !instance.mask.intersects(mask) {
+                        return 0;
                     }
-                    _ => f32::INFINITY,
-                }
-            });
-        closest
+                    let blas = &self.blases[instance.blas as usize];
+                    let hit = match blas.packet_tree() {
+                        Some((tree, kernels)) if instance.is_identity => {
+                            tree.intersect_packet(&packet, lanes, t_max, &mut slots, kernels)
+                        }
+                        Some((tree, kernels)) => {
+                            let object = packet.mapped(lanes, |ray| instance.object_ray(ray));
+                            tree.intersect_packet(&object, lanes, t_max, &mut slots, kernels)
+                        }
+                        None => {
+                            // Alpha-tested or BVH2: one ray at a time.
+                            let mut hit = 0;
+                            for lane in lanes_of(lanes) {
+                                let ray = packet.ray(lane, t_max[lane]);
+                                let object_ray = instance.object_ray(&ray);
+                                if let Some((t, pending)) =
+                                    blas.intersect_pending(&object_ray, alpha)
+                                    && t < t_max[lane]
+                                {
+                                    t_max[lane] = t;
+                                    closest[lane] = (index, pending);
+                                    hit |= 1 << lane;
+                                }
+                            }
+                            return hit;
+                        }
+                    };
+                    for lane in lanes_of(hit) {
+                        closest[lane] = (index, PendingHit::Wide(slots[lane]));
+                    }
+                    hit
+                },
+            );
+            for (lane, (ray, hit)) in rays.iter().zip(hits.iter_mut()).enumerate() {
+                *hit = (found >> lane & 1 != 0).then(|| {
+                    let (index, pending) = closest[lane];
+                    self.finish_hit(&ray.to_obvhs(), t_max[lane], index, pending)
+                });
+            }
+        }
+    }
+
+    /// `occluded` for many rays at once, `occluded[i]` for `rays[i]`, in packets of 64 as
+    /// `intersect_coherent` traces them (shadow rays of a tile towards the lights).
+    pub fn occluded_coherent<A: AlphaTest>(
+        &self,
+        rays: &[Ray],
+        mask: InstanceMask,
+        alpha: &A,
+        occluded: &mut [bool],
+    ) {
+        debug_assert_eq!(rays.len(), occluded.len());
+        let (Some(wide), Traversal::Wide(kernels)) = (&self.wide_tlas, self.traversal) else {
+            for (ray, blocked) in rays.iter().zip(occluded.iter_mut()) {
+                *blocked = self.occluded(ray, mask, alpha);
+            }
+            return;
+        };
+        for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
+            let mut packet = RayPacket::default();
+            let mut t_max = [0.0; PACKET];
+            for (lane, ray) in rays.iter().enumerate() {
+                packet.set(lane, &ray.to_obvhs());
+                t_max[lane] = ray.t_max;
+            }
+            let blocked = wide.walk_packet(
+                &packet,
+                first_lanes(rays.len()),
+                kernels,
+                true,
+                &mut t_max,
+                |slot, lanes, t_max| {
+                    let instance = &self.instances[self.tlas.primitive_indices[slot] as usize];
+                    if !instance.mask.intersects(mask) {
+                        return 0;
+                    }
+                    let blas = &self.blases[instance.blas as usize];
+                    match blas.packet_tree() {
+                        Some((tree, kernels)) if instance.is_identity => {
+                            tree.occluded_packet(&packet, lanes, t_max, kernels)
+                        }
+                        Some((tree, kernels)) => {
+                            let object = packet.mapped(lanes, |ray| instance.object_ray(ray));
+                            tree.occluded_packet(&object, lanes, t_max, kernels)
+                        }
+                        None => lanes_of(lanes)
+                            .filter(|&lane| {
+                                let ray = packet.ray(lane, t_max[lane]);
+                                blas.occluded(&instance.object_ray(&ray), alpha)
+                            })
+                            .fold(0, |hit, lane| hit | 1 << lane),
+                    }
+                },
+            );
+            for (lane, blocked_here) in occluded.iter_mut().enumerate() {
+                *blocked_here = blocked >> lane & 1 != 0;
+            }
+        }
     }
 
     /// True when something in `mask` blocks `ray` between t_min and t_max (any hit).

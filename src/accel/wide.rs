@@ -31,9 +31,9 @@ use obvhs::rt_triangle::RtTriangle;
 pub(crate) const WIDTH: usize = 8;
 
 /// A child slot with nothing in it.
-const EMPTY: u32 = u32::MAX;
+pub(super) const EMPTY: u32 = u32::MAX;
 /// Set on a child reference that names a leaf (a range of triangle blocks).
-const LEAF: u32 = 1 << 31;
+pub(super) const LEAF: u32 = 1 << 31;
 /// Leaf references: block index in the low bits, block count - 1 in these three.
 const LEAF_COUNT_SHIFT: u32 = 28;
 const MAX_LEAF_BLOCKS: usize = 8;
@@ -41,20 +41,20 @@ const MAX_LEAF_BLOCKS: usize = 8;
 /// Entries on the traversal stack. A node pushes at most 7 (it continues into the 8th), so
 /// this holds a tree 145 nodes deep; `WideBvh::build` refuses deeper trees (rule: every
 /// tree built passes `depth * 7 + 1 <= STACK`, so the traversal never checks).
-const STACK: usize = 1024;
+pub(super) const STACK: usize = 1024;
 
 /// Far distances are widened by this factor so a box whose entry and exit round to the same
 /// t, or a triangle lying on its box's face, is not missed (Ize 2013, "Robust BVH Ray
 /// Traversal": 1 + 2 gamma(3)).
-const ROBUST_FAR: f32 = 1.0 + 2.0 * 3.0 * f32::EPSILON * 0.5;
+pub(super) const ROBUST_FAR: f32 = 1.0 + 2.0 * 3.0 * f32::EPSILON * 0.5;
 
 /// Eight child boxes as lanes: `bounds[axis]` are the minima, `bounds[3 + axis]` the
 /// maxima. Empty lanes hold an inverted box (+inf, -inf) that no ray enters.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(32))]
 pub(crate) struct WideNode {
-    bounds: [[f32; WIDTH]; 6],
-    children: [u32; WIDTH],
+    pub(super) bounds: [[f32; WIDTH]; 6],
+    pub(super) children: [u32; WIDTH],
 }
 
 impl WideNode {
@@ -108,9 +108,9 @@ impl WideNode {
 #[repr(C, align(32))]
 pub(crate) struct TriangleBlock {
     /// v0 x, y, z, e1 x, y, z, e2 x, y, z, ng x, y, z.
-    planes: [[f32; WIDTH]; 12],
+    pub(super) planes: [[f32; WIDTH]; 12],
     /// Per lane, the triangle's index in the BLAS's leaf order (`EMPTY` for unused lanes).
-    ids: [u32; WIDTH],
+    pub(super) ids: [u32; WIDTH],
 }
 
 impl TriangleBlock {
@@ -161,7 +161,7 @@ pub enum Kernels {
 }
 
 impl Kernels {
-    fn avx2(self) -> bool {
+    pub(super) fn avx2(self) -> bool {
         #[cfg(target_arch = "x86_64")]
         {
             self == Kernels::Best && std::arch::is_x86_feature_detected!("avx2")
@@ -177,8 +177,8 @@ impl Kernels {
 #[derive(Clone, Debug, Default)]
 pub struct WideBvh {
     /// Node 0 is the root; every node comes before its children (so a reverse sweep refits).
-    nodes: Vec<WideNode>,
-    blocks: Vec<TriangleBlock>,
+    pub(super) nodes: Vec<WideNode>,
+    pub(super) blocks: Vec<TriangleBlock>,
     /// Levels of nodes (the root is 1).
     depth: usize,
     /// Refit scratch, per block: its box and how many lanes it uses.
@@ -524,22 +524,15 @@ impl WideBvh {
         ray: &ObvhsRay,
         kernels: Kernels,
     ) -> Option<(f32, u32, RtTriangle)> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        #[cfg(target_arch = "x86_64")]
-        let found = if kernels.avx2() {
-            // SAFETY: the CPU has AVX2, the only feature the function enables.
-            unsafe { self.intersect_avx2(ray) }
-        } else {
-            self.traverse::<Portable, false>(ray)
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let found = {
-            let _ = kernels;
-            self.traverse::<Portable, false>(ray)
-        };
-        let (t, slot) = found?;
+        let (t, slot) = self.intersect_slot(ray, kernels)?;
+        let (id, triangle) = self.triangle_at(slot);
+        Some((t, id, triangle))
+    }
+
+    /// The triangle in `slot` (block * 8 + lane, as the queries report hits): its id in leaf
+    /// order and its planes as the tree holds them.
+    #[inline]
+    pub fn triangle_at(&self, slot: u32) -> (u32, RtTriangle) {
         let block = &self.blocks[slot as usize / WIDTH];
         let lane = slot as usize % WIDTH;
         let p = &block.planes;
@@ -551,7 +544,22 @@ impl WideBvh {
             e2: lane_vector(6),
             ng: lane_vector(9),
         };
-        Some((t, block.ids[lane], triangle))
+        (block.ids[lane], triangle)
+    }
+
+    /// Closest hit within [t_min, t_max]: (t, slot); `triangle_at(slot)` tells which.
+    #[inline]
+    pub fn intersect_slot(&self, ray: &ObvhsRay, kernels: Kernels) -> Option<(f32, u32)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if kernels.avx2() {
+            // SAFETY: the CPU has AVX2, the only feature the function enables.
+            return unsafe { self.intersect_avx2(ray) };
+        }
+        let _ = kernels;
+        self.traverse::<Portable, false>(ray)
     }
 
     /// True when a triangle lies within (t_min, t_max) (stops at the first found).
@@ -584,7 +592,7 @@ impl WideBvh {
     /// The traversal both queries share: with `ANY`, the first hit ends it. Returns the
     /// hit's t and slot (block * WIDTH + lane).
     #[inline(always)]
-    fn traverse<K: Lanes, const ANY: bool>(&self, ray: &ObvhsRay) -> Option<(f32, u32)> {
+    pub(super) fn traverse<K: Lanes, const ANY: bool>(&self, ray: &ObvhsRay) -> Option<(f32, u32)> {
         let lanes = RayLanes::new(ray);
         let mut found = None;
         walk::<K, ANY>(&self.nodes, &lanes, ray.tmax, |leaf, t_max| {
@@ -615,7 +623,7 @@ impl WideBvh {
 /// `leaf(reference, t_max)` for each leaf the ray enters before `t_max`; `leaf` may lower
 /// `t_max` (a closer hit), and returning true ends the walk.
 #[inline(always)]
-fn walk<K: Lanes, const ANY: bool>(
+pub(super) fn walk<K: Lanes, const ANY: bool>(
     nodes: &[WideNode],
     lanes: &RayLanes,
     mut t_max: f32,
@@ -694,7 +702,7 @@ fn walk<K: Lanes, const ANY: bool>(
 /// way a BLAS's is; a leaf names a range of that BVH2's `primitive_indices`.
 #[derive(Clone, Debug, Default)]
 pub struct WideTlas {
-    nodes: Vec<WideNode>,
+    pub(super) nodes: Vec<WideNode>,
 }
 
 /// A TLAS's leaves: ranges of its BVH2's primitive slots (instances).
@@ -760,7 +768,7 @@ impl WideTlas {
     }
 
     #[inline(always)]
-    fn walk_with<K: Lanes>(
+    pub(super) fn walk_with<K: Lanes>(
         &self,
         ray: &ObvhsRay,
         any: bool,
@@ -792,7 +800,7 @@ impl WideTlas {
 
 /// (first block, block count) of a leaf reference.
 #[inline(always)]
-fn leaf_blocks(child: u32) -> (usize, usize) {
+pub(super) fn leaf_blocks(child: u32) -> (usize, usize) {
     (
         (child & ((1 << LEAF_COUNT_SHIFT) - 1)) as usize,
         ((child & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1,
@@ -802,18 +810,18 @@ fn leaf_blocks(child: u32) -> (usize, usize) {
 /// A ray as the kernels read it: per axis, which bound is the near plane (by the sign of
 /// the direction, so an empty lane's inverted box is entered at +inf and never hit).
 pub(crate) struct RayLanes {
-    origin: [f32; 3],
-    direction: [f32; 3],
-    inverse: [f32; 3],
+    pub(super) origin: [f32; 3],
+    pub(super) direction: [f32; 3],
+    pub(super) inverse: [f32; 3],
     /// Index into `WideNode::bounds` of each axis's near and far planes.
-    near: [usize; 3],
-    far: [usize; 3],
-    t_min: f32,
+    pub(super) near: [usize; 3],
+    pub(super) far: [usize; 3],
+    pub(super) t_min: f32,
 }
 
 impl RayLanes {
     #[inline(always)]
-    fn new(ray: &ObvhsRay) -> RayLanes {
+    pub(super) fn new(ray: &ObvhsRay) -> RayLanes {
         let direction = ray.direction.to_array();
         // A true reciprocal: 1/0 is an infinity of the zero's sign, and the slab test drops
         // the NaN of 0 * inf (a ray in a slab's plane is inside that slab).
@@ -837,7 +845,7 @@ impl RayLanes {
 }
 
 /// The two kernels, per implementation.
-trait Lanes {
+pub(crate) trait Lanes {
     /// Lanes whose box the ray enters before `t_max`, and each one's entry distance.
     fn node(node: &WideNode, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]);
     /// Lanes whose triangle the ray crosses within (t_min, t_max), and the distances.
@@ -846,17 +854,17 @@ trait Lanes {
 
 /// x86's maxps: `a` when a > b, else `b` (so a NaN in `a` is dropped).
 #[inline(always)]
-fn max_dropping_nan(a: f32, b: f32) -> f32 {
+pub(super) fn max_dropping_nan(a: f32, b: f32) -> f32 {
     if a > b { a } else { b }
 }
 
 /// x86's minps: `a` when a < b, else `b`.
 #[inline(always)]
-fn min_dropping_nan(a: f32, b: f32) -> f32 {
+pub(super) fn min_dropping_nan(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
-struct Portable;
+pub(super) struct Portable;
 
 // Lane loops index several arrays by the lane, as the SIMD kernels do.
 #[allow(clippy::needless_range_loop)]
@@ -919,18 +927,37 @@ impl Lanes for Portable {
 }
 
 #[cfg(target_arch = "x86_64")]
-mod avx2 {
+pub(super) mod avx2 {
     //! The kernels in AVX2 intrinsics: the portable ones' operations, lane for lane.
 
     use std::arch::x86_64::*;
 
     use super::{Lanes, ROBUST_FAR, RayLanes, TriangleBlock, WIDTH, WideNode};
 
-    pub(super) struct Avx2;
+    pub(crate) struct Avx2;
 
+    // The trait's methods cannot carry `#[target_feature]`, so they call kernels that do:
+    // the intrinsics are then compiled for AVX2 even where the optimiser does not inline
+    // them into an AVX2 caller (a closure it left out-of-line once called every intrinsic
+    // as a function: primary rays fell from 5.4 to 0.8 Mrays/s).
     impl Lanes for Avx2 {
         #[inline(always)]
         fn node(node: &WideNode, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
+            // SAFETY: `Avx2` kernels run only where `Kernels::avx2` found AVX2.
+            unsafe { Avx2::node_kernel(node, ray, t_max) }
+        }
+
+        #[inline(always)]
+        fn block(block: &TriangleBlock, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
+            // SAFETY: `Avx2` kernels run only where `Kernels::avx2` found AVX2.
+            unsafe { Avx2::block_kernel(block, ray, t_max) }
+        }
+    }
+
+    impl Avx2 {
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        fn node_kernel(node: &WideNode, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
             // SAFETY: only reached from `#[target_feature(enable = "avx2")]` functions;
             // `WideNode` is 32-byte aligned, so its rows are aligned loads.
             unsafe {
@@ -955,8 +982,9 @@ mod avx2 {
             }
         }
 
-        #[inline(always)]
-        fn block(block: &TriangleBlock, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        fn block_kernel(block: &TriangleBlock, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
             // SAFETY: as in `node`; `TriangleBlock` is 32-byte aligned.
             unsafe {
                 let p = &block.planes;

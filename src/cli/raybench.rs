@@ -229,20 +229,46 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             .collect();
         (bvh, ordered, bvh_ms, wide, collapse_ms, cwbvh, cw_ordered, cwbvh_ms, wide_stats)
     });
-    let mut contenders: Vec<Contender> = Vec::new();
+    // The renderer's own path first (its figures are the report's top level): camera and
+    // shadow rays in packets, bounces one at a time, as render/mod.rs traces them.
+    let mut contenders: Vec<Contender> = vec![
+        Contender {
+            name: "gloam_renderer",
+            build_ms: blas_build_ms,
+            primary: packet_closest(&accel),
+            shadow: packet_any(&accel),
+            diffuse: {
+                let closest = single_closest(&accel);
+                Box::new(move |rays: &[Ray]| rays.iter().filter(|r| closest(r)).count())
+            },
+        },
+        // Packets for every ray type, diffuse bounces included (what the renderer does not).
+        Contender {
+            name: "gloam_packets",
+            build_ms: blas_build_ms,
+            primary: packet_closest(&accel),
+            shadow: packet_any(&accel),
+            diffuse: packet_closest(&accel),
+        },
+        Contender {
+            name: "gloam_packets_portable",
+            build_ms: blas_build_ms,
+            primary: packet_closest(&portable),
+            shadow: packet_any(&portable),
+            diffuse: packet_closest(&portable),
+        },
+    ];
     for (name, scene) in [
         ("gloam_tlas_blas_wide8", &accel),
         ("gloam_tlas_blas_wide8_portable", &portable),
         ("gloam_tlas_blas_bvh2", &bvh2),
     ] {
-        contenders.push(Contender {
+        contenders.push(Contender::one_by_one(
             name,
-            build_ms: blas_build_ms,
-            closest: Box::new(move |ray: &Ray| {
-                scene.intersect(ray, InstanceMask::ALL, &Opaque).is_some()
-            }),
-            any: Box::new(move |ray: &Ray| scene.occluded(ray, InstanceMask::ALL, &Opaque)),
-        });
+            blas_build_ms,
+            single_closest(scene),
+            move |ray: &Ray| scene.occluded(ray, InstanceMask::ALL, &Opaque),
+        ));
     }
 
     let mut wide_stats = None;
@@ -250,40 +276,36 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         &flat
     {
         wide_stats = stats.clone();
-        contenders.push(Contender {
-            name: "obvhs_bvh2_flat",
-            build_ms: *bvh_ms,
-            closest: Box::new(|ray: &Ray| {
+        contenders.push(Contender::one_by_one(
+            "obvhs_bvh2_flat",
+            *bvh_ms,
+            |ray: &Ray| {
                 bvh.ray_traverse(ray.to_obvhs(), &mut RayHit::none(), |r, id| {
                     ordered[id].intersect(r)
                 })
-            }),
-            any: Box::new(|ray: &Ray| {
-                !bvh.ray_traverse_miss(ray.to_obvhs(), |r, id| ordered[id].intersect(r))
-            }),
-        });
+            },
+            |ray: &Ray| !bvh.ray_traverse_miss(ray.to_obvhs(), |r, id| ordered[id].intersect(r)),
+        ));
         if let Some(wide) = wide {
-            contenders.push(Contender {
-                name: "wide8_flat",
-                build_ms: bvh_ms + collapse_ms,
-                closest: Box::new(|ray: &Ray| {
-                    wide.intersect(&ray.to_obvhs(), Kernels::Best).is_some()
-                }),
-                any: Box::new(|ray: &Ray| wide.occluded(&ray.to_obvhs(), Kernels::Best)),
-            });
+            contenders.push(Contender::one_by_one(
+                "wide8_flat",
+                bvh_ms + collapse_ms,
+                |ray: &Ray| wide.intersect(&ray.to_obvhs(), Kernels::Best).is_some(),
+                |ray: &Ray| wide.occluded(&ray.to_obvhs(), Kernels::Best),
+            ));
         }
-        contenders.push(Contender {
-            name: "obvhs_cwbvh_flat",
-            build_ms: *cwbvh_ms,
-            closest: Box::new(|ray: &Ray| {
+        contenders.push(Contender::one_by_one(
+            "obvhs_cwbvh_flat",
+            *cwbvh_ms,
+            |ray: &Ray| {
                 cwbvh.ray_traverse(ray.to_obvhs(), &mut RayHit::none(), |r, id| {
                     cw_ordered[id].intersect(r)
                 })
-            }),
-            any: Box::new(|ray: &Ray| {
+            },
+            |ray: &Ray| {
                 !cwbvh.ray_traverse_miss(ray.to_obvhs(), |r, id| cw_ordered[id].intersect(r))
-            }),
-        });
+            },
+        ));
         agreement = Some(agreement_with_flat(&accel, &rays.diffuse, |ray| {
             let mut hit = RayHit::none();
             bvh.ray_traverse(ray.to_obvhs(), &mut hit, |r, id| ordered[id].intersect(r))
@@ -411,12 +433,59 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// One way of tracing the rays, with what it cost to build.
+/// A way of tracing a batch of rays: how many of them hit.
+type Tracer<'a> = Box<dyn Fn(&[Ray]) -> usize + Sync + 'a>;
+
+/// One way of tracing the rays, with what it cost to build: closest hits (primary and
+/// diffuse rays) and any hits (shadow rays), each over a batch of rays in tile order.
 struct Contender<'a> {
     name: &'static str,
     build_ms: f64,
-    closest: Box<dyn Fn(&Ray) -> bool + Sync + 'a>,
-    any: Box<dyn Fn(&Ray) -> bool + Sync + 'a>,
+    primary: Tracer<'a>,
+    shadow: Tracer<'a>,
+    diffuse: Tracer<'a>,
+}
+
+impl<'a> Contender<'a> {
+    /// A contender tracing one ray at a time (the same queries for primary and diffuse).
+    fn one_by_one(
+        name: &'static str,
+        build_ms: f64,
+        closest: impl Fn(&Ray) -> bool + Sync + Copy + 'a,
+        any: impl Fn(&Ray) -> bool + Sync + 'a,
+    ) -> Contender<'a> {
+        let each = move |rays: &[Ray]| rays.iter().filter(|r| closest(r)).count();
+        Contender {
+            name,
+            build_ms,
+            primary: Box::new(each),
+            shadow: Box::new(move |rays: &[Ray]| rays.iter().filter(|r| any(r)).count()),
+            diffuse: Box::new(each),
+        }
+    }
+}
+
+/// gloam's single-ray closest-hit query.
+fn single_closest(scene: &AccelScene) -> impl Fn(&Ray) -> bool + Sync + Copy + '_ {
+    move |ray: &Ray| scene.intersect(ray, InstanceMask::ALL, &Opaque).is_some()
+}
+
+/// gloam's packet queries over a batch (`AccelScene::intersect_coherent`).
+fn packet_closest(scene: &AccelScene) -> Tracer<'_> {
+    Box::new(move |rays: &[Ray]| {
+        let mut hits = vec![None; rays.len()];
+        scene.intersect_coherent(rays, InstanceMask::ALL, &Opaque, &mut hits);
+        hits.iter().filter(|h| h.is_some()).count()
+    })
+}
+
+/// gloam's packet shadow queries over a batch (`AccelScene::occluded_coherent`).
+fn packet_any(scene: &AccelScene) -> Tracer<'_> {
+    Box::new(move |rays: &[Ray]| {
+        let mut occluded = vec![false; rays.len()];
+        scene.occluded_coherent(rays, InstanceMask::ALL, &Opaque, &mut occluded);
+        occluded.iter().filter(|&&o| o).count()
+    })
 }
 
 /// Times the three ray types of every contender on `threads` threads, `repeats` rounds
@@ -431,26 +500,23 @@ fn measure_interleaved(
         .num_threads(threads)
         .build()
         .context("starting the thread pool")?;
-    let rate = |set: &[Ray], trace: &(dyn Fn(&Ray) -> bool + Sync)| -> f64 {
+    let rate = |set: &[Ray], trace: &(dyn Fn(&[Ray]) -> usize + Sync)| -> f64 {
         if set.is_empty() {
             return 0.0;
         }
         let start = Instant::now();
-        // The hit count keeps the work observable to the optimiser.
-        let hits: usize = pool.install(|| {
-            set.par_chunks(1024)
-                .map(|chunk| chunk.iter().filter(|r| trace(r)).count())
-                .sum()
-        });
+        // The hit count keeps the work observable to the optimiser. Batches of 1024 rays
+        // are four render tiles.
+        let hits: usize = pool.install(|| set.par_chunks(1024).map(trace).sum());
         std::hint::black_box(hits);
         set.len() as f64 / start.elapsed().as_secs_f64() / 1e6
     };
     let mut samples = vec![[Vec::new(), Vec::new(), Vec::new()]; contenders.len()];
     for _ in 0..repeats {
         for (contender, samples) in contenders.iter().zip(&mut samples) {
-            samples[0].push(rate(&rays.primary, &*contender.closest));
-            samples[1].push(rate(&rays.shadow, &*contender.any));
-            samples[2].push(rate(&rays.diffuse, &*contender.closest));
+            samples[0].push(rate(&rays.primary, &*contender.primary));
+            samples[1].push(rate(&rays.shadow, &*contender.shadow));
+            samples[2].push(rate(&rays.diffuse, &*contender.diffuse));
         }
     }
     Ok(samples
@@ -544,9 +610,20 @@ fn make_rays(
     let (_, rotation, position) = camera.world_from_camera.to_scale_rotation_translation();
     let rotation = Mat3A::from_quat(rotation);
     let tan_half = (camera.yfov * 0.5).tan();
-    let primary: Vec<Ray> = (0..size * size)
-        .map(|pixel| {
-            let (x, y) = (pixel % size, pixel / size);
+    // Pixels in the renderer's order: 16 x 16 tiles, row by row within each, so packets of
+    // 64 consecutive rays are 16 x 4 strips of a tile, as render/mod.rs forms them.
+    const TILE: u32 = 16;
+    let tiles_across = size.div_ceil(TILE);
+    let pixels: Vec<(u32, u32)> = (0..tiles_across * tiles_across)
+        .flat_map(|tile| {
+            let (x0, y0) = (tile % tiles_across * TILE, tile / tiles_across * TILE);
+            (y0..(y0 + TILE).min(size))
+                .flat_map(move |y| (x0..(x0 + TILE).min(size)).map(move |x| (x, y)))
+        })
+        .collect();
+    let primary: Vec<Ray> = pixels
+        .iter()
+        .map(|&(x, y)| {
             let ndc = Vec2::new(
                 2.0 * (x as f32 + 0.5) / size as f32 - 1.0,
                 1.0 - 2.0 * (y as f32 + 0.5) / size as f32,
@@ -564,11 +641,11 @@ fn make_rays(
     }
     let hits: Vec<Option<(u32, crate::accel::SurfaceHit, Vec3A)>> = primary
         .par_iter()
-        .enumerate()
-        .map(|(pixel, ray)| {
+        .zip(&pixels)
+        .map(|(ray, &(x, y))| {
             accel
                 .intersect(ray, InstanceMask::ALL, &Opaque)
-                .map(|hit| (pixel as u32, accel.surface(&hit), ray.direction))
+                .map(|hit| (y * size + x, accel.surface(&hit), ray.direction))
         })
         .collect();
     let mut shadow = Vec::new();

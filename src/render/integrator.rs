@@ -68,6 +68,33 @@ pub struct NextHit {
 /// Both integrators' first step at every vertex: None when the ray leaves the scene.
 pub fn next_hit(scene: &RenderScene, ray: &Ray, alpha: &SceneAlpha) -> Option<NextHit> {
     let hit = scene.accel.intersect(ray, InstanceMask::CAMERA, alpha)?;
+    Some(surface_at(scene, ray, hit))
+}
+
+/// `next_hit` for a tile's camera rays at once, traced in packets
+/// (`AccelScene::intersect_coherent`): `found[i]` for `rays[i]`, exactly as `next_hit`
+/// finds it. `hits` is scratch.
+pub fn next_hits(
+    scene: &RenderScene,
+    rays: &[Ray],
+    alpha: &SceneAlpha,
+    hits: &mut Vec<Option<Hit>>,
+    found: &mut Vec<Option<NextHit>>,
+) {
+    hits.clear();
+    hits.resize(rays.len(), None);
+    scene
+        .accel
+        .intersect_coherent(rays, InstanceMask::CAMERA, alpha, hits);
+    found.extend(
+        rays.iter()
+            .zip(hits.iter())
+            .map(|(ray, hit)| hit.map(|hit| surface_at(scene, ray, hit))),
+    );
+}
+
+/// What `ray` meets at `hit`: the surface, the way back and the light it emits that way.
+fn surface_at(scene: &RenderScene, ray: &Ray, hit: Hit) -> NextHit {
     let surface = scene.accel.surface(&hit);
     let wo_world = -ray.direction.normalize();
     let material = scene.material(hit.instance, surface.material);
@@ -77,12 +104,12 @@ pub fn next_hit(scene: &RenderScene, ray: &Ray, alpha: &SceneAlpha) -> Option<Ne
     } else {
         Vec3::ZERO
     };
-    Some(NextHit {
+    NextHit {
         hit,
         surface,
         wo_world,
         emitted,
-    })
+    }
 }
 
 /// Shades the hit: picks the material lobe and builds the local frame, with the shading

@@ -8,9 +8,11 @@
 //!    the next (a wavefront over the tile, so coherent rays are traced together and each
 //!    phase has its own profiler scope and timer):
 //!    - `primary`: a `PixelSampler` keyed by (seed, frame, pixel, sample), a jittered
-//!      camera ray, and its closest hit;
+//!      camera ray, and the closest hits of the tile's rays, traced in packets of 16 x 4
+//!      (`AccelScene::intersect_coherent`; the same hits as one ray at a time);
 //!    - `shade`: the first vertex: emission, a light sample and a BSDF sample;
-//!    - `shadow`: the first vertex's shadow rays (all towards the lights);
+//!    - `shadow`: the first vertex's shadow rays (all towards the lights), one at a time
+//!      (as packets they measured slower: see accel/packet.rs);
 //!    - `bounces`: each path onwards, one path at a time, with its own shadow rays;
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
 //!    thread count) and store the mean in the film.
@@ -48,10 +50,10 @@ pub use integrator::{IntegratorKind, RayCounts};
 pub use sampler::SamplerKind;
 pub use scene::RenderScene;
 
-use crate::accel::Ray;
+use crate::accel::{Hit, Ray};
 use integrator::{
-    NextHit, PathState, VertexOutcome, camera_sample, continue_path, next_hit, path_vertex,
-    reference_radiance,
+    NextHit, PathState, VertexOutcome, camera_sample, continue_path, next_hit, next_hits,
+    path_vertex, reference_radiance,
 };
 use sampler::PixelSampler;
 
@@ -165,6 +167,9 @@ struct TileScratch<'a> {
     samplers: Vec<PixelSampler<'a>>,
     paths: Vec<PathState>,
     hits: Vec<Option<NextHit>>,
+    /// The camera rays, and what `intersect_coherent` found for them.
+    rays: Vec<Ray>,
+    accel_hits: Vec<Option<Hit>>,
     outcomes: Vec<VertexOutcome>,
     sums: Vec<Vec3>,
 }
@@ -330,13 +335,22 @@ impl Tile<'_> {
                 scratch.samplers.clear();
                 scratch.paths.clear();
                 scratch.hits.clear();
+                scratch.rays.clear();
                 for pixel in self.pixels(origin) {
                     let mut sampler = self.sampler(pixel, sample);
                     let ray = self.camera_ray(pixel, &mut sampler);
                     scratch.paths.push(PathState::new(&ray));
-                    scratch.hits.push(next_hit(scene, &ray, &alpha));
+                    scratch.rays.push(ray);
                     scratch.samplers.push(sampler);
                 }
+                // The tile's rows in order: packets of 64 are 16 x 4 strips.
+                next_hits(
+                    scene,
+                    &scratch.rays,
+                    &alpha,
+                    &mut scratch.accel_hits,
+                    &mut scratch.hits,
+                );
                 counts.camera += count as u64;
                 if self.want_guides && sample == 0 {
                     guides.extend(scratch.hits.iter().map(|hit| {

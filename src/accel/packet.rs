@@ -1,0 +1,837 @@
+//! Frame step `accel`, for coherent rays: packets of up to 64 rays (a 16 x 4 strip of a
+//! render tile's camera rays) that walk the 8-wide trees together.
+//!
+//! Per packet:
+//! 1. group the rays by direction octant (all of a group agree which face of a box is near);
+//!    a ray whose reciprocal direction is not finite, a group too small to share a walk, or
+//!    one whose directions spread wider than an 8-degree cone (`COHERENT_COS`) is traced a
+//!    ray at a time;
+//! 2. walk each group's tree once: an inner node's 8 child boxes are tested against the whole
+//!    group at once by interval arithmetic over the rays' origins and reciprocal directions
+//!    (Boulos et al. 2006, "Geometric and Arithmetic Culling Methods for Entire Ray Packets");
+//!    children are visited nearest first by the group's earliest entry, and skipped once
+//!    every ray has a hit nearer than that;
+//! 3. at a leaf, each ray's own slab test against the leaf's box (8 rays per AVX2 test) picks
+//!    the rays that go on to the single-ray triangle block test.
+//!
+//! Why no hit is lost: IEEE subtraction and multiplication round monotonically, so the
+//! interval bound computed from the corners of [origin] x [reciprocal] is below (entry) or
+//! above (exit) what any ray's own arithmetic gives, and the interval test passes every box
+//! any one ray's test passes. Leaf boxes and triangles then get exactly the single-ray
+//! tests, so every ray finds the hit distance it finds alone (the tests check it bit for
+//! bit against brute force).
+
+use std::mem::MaybeUninit;
+
+use obvhs::ray::Ray as ObvhsRay;
+
+use super::wide::{
+    Kernels, LEAF, Lanes, Portable, ROBUST_FAR, RayLanes, STACK, WIDTH, WideBvh, WideNode,
+    WideTlas, leaf_blocks, max_dropping_nan, min_dropping_nan,
+};
+
+/// Rays in a packet, one bit each in a `u64` mask.
+pub const PACKET: usize = 64;
+
+/// Octant groups smaller than this are traced ray by ray: a shared walk pays for its wider
+/// node tests only when several rays share it.
+const MIN_GROUP: u32 = 4;
+
+/// Rays further than acos(0.99) = 8 degrees from their group's mean direction send the
+/// group one ray at a time: the intervals of a wider cone admit so many boxes that a shared
+/// walk costs more than single rays (random bounce directions in packets: 0.03 Mrays/s
+/// against 3.5 alone, dream-apartment, `gloam raybench`). A 16 x 4 strip of camera rays
+/// spans well under a degree.
+const COHERENT_COS: f32 = 0.99;
+
+/// The octant of a ray no packet takes (a direction or reciprocal that is not finite).
+const LONE: usize = 8;
+
+/// Up to 64 rays as lanes (structure of arrays), as the packet kernels read them.
+#[derive(Clone)]
+#[repr(C, align(32))]
+pub struct RayPacket {
+    origin: [[f32; PACKET]; 3],
+    direction: [[f32; PACKET]; 3],
+    /// 1 / direction, per axis (what the single-ray slab test multiplies by).
+    inverse: [[f32; PACKET]; 3],
+    t_min: [f32; PACKET],
+    /// Bit `axis` set when the direction's component is negative; `LONE` for rays traced
+    /// alone.
+    octant: [u8; PACKET],
+}
+
+impl Default for RayPacket {
+    fn default() -> Self {
+        RayPacket {
+            origin: [[0.0; PACKET]; 3],
+            direction: [[0.0; PACKET]; 3],
+            inverse: [[0.0; PACKET]; 3],
+            t_min: [0.0; PACKET],
+            octant: [LONE as u8; PACKET],
+        }
+    }
+}
+
+/// The lanes set in `mask`, lowest first.
+#[inline(always)]
+pub(crate) fn lanes_of(mut mask: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            lane
+        })
+    })
+}
+
+/// A mask of the first `count` lanes.
+#[inline]
+pub fn first_lanes(count: usize) -> u64 {
+    debug_assert!(count <= PACKET);
+    if count >= PACKET {
+        u64::MAX
+    } else {
+        (1u64 << count) - 1
+    }
+}
+
+impl RayPacket {
+    /// Puts `ray` in lane `lane` (its t_max stays with the caller, per query).
+    #[inline]
+    pub fn set(&mut self, lane: usize, ray: &ObvhsRay) {
+        let mut octant = 0;
+        for axis in 0..3 {
+            let direction = ray.direction[axis];
+            // A true reciprocal, as the single-ray test takes it.
+            let inverse = 1.0 / direction;
+            self.origin[axis][lane] = ray.origin[axis];
+            self.direction[axis][lane] = direction;
+            self.inverse[axis][lane] = inverse;
+            if !(inverse.is_finite() && direction.is_finite() && ray.origin[axis].is_finite()) {
+                octant = LONE;
+            } else if octant != LONE && inverse.is_sign_negative() {
+                octant |= 1 << axis;
+            }
+        }
+        self.t_min[lane] = ray.tmin;
+        self.octant[lane] = octant as u8;
+    }
+
+    /// Lane `lane` as a single ray ending at `t_max`.
+    #[inline]
+    pub fn ray(&self, lane: usize, t_max: f32) -> ObvhsRay {
+        let vector = |rows: &[[f32; PACKET]; 3]| {
+            glam::Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane])
+        };
+        ObvhsRay::new(
+            vector(&self.origin),
+            vector(&self.direction),
+            self.t_min[lane],
+            t_max,
+        )
+    }
+
+    /// The rays in `rays`, each passed through `map` (into an instance's object space).
+    pub fn mapped(&self, rays: u64, map: impl Fn(&ObvhsRay) -> ObvhsRay) -> RayPacket {
+        let mut packet = RayPacket::default();
+        for lane in lanes_of(rays) {
+            packet.set(lane, &map(&self.ray(lane, f32::INFINITY)));
+        }
+        packet
+    }
+
+    /// Whether the rays in `rays` point close enough together for a shared walk to pay:
+    /// every direction within the cone of half-angle acos(COHERENT_COS) about their mean.
+    fn coherent(&self, rays: u64) -> bool {
+        let unit = |lane: usize| {
+            glam::Vec3A::new(
+                self.direction[0][lane],
+                self.direction[1][lane],
+                self.direction[2][lane],
+            )
+            .normalize_or_zero()
+        };
+        let mean = lanes_of(rays)
+            .map(unit)
+            .sum::<glam::Vec3A>()
+            .normalize_or_zero();
+        lanes_of(rays).all(|lane| unit(lane).dot(mean) >= COHERENT_COS)
+    }
+
+    /// `rays` split by octant; index `LONE` holds the rays traced alone.
+    fn groups(&self, rays: u64) -> [u64; LONE + 1] {
+        let mut groups = [0u64; LONE + 1];
+        for lane in lanes_of(rays) {
+            groups[self.octant[lane] as usize] |= 1 << lane;
+        }
+        groups
+    }
+
+    /// Lane `lane` as the single-ray kernels read it.
+    #[inline(always)]
+    fn lanes(&self, lane: usize, near: [usize; 3], far: [usize; 3]) -> RayLanes {
+        RayLanes {
+            origin: [0, 1, 2].map(|axis| self.origin[axis][lane]),
+            direction: [0, 1, 2].map(|axis| self.direction[axis][lane]),
+            inverse: [0, 1, 2].map(|axis| self.inverse[axis][lane]),
+            near,
+            far,
+            t_min: self.t_min[lane],
+        }
+    }
+}
+
+/// One octant group of a packet as intervals: what the node test reads.
+pub(crate) struct PacketBounds {
+    origin_low: [f32; 3],
+    origin_high: [f32; 3],
+    inverse_low: [f32; 3],
+    inverse_high: [f32; 3],
+    /// The earliest t_min of the group.
+    t_min: f32,
+    /// Index into `WideNode::bounds` of each axis's near and far planes (shared: one octant).
+    near: [usize; 3],
+    far: [usize; 3],
+    octant: usize,
+    /// How many rays the intervals were taken over.
+    rays: u32,
+}
+
+impl PacketBounds {
+    /// Rule: `rays` is non-empty and every ray in it has octant `octant` (finite values).
+    fn new(packet: &RayPacket, rays: u64, octant: usize) -> PacketBounds {
+        debug_assert!(rays != 0 && octant < LONE);
+        let mut bounds = PacketBounds {
+            origin_low: [f32::INFINITY; 3],
+            origin_high: [f32::NEG_INFINITY; 3],
+            inverse_low: [f32::INFINITY; 3],
+            inverse_high: [f32::NEG_INFINITY; 3],
+            t_min: f32::INFINITY,
+            near: [0, 1, 2].map(|axis| {
+                if octant >> axis & 1 != 0 {
+                    3 + axis
+                } else {
+                    axis
+                }
+            }),
+            far: [0, 1, 2].map(|axis| {
+                if octant >> axis & 1 != 0 {
+                    axis
+                } else {
+                    3 + axis
+                }
+            }),
+            octant,
+            rays: rays.count_ones(),
+        };
+        for lane in lanes_of(rays) {
+            for axis in 0..3 {
+                let origin = packet.origin[axis][lane];
+                let inverse = packet.inverse[axis][lane];
+                bounds.origin_low[axis] = bounds.origin_low[axis].min(origin);
+                bounds.origin_high[axis] = bounds.origin_high[axis].max(origin);
+                bounds.inverse_low[axis] = bounds.inverse_low[axis].min(inverse);
+                bounds.inverse_high[axis] = bounds.inverse_high[axis].max(inverse);
+            }
+            bounds.t_min = bounds.t_min.min(packet.t_min[lane]);
+        }
+        bounds
+    }
+}
+
+/// The largest `t_max` among `rays` (-inf for none): a child entered later is of no use.
+#[inline(always)]
+fn farthest(t_max: &[f32; PACKET], rays: u64) -> f32 {
+    // Eight running maxima, so the loop becomes one compare-and-select per 8 lanes.
+    let mut partial = [f32::NEG_INFINITY; 8];
+    for (chunk, values) in t_max.chunks_exact(8).enumerate() {
+        for (lane, &value) in values.iter().enumerate() {
+            let value = if rays >> (chunk * 8 + lane) & 1 != 0 {
+                value
+            } else {
+                f32::NEG_INFINITY
+            };
+            partial[lane] = if value > partial[lane] {
+                value
+            } else {
+                partial[lane]
+            };
+        }
+    }
+    partial.into_iter().fold(f32::NEG_INFINITY, f32::max)
+}
+
+/// The packet kernels, per implementation (beside the single-ray ones of `Lanes`).
+pub(crate) trait PacketLanes: Lanes {
+    /// Child lanes whose box some ray of the group may enter before `t_max`, and for each
+    /// a lower bound of the rays' entry distances.
+    fn packet_node(node: &WideNode, bounds: &PacketBounds, t_max: f32) -> (u32, [f32; WIDTH]);
+    /// The rays in `rays` whose own slab test (`Lanes::node`'s arithmetic) enters child
+    /// `lane` of `node` before their `t_max`.
+    fn rays_in_box(
+        node: &WideNode,
+        lane: usize,
+        packet: &RayPacket,
+        bounds: &PacketBounds,
+        rays: u64,
+        t_max: &[f32; PACKET],
+    ) -> u64;
+}
+
+impl PacketLanes for Portable {
+    #[inline(always)]
+    fn packet_node(node: &WideNode, bounds: &PacketBounds, t_max: f32) -> (u32, [f32; WIDTH]) {
+        let mut entry = [0.0; WIDTH];
+        let mut hits = 0;
+        for lane in 0..WIDTH {
+            let mut near = bounds.t_min;
+            let mut far = t_max;
+            for axis in 0..3 {
+                let (low, high) = (bounds.inverse_low[axis], bounds.inverse_high[axis]);
+                // (plane - origin) over the origins' interval, times the reciprocals': the
+                // extremes lie at the corners.
+                let near_plane = node.bounds[bounds.near[axis]][lane];
+                let a = near_plane - bounds.origin_high[axis];
+                let b = near_plane - bounds.origin_low[axis];
+                let t_near = (a * low).min(a * high).min(b * low).min(b * high);
+                let far_plane = node.bounds[bounds.far[axis]][lane];
+                let c = far_plane - bounds.origin_high[axis];
+                let d = far_plane - bounds.origin_low[axis];
+                let t_far = (c * low).max(c * high).max(d * low).max(d * high);
+                near = max_dropping_nan(t_near, near);
+                far = min_dropping_nan(t_far, far);
+            }
+            entry[lane] = near;
+            if near <= far * ROBUST_FAR {
+                hits |= 1 << lane;
+            }
+        }
+        (hits, entry)
+    }
+
+    #[inline(always)]
+    fn rays_in_box(
+        node: &WideNode,
+        lane: usize,
+        packet: &RayPacket,
+        bounds: &PacketBounds,
+        rays: u64,
+        t_max: &[f32; PACKET],
+    ) -> u64 {
+        let mut inside = 0;
+        for ray in lanes_of(rays) {
+            let mut near = packet.t_min[ray];
+            let mut far = t_max[ray];
+            for axis in 0..3 {
+                let origin = packet.origin[axis][ray];
+                let inverse = packet.inverse[axis][ray];
+                let t_near = (node.bounds[bounds.near[axis]][lane] - origin) * inverse;
+                let t_far = (node.bounds[bounds.far[axis]][lane] - origin) * inverse;
+                near = max_dropping_nan(t_near, near);
+                far = min_dropping_nan(t_far, far);
+            }
+            if near <= far * ROBUST_FAR {
+                inside |= 1 << ray;
+            }
+        }
+        inside
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    //! The packet kernels in AVX2 intrinsics: eight child boxes per interval test, eight
+    //! rays per leaf-box test.
+
+    use std::arch::x86_64::*;
+
+    use super::super::wide::avx2::Avx2;
+    use super::{PACKET, PacketBounds, PacketLanes, ROBUST_FAR, RayPacket, WIDTH, WideNode};
+
+    // The trait's methods cannot carry `#[target_feature]`, so they call kernels that do:
+    // the intrinsics are then compiled for AVX2 even where the optimiser does not inline
+    // them into an AVX2 caller (a closure it left out-of-line once called every intrinsic
+    // as a function: primary rays fell from 5.4 to 0.8 Mrays/s).
+    impl PacketLanes for Avx2 {
+        #[inline(always)]
+        fn packet_node(node: &WideNode, bounds: &PacketBounds, t_max: f32) -> (u32, [f32; WIDTH]) {
+            // SAFETY: `Avx2` kernels run only where `Kernels::avx2` found AVX2.
+            unsafe { Avx2::packet_node_kernel(node, bounds, t_max) }
+        }
+
+        #[inline(always)]
+        fn rays_in_box(
+            node: &WideNode,
+            lane: usize,
+            packet: &RayPacket,
+            bounds: &PacketBounds,
+            rays: u64,
+            t_max: &[f32; PACKET],
+        ) -> u64 {
+            // SAFETY: `Avx2` kernels run only where `Kernels::avx2` found AVX2.
+            unsafe { Avx2::rays_in_box_kernel(node, lane, packet, bounds, rays, t_max) }
+        }
+    }
+
+    impl Avx2 {
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        fn packet_node_kernel(
+            node: &WideNode,
+            bounds: &PacketBounds,
+            t_max: f32,
+        ) -> (u32, [f32; WIDTH]) {
+            // SAFETY: only reached from `#[target_feature(enable = "avx2")]` functions;
+            // `WideNode` is 32-byte aligned.
+            unsafe {
+                let mut near = _mm256_set1_ps(bounds.t_min);
+                let mut far = _mm256_set1_ps(t_max);
+                for axis in 0..3 {
+                    let low = _mm256_set1_ps(bounds.inverse_low[axis]);
+                    let high = _mm256_set1_ps(bounds.inverse_high[axis]);
+                    let origin_low = _mm256_set1_ps(bounds.origin_low[axis]);
+                    let origin_high = _mm256_set1_ps(bounds.origin_high[axis]);
+                    let near_plane = _mm256_load_ps(node.bounds[bounds.near[axis]].as_ptr());
+                    let far_plane = _mm256_load_ps(node.bounds[bounds.far[axis]].as_ptr());
+                    let a = _mm256_sub_ps(near_plane, origin_high);
+                    let b = _mm256_sub_ps(near_plane, origin_low);
+                    let t_near = _mm256_min_ps(
+                        _mm256_min_ps(_mm256_mul_ps(a, low), _mm256_mul_ps(a, high)),
+                        _mm256_min_ps(_mm256_mul_ps(b, low), _mm256_mul_ps(b, high)),
+                    );
+                    let c = _mm256_sub_ps(far_plane, origin_high);
+                    let d = _mm256_sub_ps(far_plane, origin_low);
+                    let t_far = _mm256_max_ps(
+                        _mm256_max_ps(_mm256_mul_ps(c, low), _mm256_mul_ps(c, high)),
+                        _mm256_max_ps(_mm256_mul_ps(d, low), _mm256_mul_ps(d, high)),
+                    );
+                    near = _mm256_max_ps(t_near, near);
+                    far = _mm256_min_ps(t_far, far);
+                }
+                let far = _mm256_mul_ps(far, _mm256_set1_ps(ROBUST_FAR));
+                let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, far);
+                let mut entry = [0.0f32; WIDTH];
+                _mm256_storeu_ps(entry.as_mut_ptr(), near);
+                (_mm256_movemask_ps(hit) as u32, entry)
+            }
+        }
+
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        fn rays_in_box_kernel(
+            node: &WideNode,
+            lane: usize,
+            packet: &RayPacket,
+            bounds: &PacketBounds,
+            rays: u64,
+            t_max: &[f32; PACKET],
+        ) -> u64 {
+            let mut inside = 0u64;
+            // SAFETY: as in `packet_node`; `RayPacket` is 32-byte aligned and its rows are
+            // 64 floats, so every 8-lane group starts on a 32-byte boundary.
+            unsafe {
+                let planes = [0, 1, 2].map(|axis| {
+                    (
+                        _mm256_set1_ps(node.bounds[bounds.near[axis]][lane]),
+                        _mm256_set1_ps(node.bounds[bounds.far[axis]][lane]),
+                    )
+                });
+                let robust = _mm256_set1_ps(ROBUST_FAR);
+                for group in 0..PACKET / 8 {
+                    let wanted = (rays >> (group * 8)) & 0xff;
+                    if wanted == 0 {
+                        continue;
+                    }
+                    let at = group * 8;
+                    let mut near = _mm256_load_ps(packet.t_min[at..].as_ptr());
+                    let mut far = _mm256_loadu_ps(t_max[at..].as_ptr());
+                    for (axis, &(near_plane, far_plane)) in planes.iter().enumerate() {
+                        let origin = _mm256_load_ps(packet.origin[axis][at..].as_ptr());
+                        let inverse = _mm256_load_ps(packet.inverse[axis][at..].as_ptr());
+                        let t_near = _mm256_mul_ps(_mm256_sub_ps(near_plane, origin), inverse);
+                        let t_far = _mm256_mul_ps(_mm256_sub_ps(far_plane, origin), inverse);
+                        near = _mm256_max_ps(t_near, near);
+                        far = _mm256_min_ps(t_far, far);
+                    }
+                    let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, _mm256_mul_ps(far, robust));
+                    inside |= ((_mm256_movemask_ps(hit) as u64) & wanted) << at;
+                }
+            }
+            inside
+        }
+    }
+}
+
+/// Walks `nodes` with the rays of one octant group, nearest child first (with `ANY`, in any
+/// order), calling `leaf(reference, rays, t_max)` with the rays whose own test enters each
+/// leaf's box before their `t_max`; `leaf` lowers the `t_max` of rays it finds closer hits
+/// for and returns which rays hit (with `ANY`, those rays then leave the walk). Returns every
+/// ray `leaf` reported.
+#[inline(always)]
+fn walk_packet<K: PacketLanes, const ANY: bool>(
+    nodes: &[WideNode],
+    packet: &RayPacket,
+    mut bounds: PacketBounds,
+    mut rays: u64,
+    t_max: &mut [f32; PACKET],
+    mut leaf: impl FnMut(u32, u64, &mut [f32; PACKET]) -> u64,
+) -> u64 {
+    let mut found = 0;
+    if nodes.is_empty() || rays == 0 {
+        return found;
+    }
+    // Rule: node indices fit in 29 bits (a tree that large would need 100 GB), so a child's
+    // parent is kept as node * 8 + lane. Entries below `depth` are written before read.
+    debug_assert!(nodes.len() < 1 << 29);
+    let mut stack = [const { MaybeUninit::<(u32, f32, u32)>::uninit() }; STACK];
+    // SAFETY: `read` is only called at indices below `depth`.
+    let read = |stack: &[MaybeUninit<(u32, f32, u32)>; STACK], at: usize| unsafe {
+        stack[at].assume_init()
+    };
+    let mut depth = 0usize;
+    let mut current = 0u32;
+    let mut parent = 0u32;
+    let mut t_far = farthest(t_max, rays);
+    loop {
+        if current & LEAF == 0 {
+            let node = &nodes[current as usize];
+            let (mut hits, entry) = K::packet_node(node, &bounds, t_far);
+            if hits != 0 {
+                let at = current << 3;
+                if hits.count_ones() == 1 {
+                    let lane = hits.trailing_zeros();
+                    parent = at | lane;
+                    current = node.children[lane as usize];
+                    continue;
+                }
+                // Farthest first under the nearest, as the single-ray walk does.
+                let base = depth;
+                while hits != 0 {
+                    let lane = hits.trailing_zeros();
+                    hits &= hits - 1;
+                    let item = (
+                        node.children[lane as usize],
+                        entry[lane as usize],
+                        at | lane,
+                    );
+                    let mut slot = depth;
+                    if !ANY {
+                        while slot > base && read(&stack, slot - 1).1 < item.1 {
+                            stack[slot] = stack[slot - 1];
+                            slot -= 1;
+                        }
+                    }
+                    stack[slot].write(item);
+                    depth += 1;
+                }
+                depth -= 1;
+                (current, _, parent) = read(&stack, depth);
+                continue;
+            }
+        } else {
+            let node = &nodes[(parent >> 3) as usize];
+            let inside = K::rays_in_box(node, (parent & 7) as usize, packet, &bounds, rays, t_max);
+            if inside != 0 {
+                let hit = leaf(current, inside, t_max);
+                if hit != 0 {
+                    found |= hit;
+                    if ANY {
+                        rays &= !hit;
+                        if rays == 0 {
+                            return found;
+                        }
+                        // Blocked rays leave the walk: once half have, the intervals are
+                        // taken again over the rest, tighter. (Boxes already on the stack
+                        // were tested with the wider ones, which is conservative.)
+                        if rays.count_ones() * 2 <= bounds.rays {
+                            bounds = PacketBounds::new(packet, rays, bounds.octant);
+                        }
+                    }
+                    t_far = farthest(t_max, rays);
+                }
+            }
+        }
+        // Next: the nearest pending child some ray may still need.
+        loop {
+            if depth == 0 {
+                return found;
+            }
+            depth -= 1;
+            let (child, entry, from) = read(&stack, depth);
+            if entry <= t_far {
+                current = child;
+                parent = from;
+                break;
+            }
+        }
+    }
+}
+
+impl WideBvh {
+    /// Closest hits of the rays in `rays` (any octants): for each ray that finds a hit nearer
+    /// than its `t_max[lane]`, lowers `t_max[lane]` to it and sets `slots[lane]` (see
+    /// `triangle_at`). Returns those rays. Each ray finds what `intersect_slot` finds.
+    pub fn intersect_packet(
+        &self,
+        packet: &RayPacket,
+        rays: u64,
+        t_max: &mut [f32; PACKET],
+        slots: &mut [u32; PACKET],
+        kernels: Kernels,
+    ) -> u64 {
+        #[cfg(target_arch = "x86_64")]
+        if kernels.avx2() {
+            // SAFETY: the CPU has AVX2, the only feature the function enables.
+            return unsafe { self.intersect_packet_avx2(packet, rays, t_max, slots) };
+        }
+        let _ = kernels;
+        self.traverse_packet::<Portable, false>(packet, rays, t_max, slots)
+    }
+
+    /// The rays in `rays` that something blocks within (t_min, t_max[lane]) (any hit).
+    pub fn occluded_packet(
+        &self,
+        packet: &RayPacket,
+        rays: u64,
+        t_max: &[f32; PACKET],
+        kernels: Kernels,
+    ) -> u64 {
+        let mut t_max = *t_max;
+        let mut slots = [0; PACKET];
+        #[cfg(target_arch = "x86_64")]
+        if kernels.avx2() {
+            // SAFETY: as in `intersect_packet`.
+            return unsafe { self.occluded_packet_avx2(packet, rays, &mut t_max, &mut slots) };
+        }
+        let _ = kernels;
+        self.traverse_packet::<Portable, true>(packet, rays, &mut t_max, &mut slots)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn intersect_packet_avx2(
+        &self,
+        packet: &RayPacket,
+        rays: u64,
+        t_max: &mut [f32; PACKET],
+        slots: &mut [u32; PACKET],
+    ) -> u64 {
+        self.traverse_packet::<Avx2, false>(packet, rays, t_max, slots)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn occluded_packet_avx2(
+        &self,
+        packet: &RayPacket,
+        rays: u64,
+        t_max: &mut [f32; PACKET],
+        slots: &mut [u32; PACKET],
+    ) -> u64 {
+        self.traverse_packet::<Avx2, true>(packet, rays, t_max, slots)
+    }
+
+    #[inline(always)]
+    fn traverse_packet<K: PacketLanes, const ANY: bool>(
+        &self,
+        packet: &RayPacket,
+        rays: u64,
+        t_max: &mut [f32; PACKET],
+        slots: &mut [u32; PACKET],
+    ) -> u64 {
+        let mut found = 0;
+        if self.nodes.is_empty() {
+            return found;
+        }
+        for (octant, group) in packet.groups(rays).into_iter().enumerate() {
+            if group == 0 {
+                continue;
+            }
+            if octant == LONE || group.count_ones() < MIN_GROUP || !packet.coherent(group) {
+                for lane in lanes_of(group) {
+                    let ray = packet.ray(lane, t_max[lane]);
+                    if let Some((t, slot)) = self.traverse::<K, ANY>(&ray) {
+                        found |= 1 << lane;
+                        if !ANY {
+                            t_max[lane] = t;
+                            slots[lane] = slot;
+                        }
+                    }
+                }
+                continue;
+            }
+            let bounds = PacketBounds::new(packet, group, octant);
+            let (near, far) = (bounds.near, bounds.far);
+            found |= walk_packet::<K, ANY>(
+                &self.nodes,
+                packet,
+                bounds,
+                group,
+                t_max,
+                |leaf, inside, t_max| {
+                    let (first, count) = leaf_blocks(leaf);
+                    let blocks = &self.blocks[first..first + count];
+                    let mut hit = 0;
+                    for lane in lanes_of(inside) {
+                        let ray = packet.lanes(lane, near, far);
+                        for (index, block) in blocks.iter().enumerate() {
+                            let (mut hits, t) = K::block(block, &ray, t_max[lane]);
+                            if ANY {
+                                if hits != 0 {
+                                    hit |= 1 << lane;
+                                    break;
+                                }
+                                continue;
+                            }
+                            // As the single-ray walk: strictly nearer replaces.
+                            while hits != 0 {
+                                let triangle = hits.trailing_zeros() as usize;
+                                hits &= hits - 1;
+                                if t[triangle] < t_max[lane] {
+                                    t_max[lane] = t[triangle];
+                                    slots[lane] = ((first + index) * WIDTH + triangle) as u32;
+                                    hit |= 1 << lane;
+                                }
+                            }
+                        }
+                    }
+                    hit
+                },
+            );
+        }
+        found
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+use super::wide::avx2::Avx2;
+
+impl WideTlas {
+    /// Walks the TLAS with the rays in `rays`, calling `visit(slot, rays, t_max)` for each
+    /// primitive slot (index into the BVH2's `primitive_indices`) with the rays whose test
+    /// enters its leaf's box before their `t_max`; `visit` lowers `t_max` for the rays it
+    /// finds nearer hits for and returns which rays hit. With `any`, a ray that hit leaves
+    /// the walk. Returns every ray that hit.
+    pub fn walk_packet(
+        &self,
+        packet: &RayPacket,
+        rays: u64,
+        kernels: Kernels,
+        any: bool,
+        t_max: &mut [f32; PACKET],
+        visit: impl FnMut(usize, u64, &mut [f32; PACKET]) -> u64,
+    ) -> u64 {
+        #[cfg(target_arch = "x86_64")]
+        if kernels.avx2() {
+            // SAFETY: the CPU has AVX2, the only feature the function enables.
+            return unsafe { self.walk_packet_avx2(packet, rays, any, t_max, visit) };
+        }
+        let _ = kernels;
+        self.walk_packet_with::<Portable>(packet, rays, any, t_max, visit)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn walk_packet_avx2(
+        &self,
+        packet: &RayPacket,
+        rays: u64,
+        any: bool,
+        t_max: &mut [f32; PACKET],
+        visit: impl FnMut(usize, u64, &mut [f32; PACKET]) -> u64,
+    ) -> u64 {
+        self.walk_packet_with::<Avx2>(packet, rays, any, t_max, visit)
+    }
+
+    #[inline(always)]
+    fn walk_packet_with<K: PacketLanes>(
+        &self,
+        packet: &RayPacket,
+        rays: u64,
+        any: bool,
+        t_max: &mut [f32; PACKET],
+        mut visit: impl FnMut(usize, u64, &mut [f32; PACKET]) -> u64,
+    ) -> u64 {
+        let mut found = 0;
+        for (octant, group) in packet.groups(rays).into_iter().enumerate() {
+            if group == 0 {
+                continue;
+            }
+            if octant == LONE || group.count_ones() < MIN_GROUP || !packet.coherent(group) {
+                for lane in lanes_of(group) {
+                    let ray = packet.ray(lane, t_max[lane]);
+                    let t_max = &mut *t_max;
+                    let hit = self.walk_with::<K>(&ray, any, |slot, _| {
+                        (visit(slot, 1 << lane, t_max) != 0).then_some(t_max[lane])
+                    });
+                    if hit {
+                        found |= 1 << lane;
+                    }
+                }
+                continue;
+            }
+            let bounds = PacketBounds::new(packet, group, octant);
+            let mut leaf = |reference: u32, inside: u64, t_max: &mut [f32; PACKET]| {
+                let (first, count) = leaf_blocks(reference);
+                let mut remaining = inside;
+                let mut hit = 0;
+                for slot in first..first + count {
+                    let found = visit(slot, remaining, t_max);
+                    hit |= found;
+                    if any {
+                        remaining &= !found;
+                        if remaining == 0 {
+                            break;
+                        }
+                    }
+                }
+                hit
+            };
+            found |= if any {
+                walk_packet::<K, true>(&self.nodes, packet, bounds, group, t_max, &mut leaf)
+            } else {
+                walk_packet::<K, false>(&self.nodes, packet, bounds, group, t_max, &mut leaf)
+            };
+        }
+        found
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn farthest_reads_only_the_rays_asked_for() {
+        let mut t_max = [0.0; PACKET];
+        for (lane, t) in t_max.iter_mut().enumerate() {
+            *t = lane as f32;
+        }
+        assert_eq!(farthest(&t_max, u64::MAX), 63.0);
+        assert_eq!(farthest(&t_max, 1 << 17 | 1 << 3), 17.0);
+        assert_eq!(farthest(&t_max, 0), f32::NEG_INFINITY);
+    }
+
+    #[test]
+    fn axis_parallel_and_non_finite_rays_are_traced_alone() {
+        let mut packet = RayPacket::default();
+        let origin = glam::Vec3A::ZERO;
+        packet.set(
+            0,
+            &ObvhsRay::new(origin, glam::Vec3A::new(1.0, -2.0, 3.0), 0.0, 1.0),
+        );
+        packet.set(
+            1,
+            &ObvhsRay::new(origin, glam::Vec3A::new(1.0, 0.0, 3.0), 0.0, 1.0),
+        );
+        packet.set(
+            2,
+            &ObvhsRay::new(origin, glam::Vec3A::new(-1.0, -2.0, -3.0), 0.0, 1.0),
+        );
+        let groups = packet.groups(0b111);
+        assert_eq!(groups[0b010], 0b001);
+        assert_eq!(groups[LONE], 0b010);
+        assert_eq!(groups[0b111], 0b100);
+    }
+}
