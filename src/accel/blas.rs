@@ -146,7 +146,14 @@ impl Blas {
             })
             .collect();
         let params = match kind {
-            BlasKind::Static => BvhBuildParams::medium_build(),
+            // Static meshes are built once per level load and traced every frame: obvhs's
+            // slow preset (PLOC search distance high, 20% of nodes reinserted; Meister &
+            // Bittner 2018, "Parallel Reinsertion for Bounding Volume Hierarchy
+            // Optimization") costs 337 against 172 ms for the 178k-triangle apartment on one
+            // thread, and its wide tree is 5% / 8% / 7% faster for primary / shadow / diffuse
+            // rays (SAH cost 18.5 against 19.2; `gloam raybench --build-study`): ~50
+            // frames repay it.
+            BlasKind::Static => BvhBuildParams::slow_build(),
             // Refit trees keep their topology for many frames: the same quality preset,
             // but 1 triangle per leaf keeps refit boxes tight as triangles move apart.
             BlasKind::Deforming => BvhBuildParams {
@@ -402,7 +409,7 @@ impl Blas {
     #[inline]
     pub fn intersect<A: AlphaTest>(&self, ray: &ObvhsRay, alpha: &A) -> Option<(f32, u32, Vec2)> {
         let (t, pending) = self.intersect_pending(ray, alpha)?;
-        let (triangle, barycentrics) = self.resolve(pending, ray);
+        let (triangle, barycentrics) = self.resolve(pending, ray.origin, ray.direction);
         Some((t, triangle, barycentrics))
     }
 
@@ -436,19 +443,30 @@ impl Blas {
         let id = hit.primitive_id as usize;
         Some((
             hit.t,
-            PendingHit::Known(self.ordered_ids[id], barycentrics(&self.ordered[id], ray)),
+            PendingHit::Known(
+                self.ordered_ids[id],
+                barycentrics(&self.ordered[id], ray.origin, ray.direction),
+            ),
         ))
     }
 
     /// The triangle and barycentrics of a hit `intersect_pending` (or a packet query) found
-    /// for `ray`.
+    /// for the object-space ray from `origin` along `direction`.
     #[inline]
-    pub(crate) fn resolve(&self, pending: PendingHit, ray: &ObvhsRay) -> (u32, Vec2) {
+    pub(crate) fn resolve(
+        &self,
+        pending: PendingHit,
+        origin: Vec3A,
+        direction: Vec3A,
+    ) -> (u32, Vec2) {
         match (pending, &self.wide) {
             (PendingHit::Known(triangle, barycentrics), _) => (triangle, barycentrics),
             (PendingHit::Wide(slot), Some(wide)) => {
                 let (id, triangle) = wide.triangle_at(slot);
-                (self.ordered_ids[id as usize], barycentrics(&triangle, ray))
+                (
+                    self.ordered_ids[id as usize],
+                    barycentrics(&triangle, origin, direction),
+                )
             }
             (PendingHit::Wide(_), None) => unreachable!("a wide-tree hit from a BLAS without one"),
         }
@@ -492,9 +510,10 @@ impl Blas {
             return t;
         }
         let triangle = self.ordered_ids[id] as usize;
-        let uv = self
-            .geometry
-            .uv_at(triangle, barycentrics(&self.ordered[id], ray));
+        let uv = self.geometry.uv_at(
+            triangle,
+            barycentrics(&self.ordered[id], ray.origin, ray.direction),
+        );
         if alpha.is_opaque(self.geometry.materials[triangle], uv) {
             t
         } else {

@@ -169,16 +169,16 @@ pub struct SurfaceHit {
 /// just read: fetching the mesh's own vertices instead cost 20% of primary-ray throughput on
 /// the 178k-triangle apartment (`gloam raybench`).
 #[inline]
-pub(crate) fn barycentrics(triangle: &RtTriangle, ray: &ObvhsRay) -> Vec2 {
+pub(crate) fn barycentrics(triangle: &RtTriangle, origin: Vec3A, direction: Vec3A) -> Vec2 {
     let edge1 = -triangle.e1;
     let edge2 = triangle.e2;
-    let p = ray.direction.cross(edge2);
+    let p = direction.cross(edge2);
     let determinant = edge1.dot(p);
     if determinant == 0.0 {
         return Vec2::ZERO;
     }
     let inverse = 1.0 / determinant;
-    let s = ray.origin - triangle.v0;
+    let s = origin - triangle.v0;
     let q = s.cross(edge1);
-    Vec2::new(s.dot(p) * inverse, ray.direction.dot(q) * inverse)
+    Vec2::new(s.dot(p) * inverse, direction.dot(q) * inverse)
 }

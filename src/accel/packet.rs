@@ -168,6 +168,19 @@ impl RayPacket {
         groups
     }
 
+    /// Lane `lane` as a single ray for the single-ray walks.
+    #[inline]
+    fn single(&self, lane: usize) -> RayLanes {
+        let vector = |rows: &[[f32; PACKET]; 3]| {
+            glam::Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane])
+        };
+        RayLanes::from_parts(
+            vector(&self.origin),
+            vector(&self.direction),
+            self.t_min[lane],
+        )
+    }
+
     /// Lane `lane` as the single-ray kernels read it.
     #[inline(always)]
     fn lanes(&self, lane: usize, near: [usize; 3], far: [usize; 3]) -> RayLanes {
@@ -650,8 +663,9 @@ impl WideBvh {
             }
             if octant == LONE || group.count_ones() < MIN_GROUP || !packet.coherent(group) {
                 for lane in lanes_of(group) {
-                    let ray = packet.ray(lane, t_max[lane]);
-                    if let Some((t, slot)) = self.traverse::<K, ANY>(&ray) {
+                    if let Some((t, slot)) =
+                        self.traverse::<K, ANY>(&packet.single(lane), t_max[lane])
+                    {
                         found |= 1 << lane;
                         if !ANY {
                             t_max[lane] = t;
@@ -760,9 +774,10 @@ impl WideTlas {
             }
             if octant == LONE || group.count_ones() < MIN_GROUP || !packet.coherent(group) {
                 for lane in lanes_of(group) {
-                    let ray = packet.ray(lane, t_max[lane]);
+                    let ray = packet.single(lane);
+                    let ray_t_max = t_max[lane];
                     let t_max = &mut *t_max;
-                    let hit = self.walk_with::<K>(&ray, any, |slot, _| {
+                    let hit = self.walk_with::<K>(&ray, ray_t_max, any, |slot, _| {
                         (visit(slot, 1 << lane, t_max) != 0).then_some(t_max[lane])
                     });
                     if hit {

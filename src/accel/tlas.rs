@@ -14,7 +14,7 @@ use obvhs::ray::{Ray as ObvhsRay, RayHit};
 
 use super::blas::{Blas, PendingHit, Traversal};
 use super::packet::{PACKET, RayPacket, first_lanes, lanes_of};
-use super::wide::{Kernels, WideTlas};
+use super::wide::{Kernels, RayLanes, WideTlas};
 use super::{AlphaTest, Hit, InstanceMask, Ray, SurfaceHit};
 
 /// A placed copy of a BLAS.
@@ -72,6 +72,29 @@ impl Instance {
 
     pub fn object_from_world(&self) -> Affine3A {
         self.object_from_world
+    }
+
+    /// A world-space ray's origin and direction in this instance's object space (same t).
+    #[inline]
+    fn object_origin_direction(&self, world: &Ray) -> (Vec3A, Vec3A) {
+        if self.is_identity {
+            return (world.origin, world.direction);
+        }
+        (
+            self.object_from_world.transform_point3a(world.origin),
+            self.object_from_world.transform_vector3a(world.direction),
+        )
+    }
+
+    /// A world-space ray carried into this instance's object space, ready for the wide
+    /// kernels (`world` is that ray, prepared, for an untransformed instance).
+    #[inline]
+    fn object_lanes(&self, ray: &Ray, world: &RayLanes) -> RayLanes {
+        if self.is_identity {
+            return *world;
+        }
+        let (origin, direction) = self.object_origin_direction(ray);
+        RayLanes::from_parts(origin, direction, ray.t_min)
     }
 
     /// A world-space ray carried into this instance's object space (same t).
@@ -202,48 +225,71 @@ impl AccelScene {
         if self.tlas.nodes.is_empty() {
             return None;
         }
-        let world_ray = ray.to_obvhs();
         // The closest so far: (t, instance, its BLAS's pending hit). Triangle id and
         // barycentrics are worked out once, for the last one.
         let mut closest: Option<(f32, u32, PendingHit)> = None;
-        let mut visit = |slot: usize, object_tmax: f32| {
-            let index = self.tlas.primitive_indices[slot];
-            let instance = &self.instances[index as usize];
-            if !instance.mask.intersects(mask) {
-                return None;
-            }
-            // t_max is the closest hit so far: the BLAS prunes against it.
-            let mut object_ray = instance.object_ray(&world_ray);
-            object_ray.tmax = object_tmax;
-            match self.blases[instance.blas as usize].intersect_pending(&object_ray, alpha) {
-                Some((t, pending)) if t < object_tmax => {
-                    closest = Some((t, index, pending));
-                    Some(t)
-                }
-                _ => None,
-            }
-        };
         if let (Some(wide), Traversal::Wide(kernels)) = (&self.wide_tlas, self.traversal) {
-            wide.walk(&world_ray, kernels, false, visit);
+            // The ray is prepared once, for the TLAS and every untransformed BLAS.
+            let world = RayLanes::from_parts(ray.origin, ray.direction, ray.t_min);
+            wide.walk(&world, ray.t_max, kernels, false, |slot, t_max| {
+                let index = self.tlas.primitive_indices[slot];
+                let instance = &self.instances[index as usize];
+                if !instance.mask.intersects(mask) {
+                    return None;
+                }
+                // t_max is the closest hit so far: the BLAS prunes against it.
+                let blas = &self.blases[instance.blas as usize];
+                let found = match blas.packet_tree() {
+                    Some((tree, kernels)) => tree
+                        .intersect_lanes(&instance.object_lanes(ray, &world), t_max, kernels)
+                        .map(|(t, slot)| (t, PendingHit::Wide(slot))),
+                    None => {
+                        let mut object_ray = instance.object_ray(&ray.to_obvhs());
+                        object_ray.tmax = t_max;
+                        blas.intersect_pending(&object_ray, alpha)
+                    }
+                };
+                match found {
+                    Some((t, pending)) if t < t_max => {
+                        closest = Some((t, index, pending));
+                        Some(t)
+                    }
+                    _ => None,
+                }
+            });
         } else {
             let mut tlas_hit = RayHit::none();
             self.tlas
-                .ray_traverse(world_ray, &mut tlas_hit, |world_ray, id| {
-                    // obvhs accepts only t < tmax; `visit` keeps `closest` in step with it.
-                    visit(id, world_ray.tmax).unwrap_or(f32::INFINITY)
+                .ray_traverse(ray.to_obvhs(), &mut tlas_hit, |world_ray, id| {
+                    let index = self.tlas.primitive_indices[id];
+                    let instance = &self.instances[index as usize];
+                    if !instance.mask.intersects(mask) {
+                        return f32::INFINITY;
+                    }
+                    // world_ray.tmax is the closest hit so far: the BLAS prunes against it.
+                    let object_ray = instance.object_ray(world_ray);
+                    match self.blases[instance.blas as usize].intersect_pending(&object_ray, alpha)
+                    {
+                        // obvhs accepts only t < tmax; keep `closest` in step with it.
+                        Some((t, pending)) if t < world_ray.tmax => {
+                            closest = Some((t, index, pending));
+                            t
+                        }
+                        _ => f32::INFINITY,
+                    }
                 });
         }
         let (t, index, pending) = closest?;
-        Some(self.finish_hit(&world_ray, t, index, pending))
+        Some(self.finish_hit(ray, t, index, pending))
     }
 
     /// The `Hit` for a BLAS's pending closest hit along a world ray.
     #[inline]
-    fn finish_hit(&self, world_ray: &ObvhsRay, t: f32, index: u32, pending: PendingHit) -> Hit {
+    fn finish_hit(&self, ray: &Ray, t: f32, index: u32, pending: PendingHit) -> Hit {
         let instance = &self.instances[index as usize];
-        let object_ray = instance.object_ray(world_ray);
+        let (origin, direction) = instance.object_origin_direction(ray);
         let (primitive, barycentrics) =
-            self.blases[instance.blas as usize].resolve(pending, &object_ray);
+            self.blases[instance.blas as usize].resolve(pending, origin, direction);
         Hit {
             t,
             instance: index,
@@ -327,7 +373,7 @@ impl AccelScene {
             for (lane, (ray, hit)) in rays.iter().zip(hits.iter_mut()).enumerate() {
                 *hit = (found >> lane & 1 != 0).then(|| {
                     let (index, pending) = closest[lane];
-                    self.finish_hit(&ray.to_obvhs(), t_max[lane], index, pending)
+                    self.finish_hit(ray, t_max[lane], index, pending)
                 });
             }
         }
@@ -397,16 +443,21 @@ impl AccelScene {
             return false;
         }
         if let (Some(wide), Traversal::Wide(kernels)) = (&self.wide_tlas, self.traversal) {
-            let world_ray = ray.to_obvhs();
-            return wide.walk(&world_ray, kernels, true, |slot, _| {
+            let world = RayLanes::from_parts(ray.origin, ray.direction, ray.t_min);
+            return wide.walk(&world, ray.t_max, kernels, true, |slot, _| {
                 let instance = &self.instances[self.tlas.primitive_indices[slot] as usize];
                 if !instance.mask.intersects(mask) {
                     return None;
                 }
                 let blas = &self.blases[instance.blas as usize];
+                let blocked = match blas.packet_tree() {
+                    Some((tree, kernels)) => {
+                        tree.occluded_lanes(&instance.object_lanes(ray, &world), ray.t_max, kernels)
+                    }
+                    None => blas.occluded(&instance.object_ray(&ray.to_obvhs()), alpha),
+                };
                 // Any t inside the segment ends the walk; its value does not matter.
-                blas.occluded(&instance.object_ray(&world_ray), alpha)
-                    .then_some(world_ray.tmin)
+                blocked.then_some(ray.t_min)
             });
         }
         !self

@@ -550,55 +550,76 @@ impl WideBvh {
     /// Closest hit within [t_min, t_max]: (t, slot); `triangle_at(slot)` tells which.
     #[inline]
     pub fn intersect_slot(&self, ray: &ObvhsRay, kernels: Kernels) -> Option<(f32, u32)> {
+        self.intersect_lanes(&RayLanes::new(ray), ray.tmax, kernels)
+    }
+
+    /// True when a triangle lies within (t_min, t_max) (stops at the first found).
+    #[inline]
+    pub fn occluded(&self, ray: &ObvhsRay, kernels: Kernels) -> bool {
+        self.occluded_lanes(&RayLanes::new(ray), ray.tmax, kernels)
+    }
+
+    /// `intersect_slot` for a ray already prepared (the TLAS hands its own to BLASes that
+    /// share its space, rather than working out the reciprocals again).
+    #[inline]
+    pub(crate) fn intersect_lanes(
+        &self,
+        ray: &RayLanes,
+        t_max: f32,
+        kernels: Kernels,
+    ) -> Option<(f32, u32)> {
         if self.nodes.is_empty() {
             return None;
         }
         #[cfg(target_arch = "x86_64")]
         if kernels.avx2() {
             // SAFETY: the CPU has AVX2, the only feature the function enables.
-            return unsafe { self.intersect_avx2(ray) };
+            return unsafe { self.intersect_avx2(ray, t_max) };
         }
         let _ = kernels;
-        self.traverse::<Portable, false>(ray)
+        self.traverse::<Portable, false>(ray, t_max)
     }
 
-    /// True when a triangle lies within (t_min, t_max) (stops at the first found).
+    /// `occluded` for a ray already prepared.
     #[inline]
-    pub fn occluded(&self, ray: &ObvhsRay, kernels: Kernels) -> bool {
+    pub(crate) fn occluded_lanes(&self, ray: &RayLanes, t_max: f32, kernels: Kernels) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
         #[cfg(target_arch = "x86_64")]
         if kernels.avx2() {
-            // SAFETY: as in `intersect`.
-            return unsafe { self.occluded_avx2(ray) };
+            // SAFETY: as in `intersect_lanes`.
+            return unsafe { self.occluded_avx2(ray, t_max) };
         }
         let _ = kernels;
-        self.traverse::<Portable, true>(ray).is_some()
+        self.traverse::<Portable, true>(ray, t_max).is_some()
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn intersect_avx2(&self, ray: &ObvhsRay) -> Option<(f32, u32)> {
-        self.traverse::<avx2::Avx2, false>(ray)
+    fn intersect_avx2(&self, ray: &RayLanes, t_max: f32) -> Option<(f32, u32)> {
+        self.traverse::<avx2::Avx2, false>(ray, t_max)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn occluded_avx2(&self, ray: &ObvhsRay) -> bool {
-        self.traverse::<avx2::Avx2, true>(ray).is_some()
+    fn occluded_avx2(&self, ray: &RayLanes, t_max: f32) -> bool {
+        self.traverse::<avx2::Avx2, true>(ray, t_max).is_some()
     }
 
     /// The traversal both queries share: with `ANY`, the first hit ends it. Returns the
     /// hit's t and slot (block * WIDTH + lane).
     #[inline(always)]
-    pub(super) fn traverse<K: Lanes, const ANY: bool>(&self, ray: &ObvhsRay) -> Option<(f32, u32)> {
-        let lanes = RayLanes::new(ray);
+    pub(super) fn traverse<K: Lanes, const ANY: bool>(
+        &self,
+        lanes: &RayLanes,
+        t_max: f32,
+    ) -> Option<(f32, u32)> {
         let mut found = None;
-        walk::<K, ANY>(&self.nodes, &lanes, ray.tmax, |leaf, t_max| {
+        walk::<K, ANY>(&self.nodes, lanes, t_max, |leaf, t_max| {
             let (first, count) = leaf_blocks(leaf);
             for (index, block) in self.blocks[first..first + count].iter().enumerate() {
-                let (mut hits, t) = K::block(block, &lanes, *t_max);
+                let (mut hits, t) = K::block(block, lanes, *t_max);
                 while hits != 0 {
                     let lane = hits.trailing_zeros() as usize;
                     hits &= hits - 1;
@@ -740,9 +761,10 @@ impl WideTlas {
     /// returns the hit distance it found (lowering `t_max`), or None. With `any`, the first
     /// hit ends the walk. Returns whether anything was hit.
     #[inline]
-    pub fn walk(
+    pub(crate) fn walk(
         &self,
-        ray: &ObvhsRay,
+        ray: &RayLanes,
+        t_max: f32,
         kernels: Kernels,
         any: bool,
         visit: impl FnMut(usize, f32) -> Option<f32>,
@@ -750,31 +772,32 @@ impl WideTlas {
         #[cfg(target_arch = "x86_64")]
         if kernels.avx2() {
             // SAFETY: the CPU has AVX2, the only feature the function enables.
-            return unsafe { self.walk_avx2(ray, any, visit) };
+            return unsafe { self.walk_avx2(ray, t_max, any, visit) };
         }
         let _ = kernels;
-        self.walk_with::<Portable>(ray, any, visit)
+        self.walk_with::<Portable>(ray, t_max, any, visit)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn walk_avx2(
         &self,
-        ray: &ObvhsRay,
+        ray: &RayLanes,
+        t_max: f32,
         any: bool,
         visit: impl FnMut(usize, f32) -> Option<f32>,
     ) -> bool {
-        self.walk_with::<avx2::Avx2>(ray, any, visit)
+        self.walk_with::<avx2::Avx2>(ray, t_max, any, visit)
     }
 
     #[inline(always)]
     pub(super) fn walk_with<K: Lanes>(
         &self,
-        ray: &ObvhsRay,
+        lanes: &RayLanes,
+        t_max: f32,
         any: bool,
         mut visit: impl FnMut(usize, f32) -> Option<f32>,
     ) -> bool {
-        let lanes = RayLanes::new(ray);
         let mut hit = false;
         let mut leaf = |reference: u32, t_max: &mut f32| {
             let (first, count) = leaf_blocks(reference);
@@ -790,9 +813,9 @@ impl WideTlas {
             false
         };
         if any {
-            walk::<K, true>(&self.nodes, &lanes, ray.tmax, &mut leaf);
+            walk::<K, true>(&self.nodes, lanes, t_max, &mut leaf);
         } else {
-            walk::<K, false>(&self.nodes, &lanes, ray.tmax, &mut leaf);
+            walk::<K, false>(&self.nodes, lanes, t_max, &mut leaf);
         }
         hit
     }
@@ -809,6 +832,7 @@ pub(super) fn leaf_blocks(child: u32) -> (usize, usize) {
 
 /// A ray as the kernels read it: per axis, which bound is the near plane (by the sign of
 /// the direction, so an empty lane's inverted box is entered at +inf and never hit).
+#[derive(Clone, Copy, Debug)]
 pub(crate) struct RayLanes {
     pub(super) origin: [f32; 3],
     pub(super) direction: [f32; 3],
@@ -821,8 +845,14 @@ pub(crate) struct RayLanes {
 
 impl RayLanes {
     #[inline(always)]
-    pub(super) fn new(ray: &ObvhsRay) -> RayLanes {
-        let direction = ray.direction.to_array();
+    pub(crate) fn new(ray: &ObvhsRay) -> RayLanes {
+        RayLanes::from_parts(ray.origin, ray.direction, ray.tmin)
+    }
+
+    /// The ray from `origin` along `direction`, from `t_min` on.
+    #[inline(always)]
+    pub(crate) fn from_parts(origin: Vec3A, direction: Vec3A, t_min: f32) -> RayLanes {
+        let direction = direction.to_array();
         // A true reciprocal: 1/0 is an infinity of the zero's sign, and the slab test drops
         // the NaN of 0 * inf (a ray in a slab's plane is inside that slab).
         let inverse = direction.map(|d| 1.0 / d);
@@ -834,12 +864,12 @@ impl RayLanes {
             }
         });
         RayLanes {
-            origin: ray.origin.to_array(),
+            origin: origin.to_array(),
             direction,
             inverse,
             near,
             far: near.map(|plane| (plane + 3) % 6),
-            t_min: ray.tmin,
+            t_min,
         }
     }
 }

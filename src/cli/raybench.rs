@@ -60,7 +60,22 @@ pub struct Options {
     /// Write the report as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Also build the flat triangles with obvhs's other presets (less or no reinsertion,
+    /// a shorter PLOC search; pre-split triangles) and trace each collapsed 8 wide: what
+    /// build quality costs at load time against what it saves per ray.
+    #[arg(long)]
+    pub build_study: bool,
 }
+
+/// obvhs presets the build study compares with the medium preset static BLASes use.
+const STUDY_PRESETS: [(&str, BvhBuildParams); 3] = [
+    // PLOC search distance 1, reinsertion of 1% of nodes.
+    ("wide8_flat_very_fast", BvhBuildParams::very_fast_build()),
+    // Search distance low, 2% reinsertion.
+    ("wide8_flat_fast", BvhBuildParams::fast_build()),
+    // Pre-split large triangles, search distance high, 20% reinsertion.
+    ("wide8_flat_slow_presplit", BvhBuildParams::slow_build()),
+];
 
 /// Rays of each type, made once and traced by every layout.
 struct RaySet {
@@ -185,7 +200,13 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     let bvh2 = with_traversal(Traversal::Bvh2);
     let flat_count = accel.instanced_triangle_count();
     let mut agreement = None;
-    let flat = (flat_count <= MAX_FLAT_TRIANGLES).then(|| {
+    // The flat builds run on one thread (obvhs's builders use rayon where they can), so
+    // their times are the one-thread build figures.
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .context("starting a one-thread pool")?;
+    let flat = (flat_count <= MAX_FLAT_TRIANGLES).then(|| one_thread.install(|| {
         let world = flat_triangles(&accel);
         // obvhs BVH2, the same build preset as static BLASes: the baseline.
         let start = Instant::now();
@@ -227,20 +248,60 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             .iter()
             .map(|&i| rt[i as usize])
             .collect();
-        (bvh, ordered, bvh_ms, wide, collapse_ms, cwbvh, cw_ordered, cwbvh_ms, wide_stats)
-    });
-    // The renderer's own path first (its figures are the report's top level): camera and
-    // shadow rays in packets, bounces one at a time, as render/mod.rs traces them.
+        // The build study: each preset's BVH2 collapsed 8 wide, timed one thread.
+        let study: Vec<(&'static str, WideBvh, f64, Value)> = if options.build_study {
+            STUDY_PRESETS
+                .iter()
+                .filter_map(|(name, params)| {
+                    let start = Instant::now();
+                    let bvh = build_bvh2(&rt, *params, &mut Default::default());
+                    let bvh_ms = milliseconds(start);
+                    let ordered: Vec<RtTriangle> = bvh
+                        .primitive_indices
+                        .iter()
+                        .map(|&i| rt[i as usize])
+                        .collect();
+                    let start = Instant::now();
+                    let wide = WideBvh::build(&bvh, &ordered).ok()?;
+                    let collapse_ms = milliseconds(start);
+                    let stats = json!({
+                        "bvh2_build_ms": round(bvh_ms),
+                        "collapse_ms": round(collapse_ms),
+                        "sah_cost": round(wide.sah_cost() as f64),
+                        "blocks": wide.block_count(),
+                        "triangle_references": wide.triangle_count(),
+                    });
+                    Some((*name, wide, bvh_ms + collapse_ms, stats))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let wide_stats = wide_stats.map(|mut stats| {
+            if let Some(wide) = &wide {
+                stats["sah_cost"] = json!(round(wide.sah_cost() as f64));
+            }
+            stats
+        });
+        (bvh, ordered, bvh_ms, wide, collapse_ms, cwbvh, cw_ordered, cwbvh_ms, wide_stats, study)
+    }));
+    // The renderer's own path first (its figures are the report's top level): camera rays
+    // in packets, shadow rays and bounces one at a time, as render/mod.rs traces them.
+    let Contender {
+        shadow, diffuse, ..
+    } = Contender::one_by_one(
+        "gloam_renderer",
+        blas_build_ms,
+        single_closest(&accel),
+        |ray: &Ray| accel.occluded(ray, InstanceMask::ALL, &Opaque),
+    );
     let mut contenders: Vec<Contender> = vec![
         Contender {
             name: "gloam_renderer",
             build_ms: blas_build_ms,
             primary: packet_closest(&accel),
-            shadow: packet_any(&accel),
-            diffuse: {
-                let closest = single_closest(&accel);
-                Box::new(move |rays: &[Ray]| rays.iter().filter(|r| closest(r)).count())
-            },
+            shadow,
+            diffuse,
         },
         // Packets for every ray type, diffuse bounces included (what the renderer does not).
         Contender {
@@ -272,10 +333,30 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     }
 
     let mut wide_stats = None;
-    if let Some((bvh, ordered, bvh_ms, wide, collapse_ms, cwbvh, cw_ordered, cwbvh_ms, stats)) =
-        &flat
+    let mut study_stats = serde_json::Map::new();
+    if let Some((
+        bvh,
+        ordered,
+        bvh_ms,
+        wide,
+        collapse_ms,
+        cwbvh,
+        cw_ordered,
+        cwbvh_ms,
+        stats,
+        study,
+    )) = &flat
     {
         wide_stats = stats.clone();
+        for (name, wide, build_ms, stats) in study {
+            study_stats.insert((*name).into(), stats.clone());
+            contenders.push(Contender::one_by_one(
+                name,
+                *build_ms,
+                |ray: &Ray| wide.intersect(&ray.to_obvhs(), Kernels::Best).is_some(),
+                |ray: &Ray| wide.occluded(&ray.to_obvhs(), Kernels::Best),
+            ));
+        }
         contenders.push(Contender::one_by_one(
             "obvhs_bvh2_flat",
             *bvh_ms,
@@ -366,13 +447,24 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     );
     if let Some(stats) = &wide_stats {
         println!(
-            "wide8 over the flat triangles: BVH2 build {} ms + collapse {} ms (one thread); {} nodes, {} leaf blocks, {:.0}% of triangle lanes used, {} levels",
+            "wide8 over the flat triangles: BVH2 build {} ms + collapse {} ms (one thread); SAH cost {}, {} nodes, {} leaf blocks, {:.0}% of triangle lanes used, {} levels",
             stats["bvh2_build_ms"],
             stats["collapse_ms"],
+            stats["sah_cost"],
             stats["nodes"],
             stats["blocks"],
             stats["lanes_used"].as_f64().unwrap_or(0.0) * 100.0,
             stats["depth"]
+        );
+    }
+    for (name, stats) in &study_stats {
+        println!(
+            "build study {name}: BVH2 {} ms + collapse {} ms (one thread), SAH cost {} ({} leaf blocks, {} triangle references)",
+            stats["bvh2_build_ms"],
+            stats["collapse_ms"],
+            stats["sah_cost"],
+            stats["blocks"],
+            stats["triangle_references"]
         );
     }
     if let Some(agreement) = agreement {
@@ -424,6 +516,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             "baseline_obvhs_bvh2": single("obvhs_bvh2_flat").map(|t| t.json()),
             "agreement_with_baseline": agreement,
             "wide8_flat_build": wide_stats,
+            "build_study": (!study_stats.is_empty()).then_some(Value::Object(study_stats.clone())),
             "layouts": layout_json,
         });
         let text = serde_json::to_string_pretty(&report).context("encoding the report")? + "\n";
