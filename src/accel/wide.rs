@@ -128,27 +128,6 @@ impl TriangleBlock {
         }
         self.ids[lane] = id;
     }
-
-    /// The box of the block's triangles, over the vertices their planes stand for (as
-    /// `RtTriangle::aabb` finds them: v0, v0 - e1, v0 + e2).
-    fn bounds(&self) -> (Vec3A, Vec3A) {
-        let mut min = Vec3A::INFINITY;
-        let mut max = Vec3A::NEG_INFINITY;
-        for lane in 0..WIDTH {
-            if self.ids[lane] == EMPTY {
-                continue;
-            }
-            let p = &self.planes;
-            let v0 = Vec3A::new(p[0][lane], p[1][lane], p[2][lane]);
-            let e1 = Vec3A::new(p[3][lane], p[4][lane], p[5][lane]);
-            let e2 = Vec3A::new(p[6][lane], p[7][lane], p[8][lane]);
-            for v in [v0, v0 - e1, v0 + e2] {
-                min = min.min(v);
-                max = max.max(v);
-            }
-        }
-        (min, max)
-    }
 }
 
 /// Which kernels a traversal runs.
@@ -433,14 +412,25 @@ impl WideBvh {
             .with_min_len(256)
             .for_each(|(block, bounds)| {
                 let mut used = 0;
+                let (mut min, mut max) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
                 for lane in 0..WIDTH {
                     let id = block.ids[lane];
                     if id != EMPTY {
-                        block.set(lane, id, &triangle(id as usize));
+                        let triangle = triangle(id as usize);
+                        block.set(lane, id, &triangle);
+                        // The box of the corners the test sees (as `RtTriangle::aabb` finds them),
+                        // taken here rather than by reading the block back.
+                        for corner in [
+                            triangle.v0,
+                            triangle.v0 - triangle.e1,
+                            triangle.v0 + triangle.e2,
+                        ] {
+                            min = min.min(corner);
+                            max = max.max(corner);
+                        }
                         used += 1;
                     }
                 }
-                let (min, max) = block.bounds();
                 *bounds = (min, max, used);
             });
         // 2. The nodes, last first: children come after their parents, so every child's
