@@ -4,7 +4,9 @@
 //! 1. `Blas::refit` each deformed mesh (rebuilds it when its quality has decayed);
 //! 2. `AccelScene::set_transform` / `instances_mut` for moved instances;
 //! 3. `AccelScene::rebuild_tlas` over world-space instance boxes (PLOC, builder reused);
-//! 4. `intersect` (closest hit) and `occluded` (any hit, early exit) from many threads.
+//! 4. `intersect` (closest hit) and `occluded` (any hit, early exit) from many threads, one
+//!    ray at a time or, for rays that travel together, `intersect_coherent` /
+//!    `occluded_coherent` in packets of 64 (`packet`), with the very same results.
 //!
 //! Rays are traced TLAS -> instance (ray moved into object space, direction not
 //! renormalised, so t is the same in both spaces) -> BLAS (its 8-wide BVH, `wide`, or its

@@ -14,6 +14,13 @@
 //! 3. at a leaf, each ray's own slab test against the leaf's box (8 rays per AVX2 test) picks
 //!    the rays that go on to the single-ray triangle block test.
 //!
+//! What pays (dream-apartment, 512 x 512, one thread, `gloam raybench`, same runs): camera
+//! rays 11.2 Mrays/s in packets against 5.5 alone. Shadow rays from a strip's hit points to
+//! points spread over an area light gave 7.4 against 9.7 alone: their origins span the
+//! strip's visible depth and their directions the light, so the intervals admit many boxes,
+//! and a group ends only when its last ray is blocked. The renderer traces those one at a
+//! time (`occluded_coherent` is here for rays that do converge, and for the comparison).
+//!
 //! Why no hit is lost: IEEE subtraction and multiplication round monotonically, so the
 //! interval bound computed from the corners of [origin] x [reciprocal] is below (entry) or
 //! above (exit) what any ray's own arithmetic gives, and the interval test passes every box
