@@ -30,7 +30,10 @@
 
 use std::mem::MaybeUninit;
 
+use glam::Vec3A;
 use obvhs::ray::Ray as ObvhsRay;
+
+use super::Ray;
 
 use super::wide::{
     Kernels, LEAF, Lanes, Portable, ROBUST_FAR, RayLanes, STACK, WIDTH, WideBvh, WideNode,
@@ -104,33 +107,51 @@ pub fn first_lanes(count: usize) -> u64 {
 }
 
 impl RayPacket {
+    /// Up to 64 rays in lanes 0.., and each one's t_max (which the queries lower as they
+    /// find hits).
+    pub fn of_rays(rays: &[Ray]) -> (RayPacket, [f32; PACKET]) {
+        debug_assert!(rays.len() <= PACKET);
+        let mut packet = RayPacket::default();
+        let mut t_max = [0.0; PACKET];
+        for (lane, ray) in rays.iter().enumerate() {
+            packet.set_parts(lane, ray.origin, ray.direction, ray.t_min);
+            t_max[lane] = ray.t_max;
+        }
+        (packet, t_max)
+    }
+
     /// Puts `ray` in lane `lane` (its t_max stays with the caller, per query).
     #[inline]
     pub fn set(&mut self, lane: usize, ray: &ObvhsRay) {
+        self.set_parts(lane, ray.origin, ray.direction, ray.tmin);
+    }
+
+    /// Puts the ray from `origin` along `direction`, from `t_min` on, in lane `lane`.
+    #[inline]
+    fn set_parts(&mut self, lane: usize, origin: Vec3A, direction: Vec3A, t_min: f32) {
         let mut octant = 0;
         for axis in 0..3 {
-            let direction = ray.direction[axis];
+            let (origin, direction) = (origin[axis], direction[axis]);
             // A true reciprocal, as the single-ray test takes it.
             let inverse = 1.0 / direction;
-            self.origin[axis][lane] = ray.origin[axis];
+            self.origin[axis][lane] = origin;
             self.direction[axis][lane] = direction;
             self.inverse[axis][lane] = inverse;
-            if !(inverse.is_finite() && direction.is_finite() && ray.origin[axis].is_finite()) {
+            if !(inverse.is_finite() && direction.is_finite() && origin.is_finite()) {
                 octant = LONE;
             } else if octant != LONE && inverse.is_sign_negative() {
                 octant |= 1 << axis;
             }
         }
-        self.t_min[lane] = ray.tmin;
+        self.t_min[lane] = t_min;
         self.octant[lane] = octant as u8;
     }
 
     /// Lane `lane` as a single ray ending at `t_max`.
     #[inline]
     pub fn ray(&self, lane: usize, t_max: f32) -> ObvhsRay {
-        let vector = |rows: &[[f32; PACKET]; 3]| {
-            glam::Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane])
-        };
+        let vector =
+            |rows: &[[f32; PACKET]; 3]| Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane]);
         ObvhsRay::new(
             vector(&self.origin),
             vector(&self.direction),
@@ -152,17 +173,14 @@ impl RayPacket {
     /// every direction within the cone of half-angle acos(COHERENT_COS) about their mean.
     fn coherent(&self, rays: u64) -> bool {
         let unit = |lane: usize| {
-            glam::Vec3A::new(
+            Vec3A::new(
                 self.direction[0][lane],
                 self.direction[1][lane],
                 self.direction[2][lane],
             )
             .normalize_or_zero()
         };
-        let mean = lanes_of(rays)
-            .map(unit)
-            .sum::<glam::Vec3A>()
-            .normalize_or_zero();
+        let mean = lanes_of(rays).map(unit).sum::<Vec3A>().normalize_or_zero();
         lanes_of(rays).all(|lane| unit(lane).dot(mean) >= COHERENT_COS)
     }
 
@@ -178,9 +196,8 @@ impl RayPacket {
     /// Lane `lane` as a single ray for the single-ray walks.
     #[inline]
     fn single(&self, lane: usize) -> RayLanes {
-        let vector = |rows: &[[f32; PACKET]; 3]| {
-            glam::Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane])
-        };
+        let vector =
+            |rows: &[[f32; PACKET]; 3]| Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane]);
         RayLanes::from_parts(
             vector(&self.origin),
             vector(&self.direction),
@@ -366,7 +383,7 @@ mod avx2 {
 
     use std::arch::x86_64::*;
 
-    use super::super::wide::avx2::Avx2;
+    use super::super::wide::avx2::{Avx2, entered};
     use super::{PACKET, PacketBounds, PacketLanes, ROBUST_FAR, RayPacket, WIDTH, WideNode};
 
     // The trait's methods cannot carry `#[target_feature]`, so they call kernels that do:
@@ -429,11 +446,7 @@ mod avx2 {
                     near = _mm256_max_ps(t_near, near);
                     far = _mm256_min_ps(t_far, far);
                 }
-                let far = _mm256_mul_ps(far, _mm256_set1_ps(ROBUST_FAR));
-                let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, far);
-                let mut entry = [0.0f32; WIDTH];
-                _mm256_storeu_ps(entry.as_mut_ptr(), near);
-                (_mm256_movemask_ps(hit) as u32, entry)
+                entered(near, far)
             }
         }
 
@@ -841,15 +854,15 @@ mod tests {
         let origin = glam::Vec3A::ZERO;
         packet.set(
             0,
-            &ObvhsRay::new(origin, glam::Vec3A::new(1.0, -2.0, 3.0), 0.0, 1.0),
+            &ObvhsRay::new(origin, Vec3A::new(1.0, -2.0, 3.0), 0.0, 1.0),
         );
         packet.set(
             1,
-            &ObvhsRay::new(origin, glam::Vec3A::new(1.0, 0.0, 3.0), 0.0, 1.0),
+            &ObvhsRay::new(origin, Vec3A::new(1.0, 0.0, 3.0), 0.0, 1.0),
         );
         packet.set(
             2,
-            &ObvhsRay::new(origin, glam::Vec3A::new(-1.0, -2.0, -3.0), 0.0, 1.0),
+            &ObvhsRay::new(origin, Vec3A::new(-1.0, -2.0, -3.0), 0.0, 1.0),
         );
         let groups = packet.groups(0b111);
         assert_eq!(groups[0b010], 0b001);

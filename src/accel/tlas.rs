@@ -316,12 +316,7 @@ impl AccelScene {
             return;
         };
         for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
-            let mut packet = RayPacket::default();
-            let mut t_max = [0.0; PACKET];
-            for (lane, ray) in rays.iter().enumerate() {
-                packet.set(lane, &ray.to_obvhs());
-                t_max[lane] = ray.t_max;
-            }
+            let (packet, mut t_max) = RayPacket::of_rays(rays);
             // Per ray, the closest so far: its instance and the BLAS's pending hit.
             let mut closest = [(0u32, PendingHit::Wide(0)); PACKET];
             let mut slots = [0u32; PACKET];
@@ -396,12 +391,7 @@ impl AccelScene {
             return;
         };
         for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
-            let mut packet = RayPacket::default();
-            let mut t_max = [0.0; PACKET];
-            for (lane, ray) in rays.iter().enumerate() {
-                packet.set(lane, &ray.to_obvhs());
-                t_max[lane] = ray.t_max;
-            }
+            let (packet, mut t_max) = RayPacket::of_rays(rays);
             let blocked = wide.walk_packet(
                 &packet,
                 first_lanes(rays.len()),

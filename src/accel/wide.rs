@@ -974,6 +974,19 @@ pub(super) mod avx2 {
         }
     }
 
+    /// The lanes a ray enters (entry `near` at most exit `far`, widened by `ROBUST_FAR`),
+    /// and each lane's entry: the end of every node test, single-ray or packet.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn entered(near: __m256, far: __m256) -> (u32, [f32; WIDTH]) {
+        let far = _mm256_mul_ps(far, _mm256_set1_ps(ROBUST_FAR));
+        let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, far);
+        let mut entry = [0.0f32; WIDTH];
+        // SAFETY: `entry` holds 8 floats.
+        unsafe { _mm256_storeu_ps(entry.as_mut_ptr(), near) };
+        (_mm256_movemask_ps(hit) as u32, entry)
+    }
+
     impl Avx2 {
         #[target_feature(enable = "avx2")]
         #[inline]
@@ -994,11 +1007,7 @@ pub(super) mod avx2 {
                     near = _mm256_max_ps(t_near, near);
                     far = _mm256_min_ps(t_far, far);
                 }
-                let far = _mm256_mul_ps(far, _mm256_set1_ps(ROBUST_FAR));
-                let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(near, far);
-                let mut entry = [0.0f32; WIDTH];
-                _mm256_storeu_ps(entry.as_mut_ptr(), near);
-                (_mm256_movemask_ps(hit) as u32, entry)
+                entered(near, far)
             }
         }
 

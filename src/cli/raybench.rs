@@ -18,6 +18,7 @@ use std::time::Instant;
 use anyhow::{Context as _, bail};
 use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
 use obvhs::BvhBuildParams;
+use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::builder::build_bvh2;
 use obvhs::cwbvh::builder::build_cwbvh_from_tris;
 use obvhs::ray::RayHit;
@@ -214,17 +215,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             .iter()
             .map(|t| RtTriangle::new(t.v0, t.v1, t.v2))
             .collect();
-        let bvh = build_bvh2(&rt, BvhBuildParams::medium_build(), &mut Default::default());
-        let bvh_ms = milliseconds(start);
-        let ordered: Vec<RtTriangle> = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| rt[i as usize])
-            .collect();
+        let conversion_ms = milliseconds(start);
         // The same BVH2 collapsed 8 wide: gloam's BLAS traversal without the TLAS.
-        let start = Instant::now();
-        let wide = WideBvh::build(&bvh, &ordered).ok();
-        let collapse_ms = milliseconds(start);
+        let (bvh, ordered, bvh_ms, wide, collapse_ms) =
+            wide_over(&rt, BvhBuildParams::medium_build());
+        let bvh_ms = bvh_ms + conversion_ms;
         let wide_stats = wide.as_ref().map(|wide| {
             json!({
                 "bvh2_build_ms": round(bvh_ms),
@@ -253,17 +248,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             STUDY_PRESETS
                 .iter()
                 .filter_map(|(name, params)| {
-                    let start = Instant::now();
-                    let bvh = build_bvh2(&rt, *params, &mut Default::default());
-                    let bvh_ms = milliseconds(start);
-                    let ordered: Vec<RtTriangle> = bvh
-                        .primitive_indices
-                        .iter()
-                        .map(|&i| rt[i as usize])
-                        .collect();
-                    let start = Instant::now();
-                    let wide = WideBvh::build(&bvh, &ordered).ok()?;
-                    let collapse_ms = milliseconds(start);
+                    let (_, _, bvh_ms, wide, collapse_ms) = wide_over(&rt, *params);
+                    let wide = wide?;
                     let stats = json!({
                         "bvh2_build_ms": round(bvh_ms),
                         "collapse_ms": round(collapse_ms),
@@ -556,6 +542,25 @@ impl<'a> Contender<'a> {
             diffuse: Box::new(each),
         }
     }
+}
+
+/// obvhs's BVH2 over `triangles` with `params`, its triangles in leaf order, and its 8-wide
+/// collapse (None if too deep), with the build and collapse times in ms.
+fn wide_over(
+    triangles: &[RtTriangle],
+    params: BvhBuildParams,
+) -> (Bvh2, Vec<RtTriangle>, f64, Option<WideBvh>, f64) {
+    let start = Instant::now();
+    let bvh = build_bvh2(triangles, params, &mut Default::default());
+    let bvh_ms = milliseconds(start);
+    let ordered: Vec<RtTriangle> = bvh
+        .primitive_indices
+        .iter()
+        .map(|&i| triangles[i as usize])
+        .collect();
+    let start = Instant::now();
+    let wide = WideBvh::build(&bvh, &ordered).ok();
+    (bvh, ordered, bvh_ms, wide, milliseconds(start))
 }
 
 /// gloam's single-ray closest-hit query.
