@@ -290,20 +290,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             diffuse,
         },
         // Packets for every ray type, diffuse bounces included (what the renderer does not).
-        Contender {
-            name: "gloam_packets",
-            build_ms: blas_build_ms,
-            primary: packet_closest(&accel),
-            shadow: packet_any(&accel),
-            diffuse: packet_closest(&accel),
-        },
-        Contender {
-            name: "gloam_packets_portable",
-            build_ms: blas_build_ms,
-            primary: packet_closest(&portable),
-            shadow: packet_any(&portable),
-            diffuse: packet_closest(&portable),
-        },
+        Contender::packets("gloam_packets", blas_build_ms, &accel),
+        Contender::packets("gloam_packets_portable", blas_build_ms, &portable),
     ];
     for (name, scene) in [
         ("gloam_tlas_blas_wide8", &accel),
@@ -526,6 +514,17 @@ struct Contender<'a> {
 }
 
 impl<'a> Contender<'a> {
+    /// A contender tracing every ray type through `scene` in packets.
+    fn packets(name: &'static str, build_ms: f64, scene: &'a AccelScene) -> Contender<'a> {
+        Contender {
+            name,
+            build_ms,
+            primary: packet_closest(scene),
+            shadow: packet_any(scene),
+            diffuse: packet_closest(scene),
+        }
+    }
+
     /// A contender tracing one ray at a time (the same queries for primary and diffuse).
     fn one_by_one(
         name: &'static str,
