@@ -152,10 +152,10 @@ impl Blas {
             // Static meshes are built once per level load and traced every frame: obvhs's
             // slow preset (PLOC search distance high, 20% of nodes reinserted; Meister &
             // Bittner 2018, "Parallel Reinsertion for Bounding Volume Hierarchy
-            // Optimization") costs 337 against 172 ms for the 178k-triangle apartment on one
-            // thread, and its wide tree is 5% / 8% / 7% faster for primary / shadow / diffuse
-            // rays (SAH cost 18.5 against 19.2; `gloam raybench --build-study`): ~50
-            // frames repay it.
+            // Optimization") costs 298-337 against 151-172 ms for the 178k-triangle
+            // apartment on one thread, and its wide tree traced 2-8% faster rays in three
+            // runs (21-28% in a fourth; SAH cost 18.5 against 19.2; `gloam raybench
+            // --build-study`): a few seconds of play repay it.
             BlasKind::Static => BvhBuildParams::slow_build(),
             // Refit trees keep their topology for many frames: the same quality preset,
             // but 1 triangle per leaf keeps refit boxes tight as triangles move apart.
