@@ -117,12 +117,14 @@ impl RayPacket {
             packet.set_parts(lane, ray.origin, ray.direction, ray.t_min);
             t_max[lane] = ray.t_max;
         }
+        packet.settle_groups(first_lanes(rays.len()));
         (packet, t_max)
     }
 
-    /// Puts `ray` in lane `lane` (its t_max stays with the caller, per query).
+    /// Puts `ray` in lane `lane` (its t_max stays with the caller, per query). Callers
+    /// that fill a packet this way settle its groups with `settle_groups` before use.
     #[inline]
-    pub fn set(&mut self, lane: usize, ray: &ObvhsRay) {
+    fn set(&mut self, lane: usize, ray: &ObvhsRay) {
         self.set_parts(lane, ray.origin, ray.direction, ray.tmin);
     }
 
@@ -166,7 +168,25 @@ impl RayPacket {
         for lane in lanes_of(rays) {
             packet.set(lane, &map(&self.ray(lane, f32::INFINITY)));
         }
+        packet.settle_groups(rays);
         packet
+    }
+
+    /// Marks the rays of every octant group in `rays` that will not share a walk (too few,
+    /// or spread too wide) to go alone, once per packet: the TLAS and each BLAS it reaches
+    /// then read the groups as they are. Part of a settled group is still one (its cone
+    /// lies inside the group's), so only the count is checked again.
+    fn settle_groups(&mut self, rays: u64) {
+        for (octant, group) in self.groups(rays).into_iter().enumerate() {
+            if octant != LONE
+                && group != 0
+                && (group.count_ones() < MIN_GROUP || !self.coherent(group))
+            {
+                for lane in lanes_of(group) {
+                    self.octant[lane] = LONE as u8;
+                }
+            }
+        }
     }
 
     /// Whether the rays in `rays` point close enough together for a shared walk to pay:
@@ -681,7 +701,7 @@ impl WideBvh {
             if group == 0 {
                 continue;
             }
-            if octant == LONE || group.count_ones() < MIN_GROUP || !packet.coherent(group) {
+            if octant == LONE || group.count_ones() < MIN_GROUP {
                 for lane in lanes_of(group) {
                     if let Some((t, slot)) =
                         self.traverse::<K, ANY>(&packet.single(lane), t_max[lane])
@@ -792,7 +812,7 @@ impl WideTlas {
             if group == 0 {
                 continue;
             }
-            if octant == LONE || group.count_ones() < MIN_GROUP || !packet.coherent(group) {
+            if octant == LONE || group.count_ones() < MIN_GROUP {
                 for lane in lanes_of(group) {
                     let ray = packet.single(lane);
                     let ray_t_max = t_max[lane];
