@@ -37,7 +37,7 @@ use super::Ray;
 
 use super::wide::{
     Kernels, LEAF, Lanes, Portable, ROBUST_FAR, RayLanes, STACK, WIDTH, WideBvh, WideNode,
-    WideTlas, leaf_blocks, max_dropping_nan, min_dropping_nan,
+    WideTlas, leaf_blocks, max_dropping_nan, min_dropping_nan, slab_test,
 };
 
 /// Rays in a packet, one bit each in a `u64` mask.
@@ -378,19 +378,19 @@ impl PacketLanes for Portable {
     ) -> u64 {
         let mut inside = 0;
         for ray in lanes_of(rays) {
-            let mut near = packet.t_min[ray];
-            let mut far = t_max[ray];
-            for axis in 0..3 {
-                let origin = packet.origin[axis][ray];
-                let inverse = packet.inverse[axis][ray];
-                let t_near = (node.bounds[bounds.near[axis]][lane] - origin) * inverse;
-                let t_far = (node.bounds[bounds.far[axis]][lane] - origin) * inverse;
-                near = max_dropping_nan(t_near, near);
-                far = min_dropping_nan(t_far, far);
-            }
-            if near <= far * ROBUST_FAR {
-                inside |= 1 << ray;
-            }
+            let (_, entered) = slab_test(
+                |axis| {
+                    (
+                        node.bounds[bounds.near[axis]][lane],
+                        node.bounds[bounds.far[axis]][lane],
+                    )
+                },
+                [0, 1, 2].map(|axis| packet.origin[axis][ray]),
+                [0, 1, 2].map(|axis| packet.inverse[axis][ray]),
+                packet.t_min[ray],
+                t_max[ray],
+            );
+            inside |= (entered as u64) << ray;
         }
         inside
     }

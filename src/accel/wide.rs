@@ -872,6 +872,27 @@ pub(crate) trait Lanes {
     fn block(block: &TriangleBlock, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]);
 }
 
+/// One ray against one box, portably: the entry distance, and whether the ray enters before
+/// `t_max` (`planes(axis)` is the box's (near, far) plane on that axis for this ray). The
+/// single-ray node test and the packets' per-ray leaf-box test both run this, so a packet's
+/// ray admits exactly the boxes it admits alone.
+#[inline(always)]
+pub(super) fn slab_test(
+    planes: impl Fn(usize) -> (f32, f32),
+    origin: [f32; 3],
+    inverse: [f32; 3],
+    t_min: f32,
+    t_max: f32,
+) -> (f32, bool) {
+    let (mut near, mut far) = (t_min, t_max);
+    for axis in 0..3 {
+        let (near_plane, far_plane) = planes(axis);
+        near = max_dropping_nan((near_plane - origin[axis]) * inverse[axis], near);
+        far = min_dropping_nan((far_plane - origin[axis]) * inverse[axis], far);
+    }
+    (near, near <= far * ROBUST_FAR)
+}
+
 /// x86's maxps: `a` when a > b, else `b` (so a NaN in `a` is dropped).
 #[inline(always)]
 pub(super) fn max_dropping_nan(a: f32, b: f32) -> f32 {
@@ -894,20 +915,20 @@ impl Lanes for Portable {
         let mut entry = [0.0; WIDTH];
         let mut hits = 0;
         for lane in 0..WIDTH {
-            let mut near = ray.t_min;
-            let mut far = t_max;
-            for axis in 0..3 {
-                let t_near =
-                    (node.bounds[ray.near[axis]][lane] - ray.origin[axis]) * ray.inverse[axis];
-                let t_far =
-                    (node.bounds[ray.far[axis]][lane] - ray.origin[axis]) * ray.inverse[axis];
-                near = max_dropping_nan(t_near, near);
-                far = min_dropping_nan(t_far, far);
-            }
+            let (near, entered) = slab_test(
+                |axis| {
+                    (
+                        node.bounds[ray.near[axis]][lane],
+                        node.bounds[ray.far[axis]][lane],
+                    )
+                },
+                ray.origin,
+                ray.inverse,
+                ray.t_min,
+                t_max,
+            );
             entry[lane] = near;
-            if near <= far * ROBUST_FAR {
-                hits |= 1 << lane;
-            }
+            hits |= (entered as u32) << lane;
         }
         (hits, entry)
     }
