@@ -130,6 +130,21 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
         );
     }
 
+    // The film's steps (temporal, spatial, remodulate) share out the film stage the same way.
+    let steps = report["film_phases"].as_object().expect("film_phases");
+    let step_sum: f64 = steps.values().map(|p| p["mean_ms"].as_f64().unwrap()).sum();
+    let film = report["stages"]["film"]["mean_ms"].as_f64().unwrap();
+    assert!(
+        (step_sum - film).abs() <= 1e-6 * film.max(1.0),
+        "film steps sum to {step_sum} ms, film is {film} ms"
+    );
+    for step in ["temporal", "spatial", "remodulate"] {
+        assert!(
+            steps[step]["mean_ms"].as_f64().unwrap() > 0.0,
+            "film.{step} took no time"
+        );
+    }
+
     // CSV: a header and a row per frame, a column per stage.
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines.len(), 25);

@@ -122,7 +122,10 @@ pub struct StageTimes {
     /// The render's wall time split over its phases (`render::PhaseTimes::NAMES`) in
     /// proportion to the CPU time each took on the tiles' threads.
     pub render_phases: [f64; 4],
-    /// Adding the frame into the accumulated image.
+    /// The film's wall time split over its steps (`render::FilmPhaseTimes::NAMES`).
+    pub film_phases: [f64; 3],
+    /// The film step: filtering the frame (real-time view), or adding it into the
+    /// accumulated image (still view).
     pub film: f64,
     /// Rays the render traced (camera, bounce and shadow).
     pub rays: u64,
@@ -145,6 +148,7 @@ impl StageTimes {
                 present_ms,
             ],
             render_phases: self.render_phases,
+            film_phases: self.film_phases,
             frame_ms,
             rays: self.rays,
         }
@@ -652,14 +656,26 @@ pub fn render_frame(
             .iter()
             .map(|instance| instance.world_from_object())
             .collect();
-        accumulation.filtered = Some(accumulation.filter.apply(
-            &output.film,
-            guides,
-            &camera,
-            &instances,
-        ));
+        // Last frame's image is overwritten (a fresh buffer a frame costs page faults).
+        let mut image = accumulation
+            .filtered
+            .take()
+            .unwrap_or_else(|| Film::new(0, 0));
+        accumulation
+            .filter
+            .apply_into(&output.film, guides, &camera, &instances, &mut image);
+        accumulation.filtered = Some(image);
         accumulation.frames += 1;
         times.film = since(start);
+        // The steps' own times, with the little around them (the instances' transforms
+        // gathered) shared out so they add up to the stage.
+        let steps = accumulation.filter.last_times.as_array();
+        let timed: f64 = steps.iter().sum();
+        times.film_phases = if timed > 0.0 {
+            steps.map(|step| times.film * step / timed)
+        } else {
+            [0.0; 3]
+        };
         return;
     }
     for (sum, pixel) in accumulation.sum.iter_mut().zip(&output.film.pixels) {
@@ -667,4 +683,5 @@ pub fn render_frame(
     }
     accumulation.frames += 1;
     times.film = since(start);
+    times.film_phases = [0.0; 3];
 }

@@ -76,6 +76,27 @@ pub const STAGES: [&str; 10] = [
 /// (a test holds them equal; the profiler depends on nothing above it).
 pub const RENDER_PHASES: [&str; 4] = ["primary", "shade", "shadow", "bounces"];
 
+/// The steps inside `film` (render/denoise.rs's filter chain), nested under it as
+/// `film.<step>`: the same names as `render::FilmPhaseTimes::NAMES`.
+pub const FILM_PHASES: [&str; 3] = ["temporal", "spatial", "remodulate"];
+
+/// A frame's phase times of a stage that has phases: `render`'s or `film`'s.
+type PhasesOf = fn(&FrameSample) -> &[f64];
+
+/// The stages timed in phases, with their phase names, in `STAGES` order.
+const NESTED: [(&str, &[&str], PhasesOf); 2] = [
+    ("render", &RENDER_PHASES, |frame| &frame.render_phases),
+    ("film", &FILM_PHASES, |frame| &frame.film_phases),
+];
+
+/// `stage`'s phase names and how to read a frame's phase times, if it has phases.
+fn phases_of(stage: &str) -> Option<(&'static [&'static str], PhasesOf)> {
+    NESTED
+        .iter()
+        .find(|(name, _, _)| *name == stage)
+        .map(|&(_, names, times)| (names, times))
+}
+
 /// One frame: milliseconds per stage (in `STAGES` order), the whole frame, and rays traced.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FrameSample {
@@ -83,6 +104,9 @@ pub struct FrameSample {
     /// The render stage's milliseconds per phase (`RENDER_PHASES`), summing to it: the
     /// wall time shared out by each phase's CPU time over the threads.
     pub render_phases: [f64; RENDER_PHASES.len()],
+    /// The film stage's milliseconds per step (`FILM_PHASES`), summing to it (zero when no
+    /// filter ran).
+    pub film_phases: [f64; FILM_PHASES.len()],
     pub frame_ms: f64,
     pub rays: u64,
 }
@@ -147,10 +171,24 @@ impl Profile {
         Summary::of(&values)
     }
 
-    /// Summary of render phase `index` over the frames.
-    pub fn render_phase(&self, index: usize) -> Summary {
-        let values: Vec<f64> = self.frames.iter().map(|f| f.render_phases[index]).collect();
+    fn phase(&self, phases: PhasesOf, index: usize) -> Summary {
+        let values: Vec<f64> = self.frames.iter().map(|f| phases(f)[index]).collect();
         Summary::of(&values)
+    }
+
+    /// Each stage with phases: its name and a summary per phase, by phase name.
+    fn phase_summaries(&self) -> Vec<(&'static str, Vec<(&'static str, Summary)>)> {
+        NESTED
+            .iter()
+            .map(|&(stage, names, times)| {
+                let summaries = names
+                    .iter()
+                    .enumerate()
+                    .map(|(index, name)| (*name, self.phase(times, index)))
+                    .collect();
+                (stage, summaries)
+            })
+            .collect()
     }
 
     pub fn frame(&self) -> Summary {
@@ -173,23 +211,26 @@ impl Profile {
             .enumerate()
             .map(|(index, name)| (name.to_string(), self.stage(index).json()))
             .collect();
-        let render_phases: serde_json::Map<String, Value> = RENDER_PHASES
-            .iter()
-            .enumerate()
-            .map(|(index, name)| (name.to_string(), self.render_phase(index).json()))
-            .collect();
-        json!({
+        let mut report = json!({
             "scene": self.scene,
             "frames": self.frames.len(),
             "width": self.width,
             "height": self.height,
             "threads": self.threads,
             "stages": stages,
-            "render_phases": render_phases,
             "frame": self.frame().json(),
             "mrays_per_s": self.mrays_per_s(),
             "rays_per_frame": self.frames.iter().map(|f| f.rays).collect::<Vec<_>>(),
-        })
+        });
+        // "render_phases" and "film_phases": each phase's summary, by name.
+        for (stage, summaries) in self.phase_summaries() {
+            let phases: serde_json::Map<String, Value> = summaries
+                .into_iter()
+                .map(|(name, summary)| (name.to_string(), summary.json()))
+                .collect();
+            report[format!("{stage}_phases")] = Value::Object(phases);
+        }
+        report
     }
 
     /// The table `gloam bench` prints: a row per stage.
@@ -209,15 +250,16 @@ impl Profile {
             "p99",
             "max"
         );
+        let phases = self.phase_summaries();
         let mut rows: Vec<(String, Summary)> = Vec::new();
         for (index, name) in STAGES.iter().enumerate() {
             rows.push((name.to_string(), self.stage(index)));
-            if *name == "render" {
+            let own = phases.iter().filter(|(stage, _)| stage == name);
+            for (_, summaries) in own {
                 rows.extend(
-                    RENDER_PHASES
+                    summaries
                         .iter()
-                        .enumerate()
-                        .map(|(phase, name)| (format!("  .{name}"), self.render_phase(phase))),
+                        .map(|(phase, summary)| (format!("  .{phase}"), *summary)),
                 );
             }
         }
@@ -234,15 +276,17 @@ impl Profile {
     /// A row per frame: frame index, each stage, the frame, rays.
     pub fn to_csv(&self) -> String {
         let mut text = format!(
-            "frame,{},{},frame_ms,rays\n",
+            "frame,{},{},{},frame_ms,rays\n",
             STAGES.map(|s| format!("{s}_ms")).join(","),
-            RENDER_PHASES.map(|s| format!("render.{s}_ms")).join(",")
+            RENDER_PHASES.map(|s| format!("render.{s}_ms")).join(","),
+            FILM_PHASES.map(|s| format!("film.{s}_ms")).join(",")
         );
         for (index, frame) in self.frames.iter().enumerate() {
             let stages: Vec<String> = frame
                 .stages
                 .iter()
                 .chain(&frame.render_phases)
+                .chain(&frame.film_phases)
                 .map(|ms| format!("{ms:.6}"))
                 .collect();
             text += &format!(
@@ -274,13 +318,13 @@ impl Profile {
                         "ts": at, "dur": ms * 1e3,
                     }));
                 }
-                if *name == "render" {
-                    // The phases nest inside render on the same track.
+                if let Some((names, times)) = phases_of(name) {
+                    // The phases nest inside their stage on the same track.
                     let mut phase_at = at;
-                    for (phase, phase_ms) in RENDER_PHASES.iter().zip(frame.render_phases) {
+                    for (phase, &phase_ms) in names.iter().zip(times(frame)) {
                         if phase_ms > 0.0 {
                             events.push(json!({
-                                "name": format!("render.{phase}"), "cat": "render",
+                                "name": format!("{name}.{phase}"), "cat": name,
                                 "ph": "X", "pid": 1, "tid": 2,
                                 "ts": phase_at, "dur": phase_ms * 1e3,
                             }));
@@ -347,6 +391,7 @@ mod tests {
     #[test]
     fn render_phase_names_are_the_renderers() {
         assert_eq!(RENDER_PHASES, crate::render::PhaseTimes::NAMES);
+        assert_eq!(FILM_PHASES, crate::render::FilmPhaseTimes::NAMES);
     }
 
     #[test]
@@ -354,6 +399,7 @@ mod tests {
         let frame = |render: f64| FrameSample {
             stages: [0.1, 0.0, 0.2, 0.1, 0.0, 0.3, 0.1, render, 0.2, 0.0],
             render_phases: [render * 0.4, render * 0.1, render * 0.2, render * 0.3],
+            film_phases: [0.1, 0.05, 0.05],
             frame_ms: render + 1.5,
             rays: 10,
         };

@@ -21,7 +21,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::guides::{Guides, NO_INSTANCE};
-use super::temporal::BAND_ROWS;
+use super::planes::{
+    BAND_ROWS, BLUE, GREEN, RED, RowPlanes, SIGNAL_PLANES, SignalPlanes, VARIANCE,
+};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct AtrousSettings {
@@ -51,6 +53,12 @@ pub struct Filtered {
     pub first_iteration: Vec<Vec3>,
 }
 
+/// The same, left in the workspace's planes (the frame's filter reads them in place).
+pub struct FilteredPlanes<'a> {
+    pub illumination: &'a SignalPlanes,
+    pub first_iteration: &'a SignalPlanes,
+}
+
 /// B-spline weights of the 3-tap kernel (the variance prefilter's; the wavelet passes
 /// spell out the products in `TAPS`).
 const KERNEL: [f32; 3] = [0.25, 0.5, 0.25];
@@ -73,42 +81,6 @@ fn luminance(r: f32, g: f32, b: f32) -> f32 {
     0.2126 * r + 0.7152 * g + 0.0722 * b
 }
 
-/// Images stored a row at a time, each row as `PLANES` consecutive runs of `width` floats
-/// (row y's plane k starts at (y PLANES + k) width). A tap reads a run of contiguous lanes
-/// per plane, so a row's taps vectorise; a band of rows is one slice, so bands are written
-/// in parallel. (Pixels as structs cost 29 ns a tap at 480 x 270; these planes, 1.2.)
-#[derive(Default)]
-struct RowPlanes<const PLANES: usize> {
-    width: usize,
-    height: usize,
-    data: Vec<f32>,
-}
-
-impl<const PLANES: usize> RowPlanes<PLANES> {
-    /// Sizes the image, keeping the allocation (a fresh 4 MB buffer a frame cost more in
-    /// page faults than a wavelet pass).
-    fn resize(&mut self, width: usize, height: usize) {
-        self.width = width;
-        self.height = height;
-        self.data.resize(width * height * PLANES, 0.0);
-    }
-
-    #[inline(always)]
-    fn row(&self, y: usize, plane: usize) -> &[f32] {
-        let start = (y * PLANES + plane) * self.width;
-        &self.data[start..start + self.width]
-    }
-
-    /// Bands of `BAND_ROWS` rows, for parallel writing: (first row, its planes).
-    fn bands_mut(&mut self) -> impl IndexedParallelIterator<Item = (usize, &mut [f32])> {
-        let band = self.width * PLANES * BAND_ROWS;
-        self.data
-            .par_chunks_mut(band.max(1))
-            .enumerate()
-            .map(|(index, rows)| (index * BAND_ROWS, rows))
-    }
-}
-
 /// Guide planes.
 const NORMAL_X: usize = 0;
 const NORMAL_Y: usize = 1;
@@ -119,19 +91,13 @@ const ALBEDO_G: usize = 5;
 const ALBEDO_B: usize = 6;
 const GUIDE_PLANES: usize = 7;
 
-/// Signal planes: illumination and its luminance variance.
-const RED: usize = 0;
-const GREEN: usize = 1;
-const BLUE: usize = 2;
-const VARIANCE: usize = 3;
-const SIGNAL_PLANES: usize = 4;
-
 /// The filter's buffers, kept from frame to frame (`FrameFilter` owns one).
 #[derive(Default)]
 pub struct Workspace {
     guides: GuideImage,
-    signal: RowPlanes<SIGNAL_PLANES>,
-    next: RowPlanes<SIGNAL_PLANES>,
+    /// The passes' outputs: the first pass writes `outputs[0]` (kept: it is the history's
+    /// next illumination), later passes alternate between the other two.
+    outputs: [SignalPlanes; 3],
     /// The variance under SVGF's 3 x 3 prefilter, row-major.
     blurred_variance: Vec<f32>,
     /// Run the portable rows even where AVX2 is present (tests compare the two).
@@ -155,61 +121,57 @@ pub fn filter(
     guides: &Guides,
     settings: &AtrousSettings,
 ) -> Filtered {
-    filter_with(
-        &mut Workspace::default(),
-        illumination,
-        variance,
-        guides,
-        settings,
-    )
+    let input = SignalPlanes::from_pixels(illumination, variance, guides.width as usize);
+    let mut workspace = Workspace::default();
+    let output = filter_with(&mut workspace, &input, guides, settings);
+    Filtered {
+        illumination: output.illumination.colours(),
+        first_iteration: output.first_iteration.colours(),
+    }
 }
 
-pub fn filter_with(
-    workspace: &mut Workspace,
-    illumination: &[Vec3],
-    variance: &[f32],
+/// Filters `input` (demodulated illumination and its variance), seen with `guides`; the
+/// result stays in `workspace`. With no iterations both outputs are a copy of the input.
+pub fn filter_with<'a>(
+    workspace: &'a mut Workspace,
+    input: &SignalPlanes,
     guides: &Guides,
     settings: &AtrousSettings,
-) -> Filtered {
+) -> FilteredPlanes<'a> {
     let (width, height) = (guides.width as usize, guides.height as usize);
     let Workspace {
         guides: guide_image,
-        signal,
-        next,
+        outputs,
         blurred_variance,
         portable_only,
     } = workspace;
     guide_image.fill(guides);
-    signal.resize(width, height);
-    signal.bands_mut().for_each(|(first_row, rows)| {
-        for (row_in_band, row) in rows.chunks_mut(width * SIGNAL_PLANES).enumerate() {
-            let start = (first_row + row_in_band) * width;
-            for x in 0..width {
-                let c = illumination[start + x];
-                row[x] = c.x;
-                row[width + x] = c.y;
-                row[2 * width + x] = c.z;
-                row[3 * width + x] = variance[start + x];
-            }
-        }
-    });
-    next.resize(width, height);
     // SVGF prefilters the variance before every pass; here only before the first (later
     // passes read the variance the wavelet passes themselves filtered), a pass's cost less.
-    blur_variance(variance, guide_image, blurred_variance);
-    let mut first_iteration = None;
+    blur_variance(input, guide_image, blurred_variance);
+    // Pass i reads pass i - 1's output (the first reads `input`) and writes `outputs[0]`
+    // (the first), then `outputs[1]`, `outputs[2]`, `outputs[1]`, ... .
+    let output_of = |iteration: u32| match iteration {
+        0 => 0,
+        i => 1 + (i as usize - 1) % 2,
+    };
     for iteration in 0..settings.iterations {
+        let mut output = std::mem::take(&mut outputs[output_of(iteration)]);
+        output.resize(width, height);
         let pass = Pass {
             step: 1 << iteration,
             guides: guide_image,
-            input: signal,
+            input: match iteration {
+                0 => input,
+                i => &outputs[output_of(i - 1)],
+            },
             steering_variance: (iteration == 0).then_some(&blurred_variance[..]),
             settings,
             portable_only: *portable_only,
             carry_variance: iteration + 1 < settings.iterations,
         };
         // One set of row arrays per worker, not per band.
-        next.bands_mut().for_each_init(
+        output.bands_mut().for_each_init(
             || RowScratch::new(width),
             |scratch, (first_row, rows)| {
                 for (row_in_band, out) in rows.chunks_mut(width * SIGNAL_PLANES).enumerate() {
@@ -217,33 +179,15 @@ pub fn filter_with(
                 }
             },
         );
-        std::mem::swap(signal, next);
-        if iteration == 0 {
-            first_iteration = Some(colours(signal));
-        }
+        outputs[output_of(iteration)] = output;
     }
-    let illumination = colours(signal);
-    Filtered {
-        first_iteration: first_iteration.unwrap_or_else(|| illumination.clone()),
-        illumination,
+    if settings.iterations == 0 {
+        outputs[0].clone_from(input);
     }
-}
-
-fn colours(signal: &RowPlanes<SIGNAL_PLANES>) -> Vec<Vec3> {
-    // Collected, not zero-filled then written: glibc serves a freed multi-megabyte buffer
-    // again from the heap, and calloc then clears it byte by byte.
-    let width = signal.width;
-    (0..width * signal.height)
-        .into_par_iter()
-        .map(|p| {
-            let (x, y) = (p % width, p / width);
-            Vec3::new(
-                signal.row(y, RED)[x],
-                signal.row(y, GREEN)[x],
-                signal.row(y, BLUE)[x],
-            )
-        })
-        .collect()
+    FilteredPlanes {
+        illumination: &outputs[output_of(settings.iterations.max(1) - 1)],
+        first_iteration: &outputs[0],
+    }
 }
 
 impl GuideImage {
@@ -285,7 +229,7 @@ impl GuideImage {
 /// pixel does not count; a neighbour on another instance is no difference), the larger
 /// axis. Zero for the sky.
 fn depth_slope_row(planes: &RowPlanes<GUIDE_PLANES>, instances: &[u32], y: usize, out: &mut [f32]) {
-    let (width, height) = (planes.width, planes.height);
+    let (width, height) = (planes.width(), planes.height());
     let depth = planes.row(y, DEPTH);
     let instance = &instances[y * width..(y + 1) * width];
     // The difference to a neighbour, or none (infinity) when it is another surface.
@@ -365,7 +309,7 @@ impl RowScratch {
 struct Pass<'a> {
     step: usize,
     guides: &'a GuideImage,
-    input: &'a RowPlanes<SIGNAL_PLANES>,
+    input: &'a SignalPlanes,
     /// The prefiltered variance steering the luminance weight on the first pass (row-major);
     /// later passes steer by the variance they carry.
     steering_variance: Option<&'a [f32]>,
@@ -418,7 +362,7 @@ impl Pass<'_> {
         scratch: &mut RowScratch,
         out: &mut [f32],
     ) {
-        let (width, height) = (self.input.width, self.input.height);
+        let (width, height) = (self.input.width(), self.input.height());
         let (guides, input, settings) = (&self.guides.planes, self.input, self.settings);
         let step = self.step;
 
@@ -591,8 +535,8 @@ fn fast_exp(x: f32) -> f32 {
 
 /// The variance under a 3 x 3 Gaussian (1/4, 1/2, 1/4 per axis), over non-sky pixels:
 /// SVGF's prefilter, so one noisy variance estimate does not decide a weight.
-fn blur_variance(variance: &[f32], guides: &GuideImage, out: &mut Vec<f32>) {
-    let (width, height) = (guides.planes.width, guides.planes.height);
+fn blur_variance(input: &SignalPlanes, guides: &GuideImage, out: &mut Vec<f32>) {
+    let (width, height) = (guides.planes.width(), guides.planes.height());
     out.resize(width * height, 0.0);
     let instances = &guides.instances;
     out.par_chunks_mut(width.max(1)).enumerate().for_each_init(
@@ -610,7 +554,7 @@ fn blur_variance(variance: &[f32], guides: &GuideImage, out: &mut Vec<f32>) {
                     let end = (width as isize - shift).min(width as isize) as usize;
                     let tap_first = (first as isize + shift) as usize;
                     let len = end - first;
-                    let tap_variance = &variance[tap_y * width + tap_first..][..len];
+                    let tap_variance = &input.row(tap_y, VARIANCE)[tap_first..][..len];
                     let tap_instance = &instances[tap_y * width + tap_first..][..len];
                     let kernel = KERNEL[kx] * KERNEL[ky];
                     for ((sum, weight), (v, instance)) in out[first..end]
@@ -732,11 +676,25 @@ mod tests {
             portable_only: true,
             ..Workspace::default()
         };
-        let a = filter_with(&mut portable, &illumination, &variance, &guides, &settings);
+        let input = SignalPlanes::from_pixels(&illumination, &variance, width as usize);
+        let a = filter_with(&mut portable, &input, &guides, &settings);
+        let (a_illumination, a_first) = (a.illumination.colours(), a.first_iteration.colours());
         let b = filter(&illumination, &variance, &guides, &settings);
-        assert!(a.illumination.iter().all(|c| c.is_finite()));
-        assert_eq!(a.illumination, b.illumination);
-        assert_eq!(a.first_iteration, b.first_iteration);
+        assert!(a_illumination.iter().all(|c| c.is_finite()));
+        assert_eq!(a_illumination, b.illumination);
+        assert_eq!(a_first, b.first_iteration);
+        // The iterations' outputs are rotated through three buffers: the first is kept.
+        let first_only = filter(
+            &illumination,
+            &variance,
+            &guides,
+            &AtrousSettings {
+                iterations: 1,
+                ..settings.clone()
+            },
+        );
+        assert_eq!(first_only.illumination, b.first_iteration);
+        assert_ne!(b.illumination, b.first_iteration);
     }
 
     #[test]

@@ -8,13 +8,16 @@
 //!
 //! Reads a frame rendered with `render_guided`; knows nothing of the ECS.
 
-use glam::Affine3A;
+use std::time::Instant;
+
+use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use super::atrous::{self, AtrousSettings};
 use super::camera::Camera;
 use super::film::Film;
 use super::guides::Guides;
+use super::planes::{BAND_ROWS, BLUE, GREEN, RED, SignalPlanes};
 use super::temporal::{TemporalFilter, TemporalSettings};
 
 /// Which filters run.
@@ -48,6 +51,26 @@ impl FilterMode {
     }
 }
 
+/// Wall-clock milliseconds of each step of the last `FrameFilter::apply`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FilmPhaseTimes {
+    /// Step 1: demodulation, reprojection, validation, clamping, blending.
+    pub temporal: f64,
+    /// Step 2: the a-trous passes (with the guide planes they read).
+    pub spatial: f64,
+    /// Step 3: remodulation, and the first pass's output fed back into the history.
+    pub remodulate: f64,
+}
+
+impl FilmPhaseTimes {
+    /// The steps' names, in `as_array` order (the profiler's `film.*` rows).
+    pub const NAMES: [&str; 3] = ["temporal", "spatial", "remodulate"];
+
+    pub fn as_array(&self) -> [f64; 3] {
+        [self.temporal, self.spatial, self.remodulate]
+    }
+}
+
 /// The filter chain and its state across frames.
 #[derive(Default)]
 pub struct FrameFilter {
@@ -58,6 +81,8 @@ pub struct FrameFilter {
     pub feed_back: bool,
     /// The spatial filter's buffers, kept between frames.
     atrous_workspace: atrous::Workspace,
+    /// How long each step of the last `apply` took.
+    pub last_times: FilmPhaseTimes,
 }
 
 impl FrameFilter {
@@ -68,6 +93,7 @@ impl FrameFilter {
             atrous: AtrousSettings::default(),
             feed_back: true,
             atrous_workspace: atrous::Workspace::default(),
+            last_times: FilmPhaseTimes::default(),
         }
     }
 
@@ -85,46 +111,102 @@ impl FrameFilter {
         camera: &Camera,
         instances: &[Affine3A],
     ) -> Film {
-        if self.mode == FilterMode::Off {
-            return radiance.clone();
-        }
-        let accumulated = {
-            profiling::scope!("film.temporal");
-            self.temporal
-                .accumulate(radiance, guides, camera, instances)
-        };
-        let mut first_iteration = None;
-        let filtered;
-        let illumination = if self.mode == FilterMode::Full && self.atrous.iterations > 0 {
-            profiling::scope!("film.spatial");
-            let output = atrous::filter_with(
-                &mut self.atrous_workspace,
-                &accumulated.illumination,
-                &accumulated.variance,
-                guides,
-                &self.atrous,
-            );
-            first_iteration = Some(output.first_iteration);
-            filtered = output.illumination;
-            &filtered
-        } else {
-            &accumulated.illumination
-        };
-        // 3. Remodulate.
-        profiling::scope!("film.remodulate");
-        let pixels = guides
-            .pixels
-            .par_iter()
-            .zip(illumination.par_iter())
-            .map(|(g, i)| g.modulate(*i))
-            .collect();
-        if let Some(first_iteration) = first_iteration.filter(|_| self.feed_back) {
-            self.temporal.feed_back(&first_iteration);
-        }
-        Film {
+        let mut image = Film {
             width: radiance.width,
             height: radiance.height,
-            pixels,
+            pixels: Vec::new(),
+        };
+        self.apply_into(radiance, guides, camera, instances, &mut image);
+        image
+    }
+
+    /// `apply`, into `image` (its buffer reused: the game keeps last frame's).
+    pub fn apply_into(
+        &mut self,
+        radiance: &Film,
+        guides: &Guides,
+        camera: &Camera,
+        instances: &[Affine3A],
+        image: &mut Film,
+    ) {
+        let FrameFilter {
+            mode,
+            temporal,
+            atrous: settings,
+            feed_back,
+            atrous_workspace,
+            last_times,
+        } = self;
+        *last_times = FilmPhaseTimes::default();
+        if *mode == FilterMode::Off {
+            image.clone_from(radiance);
+            return;
+        }
+        let milliseconds_since = |start: Instant| start.elapsed().as_secs_f64() * 1e3;
+        // 1. Temporal accumulation.
+        let start = Instant::now();
+        {
+            profiling::scope!("film.temporal");
+            temporal.accumulate(radiance, guides, camera, instances);
+        }
+        last_times.temporal = milliseconds_since(start);
+        if *mode == FilterMode::Full && settings.iterations > 0 {
+            // 2. The a-trous passes.
+            let start = Instant::now();
+            let filtered = {
+                profiling::scope!("film.spatial");
+                atrous::filter_with(
+                    atrous_workspace,
+                    &temporal.accumulated().signal,
+                    guides,
+                    settings,
+                )
+            };
+            last_times.spatial = milliseconds_since(start);
+            // 3. Remodulate, and keep the first pass as history.
+            let start = Instant::now();
+            profiling::scope!("film.remodulate");
+            remodulate(guides, filtered.illumination, image);
+            if *feed_back {
+                temporal.feed_back(filtered.first_iteration);
+            }
+            last_times.remodulate = milliseconds_since(start);
+        } else {
+            // 3. Remodulate.
+            let start = Instant::now();
+            profiling::scope!("film.remodulate");
+            remodulate(guides, &temporal.accumulated().signal, image);
+            last_times.remodulate = milliseconds_since(start);
         }
     }
+}
+
+/// Step 3: `image` = `illumination` x albedo + emission, pixel by pixel (sky: its own).
+fn remodulate(guides: &Guides, illumination: &SignalPlanes, image: &mut Film) {
+    let width = guides.width as usize;
+    image.width = guides.width;
+    image.height = guides.height;
+    image.pixels.resize(guides.pixels.len(), Vec3::ZERO);
+    image
+        .pixels
+        .par_chunks_mut((width * BAND_ROWS).max(1))
+        .zip(guides.pixels.par_chunks((width * BAND_ROWS).max(1)))
+        .enumerate()
+        .for_each(|(band, (pixels, guide_pixels))| {
+            for (row_in_band, (pixels, guide_pixels)) in pixels
+                .chunks_mut(width)
+                .zip(guide_pixels.chunks(width))
+                .enumerate()
+            {
+                let y = band * BAND_ROWS + row_in_band;
+                let (red, green, blue) = (
+                    illumination.row(y, RED),
+                    illumination.row(y, GREEN),
+                    illumination.row(y, BLUE),
+                );
+                for (x, (pixel, guide)) in pixels.iter_mut().zip(guide_pixels).enumerate() {
+                    *pixel = guide.modulate(Vec3::new(red[x], green[x], blue[x]));
+                }
+            }
+        });
 }

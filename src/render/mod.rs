@@ -31,6 +31,7 @@ pub mod guides;
 pub mod integrator;
 pub mod light;
 pub mod material;
+pub mod planes;
 pub mod sampler;
 pub mod sampling;
 pub mod scene;
@@ -44,6 +45,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 pub use camera::Camera;
+pub use denoise::FilmPhaseTimes;
 pub use film::Film;
 pub use guides::{GuidePixel, Guides};
 pub use integrator::{IntegratorKind, RayCounts};

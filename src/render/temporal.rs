@@ -22,6 +22,7 @@ use rayon::prelude::*;
 use super::camera::{Camera, Projection};
 use super::film::Film;
 use super::guides::{GuidePixel, Guides, NO_INSTANCE};
+use super::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
 #[derive(Clone, Debug, PartialEq)]
@@ -68,19 +69,16 @@ pub struct History {
 /// What this frame's accumulation gives the spatial filter.
 #[derive(Clone, Debug, Default)]
 pub struct Accumulated {
-    pub illumination: Vec<Vec3>,
-    /// Luminance variance per pixel (from the moments, or from the neighbourhood while
-    /// the history is short).
-    pub variance: Vec<f32>,
+    /// The averaged illumination, and its luminance variance per pixel (from the moments,
+    /// or from the neighbourhood while the history is short), in the planes the a-trous
+    /// passes read.
+    pub signal: SignalPlanes,
     pub history_length: Vec<f32>,
 }
 
 /// History lengths below this use the neighbourhood's variance (SVGF's rule: the moments
 /// of a few frames say little).
 const SHORT_HISTORY: f32 = 4.0;
-
-/// Rows per parallel job in every filter pass: tall enough to amortise the handoff.
-pub(super) const BAND_ROWS: usize = 8;
 
 #[derive(Default)]
 pub struct TemporalFilter {
@@ -203,20 +201,19 @@ impl TemporalFilter {
             settings: &self.settings,
         });
         let accumulated = &mut self.accumulated;
-        accumulated.illumination.resize(count, Vec3::ZERO);
-        accumulated.variance.resize(count, 0.0);
+        accumulated.signal.resize(width as usize, height as usize);
         accumulated.history_length.resize(count, 0.0);
         self.next_history.resize(count, History::default());
         let (current, surfaces, settings) = (&self.current, &self.next_surfaces, &self.settings);
+        let row_planes = width as usize * SIGNAL_PLANES;
         self.next_history
             .par_chunks_mut(band)
-            .zip(accumulated.illumination.par_chunks_mut(band))
-            .zip(accumulated.variance.par_chunks_mut(band))
+            .zip(accumulated.signal.bands_mut())
             .zip(accumulated.history_length.par_chunks_mut(band))
             .enumerate()
             .for_each_init(
                 || NeighbourhoodRows::new(width as usize),
-                |rows, (band_index, (((histories, illuminations), variances), lengths))| {
+                |rows, (band_index, ((histories, (_, signal)), lengths))| {
                     let first_row = (band_index * BAND_ROWS) as u32;
                     let last_row = first_row + (histories.len() as u32).div_ceil(width) - 1;
                     rows.sum_band(current, surfaces, width, height, first_row, last_row);
@@ -233,8 +230,12 @@ impl TemporalFilter {
                             blend(current[index], &around, before, settings)
                         };
                         histories[offset] = history;
-                        illuminations[offset] = history.illumination;
-                        variances[offset] = variance;
+                        let row = &mut signal[(y - first_row) as usize * row_planes..];
+                        let x_at = x as usize;
+                        row[RED * width as usize + x_at] = history.illumination.x;
+                        row[GREEN * width as usize + x_at] = history.illumination.y;
+                        row[BLUE * width as usize + x_at] = history.illumination.z;
+                        row[VARIANCE * width as usize + x_at] = variance;
                         lengths[offset] = history.length;
                         x += 1;
                         if x == width {
@@ -251,15 +252,31 @@ impl TemporalFilter {
         &self.accumulated
     }
 
+    /// What the last `accumulate` gave.
+    pub fn accumulated(&self) -> &Accumulated {
+        &self.accumulated
+    }
+
     /// Replaces the history's illumination (SVGF keeps the first a-trous iteration's
     /// output as history: less noise carried forward).
-    pub fn feed_back(&mut self, illumination: &[Vec3]) {
-        if illumination.len() == self.history.len() {
-            self.history
-                .par_iter_mut()
-                .zip(illumination)
-                .for_each(|(history, value)| history.illumination = *value);
+    pub fn feed_back(&mut self, illumination: &SignalPlanes) {
+        let width = illumination.width();
+        if width * illumination.height() != self.history.len() || width == 0 {
+            return;
         }
+        self.history
+            .par_chunks_mut(width)
+            .enumerate()
+            .for_each(|(y, histories)| {
+                let (red, green, blue) = (
+                    illumination.row(y, RED),
+                    illumination.row(y, GREEN),
+                    illumination.row(y, BLUE),
+                );
+                for (x, history) in histories.iter_mut().enumerate() {
+                    history.illumination = Vec3::new(red[x], green[x], blue[x]);
+                }
+            });
     }
 }
 
@@ -349,46 +366,57 @@ impl Reprojection<'_> {
         let depth = (position - self.camera_position).length();
 
         let corner = film - Vec2::splat(0.5);
-        // Left of or above the first pixel's centre by a pixel or more: no tap is inside.
-        if corner.x < -1.0 || corner.y < -1.0 {
+        // Left of or above the first pixel's centre by a pixel or more, or right of or
+        // below the last's: no tap is inside (and the casts below stay in range).
+        let (width, height) = (self.width as f32, self.height as f32);
+        if !(corner.x >= -1.0 && corner.y >= -1.0 && corner.x < width && corner.y < height) {
             return None;
         }
         // floor() is a libm call on baseline x86-64; shifted to >= 0, truncation is floor.
-        let (x0, y0) = (
-            (corner.x + 1.0) as i32 as f32 - 1.0,
-            (corner.y + 1.0) as i32 as f32 - 1.0,
+        let (x0, y0) = ((corner.x + 1.0) as i32 - 1, (corner.y + 1.0) as i32 - 1);
+        let (fx, fy) = (corner.x - x0 as f32, corner.y - y0 as f32);
+        let (depth_tolerance, normal_tolerance) = (
+            self.settings.depth_tolerance * depth,
+            self.settings.normal_tolerance,
         );
-        let (fx, fy) = (corner.x - x0, corner.y - y0);
-        let mut sum = History::default();
-        let mut weight_sum = 0.0;
-        for (dx, dy, weight) in [
+        let normal = Vec3::from(normal);
+        // The taps' bilinear weights, zero for a tap off the film or on another surface.
+        let mut taps = [(0usize, 0.0f32); 4];
+        for (tap, (dx, dy, weight)) in taps.iter_mut().zip([
             (0, 0, (1.0 - fx) * (1.0 - fy)),
             (1, 0, fx * (1.0 - fy)),
             (0, 1, (1.0 - fx) * fy),
             (1, 1, fx * fy),
-        ] {
-            let (x, y) = (x0 as i64 + dx, y0 as i64 + dy);
-            if weight <= 0.0 || x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64
-            {
+        ]) {
+            let (x, y) = (x0 + dx, y0 + dy);
+            if x < 0 || y < 0 || x >= self.width as i32 || y >= self.height as i32 {
                 continue;
             }
-            let index = (y as u32 * self.width + x as u32) as usize;
+            let index = y as usize * self.width as usize + x as usize;
             let then = &self.surfaces[index];
             let same_surface = then.instance == guide.instance
-                && (then.depth - depth).abs() <= self.settings.depth_tolerance * depth
-                && then.normal.dot(normal.into()) >= self.settings.normal_tolerance;
+                && (then.depth - depth).abs() <= depth_tolerance
+                && then.normal.dot(normal) >= normal_tolerance;
             if same_surface {
-                let h = &self.history[index];
-                sum.illumination += h.illumination * weight;
-                sum.moments += h.moments * weight;
-                sum.length += h.length * weight;
-                weight_sum += weight;
+                *tap = (index, weight);
             }
         }
-        (weight_sum > 1e-2).then(|| History {
-            illumination: sum.illumination / weight_sum,
-            moments: sum.moments / weight_sum,
-            length: sum.length / weight_sum,
+        let weight_sum: f32 = taps.iter().map(|(_, weight)| weight).sum();
+        if weight_sum <= 1e-2 {
+            return None;
+        }
+        let mut sum = History::default();
+        for (index, weight) in taps {
+            let h = &self.history[index];
+            sum.illumination += h.illumination * weight;
+            sum.moments += h.moments * weight;
+            sum.length += h.length * weight;
+        }
+        let normalise = 1.0 / weight_sum;
+        Some(History {
+            illumination: sum.illumination * normalise,
+            moments: sum.moments * normalise,
+            length: sum.length * normalise,
         })
     }
 }
@@ -573,7 +601,7 @@ mod tests {
         }
         assert_eq!(last.history_length[5 * 32 + 7], 10.0);
         // With weights 1/n (n <= 10 = 1/alpha_min) the average is the plain mean.
-        assert!((last.illumination[5 * 32 + 7].x - 0.8).abs() < 1e-5);
+        assert!((last.signal.illumination(5 * 32 + 7).x - 0.8).abs() < 1e-5);
     }
 
     #[test]
@@ -607,10 +635,10 @@ mod tests {
                 }
                 let expected = if p.x > 0.0 { 0.5 } else { 0.05 };
                 assert!(
-                    (out.illumination[index].x - expected).abs() < 1e-3,
+                    (out.signal.illumination(index).x - expected).abs() < 1e-3,
                     "({x}, {y}) at world x {}: {}",
                     p.x,
-                    out.illumination[index].x
+                    out.signal.illumination(index).x
                 );
                 assert_eq!(out.history_length[index], 2.0);
             }
@@ -642,7 +670,7 @@ mod tests {
         let mut sky = nearer.clone();
         sky.pixels[0].instance = NO_INSTANCE;
         let out = filter.accumulate(&film(|_, _| Vec3::ONE), &sky, &camera, &identity);
-        assert_eq!(out.illumination[0], Vec3::ZERO);
+        assert_eq!(out.signal.illumination(0), Vec3::ZERO);
     }
 
     #[test]
@@ -671,7 +699,7 @@ mod tests {
                 let index = (y * 32 + x) as usize;
                 assert_eq!(out.history_length[index], 2.0);
                 let expected = guides.pixels[index].demodulate(current.pixels[index]).x;
-                assert!((out.illumination[index].x - expected).abs() < 2e-3);
+                assert!((out.signal.illumination(index).x - expected).abs() < 2e-3);
             }
         }
     }
