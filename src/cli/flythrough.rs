@@ -354,8 +354,8 @@ fn instances_under(engine: &mut Engine, root: Entity) -> Vec<u32> {
 /// Pixels whose first hit is one of `instances`.
 fn mover_mask(guides: &Guides, instances: &[u32]) -> Vec<bool> {
     guides
-        .pixels
+        .instances()
         .iter()
-        .map(|g| instances.contains(&g.instance))
+        .map(|instance| instances.contains(instance))
         .collect()
 }

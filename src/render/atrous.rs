@@ -20,10 +20,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::guides::{Guides, NO_INSTANCE};
-use super::planes::{
-    BAND_ROWS, BLUE, GREEN, RED, RowPlanes, SIGNAL_PLANES, SignalPlanes, VARIANCE,
+use super::guides::{
+    ALBEDO_B, ALBEDO_G, ALBEDO_R, DEPTH, Guides, NO_INSTANCE, NORMAL_X, NORMAL_Y, NORMAL_Z,
 };
+use super::planes::{BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct AtrousSettings {
@@ -81,20 +81,11 @@ fn luminance(r: f32, g: f32, b: f32) -> f32 {
     0.2126 * r + 0.7152 * g + 0.0722 * b
 }
 
-/// Guide planes.
-const NORMAL_X: usize = 0;
-const NORMAL_Y: usize = 1;
-const NORMAL_Z: usize = 2;
-const DEPTH: usize = 3;
-const ALBEDO_R: usize = 4;
-const ALBEDO_G: usize = 5;
-const ALBEDO_B: usize = 6;
-const GUIDE_PLANES: usize = 7;
-
 /// The filter's buffers, kept from frame to frame (`FrameFilter` owns one).
 #[derive(Default)]
 pub struct Workspace {
-    guides: GuideImage,
+    /// How fast depth changes per pixel across its surface, row-major.
+    depth_slope: Vec<f32>,
     /// The passes' outputs: the first pass writes `outputs[0]` (kept: it is the history's
     /// next illumination), later passes alternate between the other two.
     outputs: [SignalPlanes; 3],
@@ -102,16 +93,6 @@ pub struct Workspace {
     blurred_variance: Vec<f32>,
     /// Run the portable rows even where AVX2 is present (tests compare the two).
     portable_only: bool,
-}
-
-/// What every pass reads of the frame's guides.
-#[derive(Default)]
-struct GuideImage {
-    planes: RowPlanes<GUIDE_PLANES>,
-    /// Row-major: instance per pixel (`NO_INSTANCE` for the sky) ...
-    instances: Vec<u32>,
-    /// ... and how fast depth changes per pixel across its surface.
-    depth_slope: Vec<f32>,
 }
 
 /// Filters with a workspace of its own (tests and one-off images; the game keeps one).
@@ -140,15 +121,27 @@ pub fn filter_with<'a>(
 ) -> FilteredPlanes<'a> {
     let (width, height) = (guides.width as usize, guides.height as usize);
     let Workspace {
-        guides: guide_image,
+        depth_slope,
         outputs,
         blurred_variance,
         portable_only,
     } = workspace;
-    guide_image.fill(guides);
     // SVGF prefilters the variance before every pass; here only before the first (later
     // passes read the variance the wavelet passes themselves filtered), a pass's cost less.
-    blur_variance(input, guide_image, blurred_variance);
+    // One parallel pass over the rows does both (a handoff less than two).
+    depth_slope.resize(width * height, 0.0);
+    blurred_variance.resize(width * height, 0.0);
+    depth_slope
+        .par_chunks_mut(width.max(1))
+        .zip(blurred_variance.par_chunks_mut(width.max(1)))
+        .enumerate()
+        .for_each_init(
+            || vec![0.0f32; width],
+            |weights, (y, (slopes, blurred))| {
+                depth_slope_row(guides, y, slopes);
+                blur_variance_row(input, guides, y, weights, blurred);
+            },
+        );
     // Pass i reads pass i - 1's output (the first reads `input`) and writes `outputs[0]`
     // (the first), then `outputs[1]`, `outputs[2]`, `outputs[1]`, ... .
     let output_of = |iteration: u32| match iteration {
@@ -160,7 +153,8 @@ pub fn filter_with<'a>(
         output.resize(width, height);
         let pass = Pass {
             step: 1 << iteration,
-            guides: guide_image,
+            guides,
+            depth_slope,
             input: match iteration {
                 0 => input,
                 i => &outputs[output_of(i - 1)],
@@ -190,46 +184,13 @@ pub fn filter_with<'a>(
     }
 }
 
-impl GuideImage {
-    /// Copies the guides into planes and finds each pixel's depth slope.
-    fn fill(&mut self, guides: &Guides) {
-        let (width, height) = (guides.width as usize, guides.height as usize);
-        self.planes.resize(width, height);
-        self.instances.resize(width * height, NO_INSTANCE);
-        self.depth_slope.resize(width * height, 0.0);
-        self.planes
-            .bands_mut()
-            .zip(self.instances.par_chunks_mut((width * BAND_ROWS).max(1)))
-            .for_each(|((first_row, rows), instances)| {
-                for (row_in_band, row) in rows.chunks_mut(width * GUIDE_PLANES).enumerate() {
-                    let start = (first_row + row_in_band) * width;
-                    for x in 0..width {
-                        let g = &guides.pixels[start + x];
-                        row[NORMAL_X * width + x] = g.normal.x;
-                        row[NORMAL_Y * width + x] = g.normal.y;
-                        row[NORMAL_Z * width + x] = g.normal.z;
-                        row[DEPTH * width + x] = g.depth;
-                        row[ALBEDO_R * width + x] = g.albedo.x;
-                        row[ALBEDO_G * width + x] = g.albedo.y;
-                        row[ALBEDO_B * width + x] = g.albedo.z;
-                        instances[row_in_band * width + x] = g.instance;
-                    }
-                }
-            });
-        let (planes, instances) = (&self.planes, &self.instances);
-        self.depth_slope
-            .par_chunks_mut(width.max(1))
-            .enumerate()
-            .for_each(|(y, slopes)| depth_slope_row(planes, instances, y, slopes));
-    }
-}
-
 /// Row y's depth slopes: per pixel, how fast depth changes per pixel across the surface,
 /// the smaller of the forward and backward differences on each axis (so an edge beside the
 /// pixel does not count; a neighbour on another instance is no difference), the larger
 /// axis. Zero for the sky.
-fn depth_slope_row(planes: &RowPlanes<GUIDE_PLANES>, instances: &[u32], y: usize, out: &mut [f32]) {
-    let (width, height) = (planes.width(), planes.height());
+fn depth_slope_row(guides: &Guides, y: usize, out: &mut [f32]) {
+    let (width, height) = (guides.width as usize, guides.height as usize);
+    let (planes, instances) = (guides, guides.instances());
     let depth = planes.row(y, DEPTH);
     let instance = &instances[y * width..(y + 1) * width];
     // The difference to a neighbour, or none (infinity) when it is another surface.
@@ -308,7 +269,8 @@ impl RowScratch {
 /// One wavelet pass: `step` pixels between taps.
 struct Pass<'a> {
     step: usize,
-    guides: &'a GuideImage,
+    guides: &'a Guides,
+    depth_slope: &'a [f32],
     input: &'a SignalPlanes,
     /// The prefiltered variance steering the luminance weight on the first pass (row-major);
     /// later passes steer by the variance they carry.
@@ -343,6 +305,8 @@ impl Pass<'_> {
     }
 
     /// The same code compiled for 8 lanes. No FMA: the two give identical results.
+    /// (Written out in intrinsics with each run of 8 pixels' sums kept in registers across
+    /// its 8 taps, the pass measured slower: 8.4 against 5.8 ms a frame, `gloam bench`.)
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn row_avx2<const CARRY_VARIANCE: bool>(
@@ -362,8 +326,17 @@ impl Pass<'_> {
         scratch: &mut RowScratch,
         out: &mut [f32],
     ) {
-        let (width, height) = (self.input.width(), self.input.height());
-        let (guides, input, settings) = (&self.guides.planes, self.input, self.settings);
+        self.centre(y, scratch);
+        self.taps::<CARRY_VARIANCE>(y, scratch, 0, self.input.width());
+        self.normalise::<CARRY_VARIANCE>(y, scratch, out);
+    }
+
+    /// Row `y`'s per-pixel scales (divisions hoisted out of the taps) and its sums started
+    /// with the centre tap.
+    #[inline(always)]
+    fn centre(&self, y: usize, scratch: &mut RowScratch) {
+        let width = self.input.width();
+        let (guides, input, settings) = (self.guides, self.input, self.settings);
         let step = self.step;
 
         // The centre: per-pixel scales (divisions hoisted out of the taps) and the centre
@@ -374,7 +347,7 @@ impl Pass<'_> {
         };
         let (red, green, blue) = (input.row(y, RED), input.row(y, GREEN), input.row(y, BLUE));
         let depth = guides.row(y, DEPTH);
-        let slope = &self.guides.depth_slope[y * width..(y + 1) * width];
+        let slope = &self.depth_slope[y * width..(y + 1) * width];
         let variance = input.row(y, VARIANCE);
         for x in 0..width {
             scratch.luminance[x] = luminance(red[x], green[x], blue[x]);
@@ -391,17 +364,31 @@ impl Pass<'_> {
             scratch.sum[VARIANCE][x] = variance[x] * 0.0625;
             scratch.weights[x] = 0.25;
         }
+    }
 
+    /// Adds the 8 taps of pixels `range_start..range_end` of row `y` into its sums, a run of
+    /// `CHUNK` pixels at a time.
+    #[inline(always)]
+    fn taps<const CARRY_VARIANCE: bool>(
+        &self,
+        y: usize,
+        scratch: &mut RowScratch,
+        range_start: usize,
+        range_end: usize,
+    ) {
+        let (width, height) = (self.input.width(), self.input.height());
+        let (guides, input, settings) = (self.guides, self.input, self.settings);
+        let step = self.step;
         let albedo_scale = 1.0 / settings.sigma_albedo;
         // The taps of a run of CHUNK pixels before the next run's: the run's centre terms,
         // sums and tap rows stay in L1 across its 8 taps (whole 480-pixel rows spilled to
         // L2 each tap: 5.8 ns a tap against 3.4, `atrous_speed`).
         const CHUNK: usize = 128;
-        for (dx, dy, kernel, diagonal, chunk_start) in (0..width)
+        for (dx, dy, kernel, diagonal, chunk_start) in (range_start..range_end)
             .step_by(CHUNK)
             .flat_map(|chunk| TAPS.map(|(dx, dy, k, d)| (dx, dy, k, d, chunk)))
         {
-            let chunk_end = (chunk_start + CHUNK).min(width);
+            let chunk_end = (chunk_start + CHUNK).min(range_end);
             let tap_y = y as isize + dy * step as isize;
             if tap_y < 0 || tap_y >= height as isize {
                 continue;
@@ -427,7 +414,7 @@ impl Pass<'_> {
             let (centre_ar, centre_ag, centre_ab) =
                 (centre(ALBEDO_R), centre(ALBEDO_G), centre(ALBEDO_B));
             let (tap_ar, tap_ag, tap_ab) = (tap(ALBEDO_R), tap(ALBEDO_G), tap(ALBEDO_B));
-            let instances = &self.guides.instances;
+            let instances = self.guides.instances();
             let centre_instance = &instances[y * width + first..][..len];
             let tap_instance = &instances[tap_y * width + tap_first..][..len];
             let (tap_red, tap_green, tap_blue, tap_variance) = (
@@ -477,10 +464,21 @@ impl Pass<'_> {
                 weights[i] += weight;
             }
         }
+    }
 
+    /// Row `y`'s output: its sums over its weights.
+    #[inline(always)]
+    fn normalise<const CARRY_VARIANCE: bool>(
+        &self,
+        y: usize,
+        scratch: &RowScratch,
+        out: &mut [f32],
+    ) {
+        let (width, input) = (self.input.width(), self.input);
+        let variance = input.row(y, VARIANCE);
         // Normalise; the sky keeps its value. Slices cut to `width` so the loops vectorise
         // (indexed by x they were scalar with a bounds check per store: 7% of a pass).
-        let centre_instance = &self.guides.instances[y * width..(y + 1) * width];
+        let centre_instance = &self.guides.instances()[y * width..(y + 1) * width];
         let weights = &scratch.weights[..width];
         let (out_colour, out_variance) = out.split_at_mut(3 * width);
         for plane in [RED, GREEN, BLUE] {
@@ -533,50 +531,50 @@ fn fast_exp(x: f32) -> f32 {
     f32::from_bits((fraction.to_bits() as i32 + (whole << 23)) as u32)
 }
 
-/// The variance under a 3 x 3 Gaussian (1/4, 1/2, 1/4 per axis), over non-sky pixels:
+/// Row `y` of the variance under a 3 x 3 Gaussian (1/4, 1/2, 1/4 per axis), over non-sky pixels:
 /// SVGF's prefilter, so one noisy variance estimate does not decide a weight.
-fn blur_variance(input: &SignalPlanes, guides: &GuideImage, out: &mut Vec<f32>) {
-    let (width, height) = (guides.planes.width(), guides.planes.height());
-    out.resize(width * height, 0.0);
-    let instances = &guides.instances;
-    out.par_chunks_mut(width.max(1)).enumerate().for_each_init(
-        || vec![0.0f32; width],
-        |weights, (y, out)| {
-            weights.fill(0.0);
-            out.fill(0.0);
-            for (ky, tap_y) in [y.wrapping_sub(1), y, y + 1].into_iter().enumerate() {
-                // wrapping_sub turns -1 into usize::MAX, which fails the bound.
-                if tap_y >= height {
-                    continue;
-                }
-                for (kx, shift) in [-1isize, 0, 1].into_iter().enumerate() {
-                    let first = (-shift).max(0) as usize;
-                    let end = (width as isize - shift).min(width as isize) as usize;
-                    let tap_first = (first as isize + shift) as usize;
-                    let len = end - first;
-                    let tap_variance = &input.row(tap_y, VARIANCE)[tap_first..][..len];
-                    let tap_instance = &instances[tap_y * width + tap_first..][..len];
-                    let kernel = KERNEL[kx] * KERNEL[ky];
-                    for ((sum, weight), (v, instance)) in out[first..end]
-                        .iter_mut()
-                        .zip(&mut weights[first..end])
-                        .zip(tap_variance.iter().zip(tap_instance))
-                    {
-                        let w = if *instance == NO_INSTANCE {
-                            0.0
-                        } else {
-                            kernel
-                        };
-                        *sum += v * w;
-                        *weight += w;
-                    }
-                }
+fn blur_variance_row(
+    input: &SignalPlanes,
+    guides: &Guides,
+    y: usize,
+    weights: &mut [f32],
+    out: &mut [f32],
+) {
+    let (width, height) = (guides.width as usize, guides.height as usize);
+    let instances = guides.instances();
+    weights.fill(0.0);
+    out.fill(0.0);
+    for (ky, tap_y) in [y.wrapping_sub(1), y, y + 1].into_iter().enumerate() {
+        // wrapping_sub turns -1 into usize::MAX, which fails the bound.
+        if tap_y >= height {
+            continue;
+        }
+        for (kx, shift) in [-1isize, 0, 1].into_iter().enumerate() {
+            let first = (-shift).max(0) as usize;
+            let end = (width as isize - shift).min(width as isize) as usize;
+            let tap_first = (first as isize + shift) as usize;
+            let len = end - first;
+            let tap_variance = &input.row(tap_y, VARIANCE)[tap_first..][..len];
+            let tap_instance = &instances[tap_y * width + tap_first..][..len];
+            let kernel = KERNEL[kx] * KERNEL[ky];
+            for ((sum, weight), (v, instance)) in out[first..end]
+                .iter_mut()
+                .zip(&mut weights[first..end])
+                .zip(tap_variance.iter().zip(tap_instance))
+            {
+                let w = if *instance == NO_INSTANCE {
+                    0.0
+                } else {
+                    kernel
+                };
+                *sum += v * w;
+                *weight += w;
             }
-            for (sum, weight) in out.iter_mut().zip(weights.iter()) {
-                *sum = if *weight > 0.0 { *sum / weight } else { 0.0 };
-            }
-        },
-    );
+        }
+    }
+    for (sum, weight) in out.iter_mut().zip(weights.iter()) {
+        *sum = if *weight > 0.0 { *sum / weight } else { 0.0 };
+    }
 }
 
 #[cfg(test)]
@@ -586,8 +584,12 @@ mod tests {
     use glam::Vec3A;
 
     fn flat_guides(width: u32, height: u32) -> Guides {
-        let mut guides = Guides::new(width, height);
-        for g in &mut guides.pixels {
+        Guides::from_pixels(width, height, &flat_pixels(width, height))
+    }
+
+    fn flat_pixels(width: u32, height: u32) -> Vec<GuidePixel> {
+        let mut pixels = vec![GuidePixel::SKY; (width * height) as usize];
+        for g in &mut pixels {
             *g = GuidePixel {
                 position: Vec3A::ZERO,
                 normal: Vec3A::Z,
@@ -597,7 +599,7 @@ mod tests {
                 emission: Vec3::ZERO,
             };
         }
-        guides
+        pixels
     }
 
     /// A fixed pseudo-random sequence in [0, 1).
@@ -650,62 +652,66 @@ mod tests {
 
     #[test]
     fn portable_and_avx2_rows_give_identical_images() {
-        // Edges of every kind, noise, sky and an odd width (partial lanes at row ends).
-        let (width, height) = (37u32, 23u32);
-        let mut guides = flat_guides(width, height);
-        for (p, g) in guides.pixels.iter_mut().enumerate() {
-            let x = p as u32 % width;
-            g.depth = 2.0 + noise(p + 7) + x as f32 * 0.1;
-            g.normal = Vec3A::new(noise(p + 3) - 0.5, 0.3, 1.0).normalize();
-            g.albedo = Vec3::new(noise(p + 11), 0.5, 0.25);
-            g.instance = (x / 9) % 3;
-            if p % 29 == 0 {
-                *g = GuidePixel::SKY;
+        // Edges of every kind, noise, sky and odd widths (partial lanes at row ends; at 37
+        // the wider passes' taps leave the row for most pixels, at 101 for few).
+        for width in [37u32, 101] {
+            let height = 23u32;
+            let mut pixels = flat_pixels(width, height);
+            for (p, g) in pixels.iter_mut().enumerate() {
+                let x = p as u32 % width;
+                g.depth = 2.0 + noise(p + 7) + x as f32 * 0.1;
+                g.normal = Vec3A::new(noise(p + 3) - 0.5, 0.3, 1.0).normalize();
+                g.albedo = Vec3::new(noise(p + 11), 0.5, 0.25);
+                g.instance = (x / 9) % 3;
+                if p % 29 == 0 {
+                    *g = GuidePixel::SKY;
+                }
             }
+            let guides = Guides::from_pixels(width, height, &pixels);
+            let count = (width * height) as usize;
+            let illumination: Vec<Vec3> = (0..count)
+                .map(|i| Vec3::new(noise(i), noise(i + 1), noise(i + 2)) * 3.0)
+                .collect();
+            let variance: Vec<f32> = (0..count).map(|i| noise(i + 5)).collect();
+            let settings = AtrousSettings {
+                iterations: 5,
+                ..AtrousSettings::default()
+            };
+            let mut portable = Workspace {
+                portable_only: true,
+                ..Workspace::default()
+            };
+            let input = SignalPlanes::from_pixels(&illumination, &variance, width as usize);
+            let a = filter_with(&mut portable, &input, &guides, &settings);
+            let (a_illumination, a_first) = (a.illumination.colours(), a.first_iteration.colours());
+            let b = filter(&illumination, &variance, &guides, &settings);
+            assert!(a_illumination.iter().all(|c| c.is_finite()));
+            assert_eq!(a_illumination, b.illumination, "{width} wide");
+            assert_eq!(a_first, b.first_iteration, "{width} wide");
+            // The iterations' outputs are rotated through three buffers: the first is kept.
+            let first_only = filter(
+                &illumination,
+                &variance,
+                &guides,
+                &AtrousSettings {
+                    iterations: 1,
+                    ..settings.clone()
+                },
+            );
+            assert_eq!(first_only.illumination, b.first_iteration);
+            assert_ne!(b.illumination, b.first_iteration);
         }
-        let count = (width * height) as usize;
-        let illumination: Vec<Vec3> = (0..count)
-            .map(|i| Vec3::new(noise(i), noise(i + 1), noise(i + 2)) * 3.0)
-            .collect();
-        let variance: Vec<f32> = (0..count).map(|i| noise(i + 5)).collect();
-        let settings = AtrousSettings {
-            iterations: 5,
-            ..AtrousSettings::default()
-        };
-        let mut portable = Workspace {
-            portable_only: true,
-            ..Workspace::default()
-        };
-        let input = SignalPlanes::from_pixels(&illumination, &variance, width as usize);
-        let a = filter_with(&mut portable, &input, &guides, &settings);
-        let (a_illumination, a_first) = (a.illumination.colours(), a.first_iteration.colours());
-        let b = filter(&illumination, &variance, &guides, &settings);
-        assert!(a_illumination.iter().all(|c| c.is_finite()));
-        assert_eq!(a_illumination, b.illumination);
-        assert_eq!(a_first, b.first_iteration);
-        // The iterations' outputs are rotated through three buffers: the first is kept.
-        let first_only = filter(
-            &illumination,
-            &variance,
-            &guides,
-            &AtrousSettings {
-                iterations: 1,
-                ..settings.clone()
-            },
-        );
-        assert_eq!(first_only.illumination, b.first_iteration);
-        assert_ne!(b.illumination, b.first_iteration);
     }
 
     #[test]
     fn edges_in_normal_depth_albedo_and_instance_are_kept() {
         for edge in ["normal", "depth", "albedo", "instance"] {
-            let mut guides = flat_guides(32, 32);
+            let mut pixels = flat_pixels(32, 32);
             let mut illumination = vec![Vec3::splat(0.2); 32 * 32];
             for p in 0..32 * 32 {
                 if p % 32 >= 16 {
                     illumination[p] = Vec3::splat(1.0);
-                    let g = &mut guides.pixels[p];
+                    let g = &mut pixels[p];
                     match edge {
                         "normal" => g.normal = Vec3A::X,
                         "depth" => g.depth = 6.0,
@@ -714,6 +720,7 @@ mod tests {
                     }
                 }
             }
+            let guides = Guides::from_pixels(32, 32, &pixels);
             let out = filter(
                 &illumination,
                 &vec![100.0; 32 * 32],

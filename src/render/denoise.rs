@@ -16,8 +16,11 @@ use rayon::prelude::*;
 use super::atrous::{self, AtrousSettings};
 use super::camera::Camera;
 use super::film::Film;
-use super::guides::Guides;
-use super::planes::{BAND_ROWS, BLUE, GREEN, RED, SignalPlanes};
+use super::guides::{
+    ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, EMISSION_B, EMISSION_G, EMISSION_R, Guides,
+    NO_INSTANCE,
+};
+use super::planes::{BLUE, GREEN, RED, SignalPlanes};
 use super::temporal::{TemporalFilter, TemporalSettings};
 
 /// Which filters run.
@@ -181,31 +184,40 @@ impl FrameFilter {
     }
 }
 
-/// Step 3: `image` = `illumination` x albedo + emission, pixel by pixel (sky: its own).
+/// Step 3: `image` = `illumination` x albedo + emission, pixel by pixel (sky: its own
+/// emission); `GuidePixel::modulate` a row of lanes at a time.
 fn remodulate(guides: &Guides, illumination: &SignalPlanes, image: &mut Film) {
     let width = guides.width as usize;
     image.width = guides.width;
     image.height = guides.height;
-    image.pixels.resize(guides.pixels.len(), Vec3::ZERO);
     image
         .pixels
-        .par_chunks_mut((width * BAND_ROWS).max(1))
-        .zip(guides.pixels.par_chunks((width * BAND_ROWS).max(1)))
+        .resize((guides.width * guides.height) as usize, Vec3::ZERO);
+    let instances = guides.instances();
+    image
+        .pixels
+        .par_chunks_mut(width.max(1))
         .enumerate()
-        .for_each(|(band, (pixels, guide_pixels))| {
-            for (row_in_band, (pixels, guide_pixels)) in pixels
-                .chunks_mut(width)
-                .zip(guide_pixels.chunks(width))
-                .enumerate()
-            {
-                let y = band * BAND_ROWS + row_in_band;
-                let (red, green, blue) = (
-                    illumination.row(y, RED),
-                    illumination.row(y, GREEN),
-                    illumination.row(y, BLUE),
+        .for_each(|(y, pixels)| {
+            let instances = &instances[y * width..(y + 1) * width];
+            let channels = [
+                (RED, ALBEDO_R, EMISSION_R),
+                (GREEN, ALBEDO_G, EMISSION_G),
+                (BLUE, ALBEDO_B, EMISSION_B),
+            ];
+            for (channel, (signal, albedo, emission)) in channels.into_iter().enumerate() {
+                let (illumination, albedo, emission) = (
+                    illumination.row(y, signal),
+                    guides.row(y, albedo),
+                    guides.row(y, emission),
                 );
-                for (x, (pixel, guide)) in pixels.iter_mut().zip(guide_pixels).enumerate() {
-                    *pixel = guide.modulate(Vec3::new(red[x], green[x], blue[x]));
+                for x in 0..width {
+                    let lit = illumination[x] * albedo[x].max(ALBEDO_FLOOR) + emission[x];
+                    pixels[x][channel] = if instances[x] == NO_INSTANCE {
+                        emission[x]
+                    } else {
+                        lit
+                    };
                 }
             }
         });

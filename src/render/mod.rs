@@ -260,7 +260,7 @@ fn render_tiles(
     for tile in results {
         if let Some(guides) = &mut guides {
             for ((index, _), guide) in tile.pixels.iter().zip(tile.guides) {
-                guides.pixels[*index as usize] = guide;
+                guides.set(*index as usize, &guide);
             }
         }
         for (index, value) in tile.pixels {

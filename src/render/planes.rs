@@ -12,7 +12,7 @@ pub(super) const BAND_ROWS: usize = 8;
 /// (row y's plane k starts at (y PLANES + k) width). A tap reads a run of contiguous lanes
 /// per plane, so a row's taps vectorise; a band of rows is one slice, so bands are written
 /// in parallel. (Pixels as structs cost 29 ns a tap at 480 x 270; these planes, 1.2.)
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct RowPlanes<const PLANES: usize> {
     width: usize,
     height: usize,
@@ -41,6 +41,13 @@ impl<const PLANES: usize> RowPlanes<PLANES> {
     pub fn row(&self, y: usize, plane: usize) -> &[f32] {
         let start = (y * PLANES + plane) * self.width;
         &self.data[start..start + self.width]
+    }
+
+    /// Row `y` of plane `plane`, to write.
+    #[inline(always)]
+    pub fn row_mut(&mut self, y: usize, plane: usize) -> &mut [f32] {
+        let start = (y * PLANES + plane) * self.width;
+        &mut self.data[start..start + self.width]
     }
 
     /// Bands of `BAND_ROWS` rows, for parallel writing: (first row, its planes).

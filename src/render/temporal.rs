@@ -21,7 +21,10 @@ use rayon::prelude::*;
 
 use super::camera::{Camera, Projection};
 use super::film::Film;
-use super::guides::{GuidePixel, Guides, NO_INSTANCE};
+use super::guides::{
+    ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, DEPTH, EMISSION_B, EMISSION_G, EMISSION_R, Guides,
+    NO_INSTANCE, NORMAL_X, NORMAL_Y, NORMAL_Z,
+};
 use super::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
@@ -110,14 +113,6 @@ struct Surface {
 }
 
 impl Surface {
-    fn of(guide: &GuidePixel) -> Surface {
-        Surface {
-            normal: guide.normal.into(),
-            depth: guide.depth,
-            instance: guide.instance,
-        }
-    }
-
     fn is_sky(&self) -> bool {
         self.instance == NO_INSTANCE
     }
@@ -165,17 +160,37 @@ impl TemporalFilter {
         // 1. Demodulate, and keep this frame's surfaces for the next.
         self.current.resize(count, Vec4::ZERO);
         self.next_surfaces.resize(count, Surface::default());
+        let row_length = width as usize;
         self.current
-            .par_chunks_mut(band)
-            .zip(self.next_surfaces.par_chunks_mut(band))
+            .par_chunks_mut(row_length)
+            .zip(self.next_surfaces.par_chunks_mut(row_length))
             .enumerate()
-            .for_each(|(index, (current, surfaces))| {
-                let first = index * band;
-                for (offset, (c, surface)) in current.iter_mut().zip(surfaces).enumerate() {
-                    let guide = &guides.pixels[first + offset];
-                    let illumination = guide.demodulate(radiance.pixels[first + offset]);
-                    *c = illumination.extend(luminance(illumination));
-                    *surface = Surface::of(guide);
+            .for_each(|(y, (current, surfaces))| {
+                let start = y * row_length;
+                let radiance = &radiance.pixels[start..start + row_length];
+                let instances = &guides.instances()[start..start + row_length];
+                let row = |plane| guides.row(y, plane);
+                let (albedo_r, albedo_g, albedo_b) = (row(ALBEDO_R), row(ALBEDO_G), row(ALBEDO_B));
+                let (emission_r, emission_g, emission_b) =
+                    (row(EMISSION_R), row(EMISSION_G), row(EMISSION_B));
+                let (normal_x, normal_y, normal_z) = (row(NORMAL_X), row(NORMAL_Y), row(NORMAL_Z));
+                let depth = row(DEPTH);
+                for x in 0..row_length {
+                    // `GuidePixel::demodulate`, from the planes.
+                    let albedo = Vec3::new(albedo_r[x], albedo_g[x], albedo_b[x]);
+                    let emission = Vec3::new(emission_r[x], emission_g[x], emission_b[x]);
+                    let illumination = if instances[x] == NO_INSTANCE {
+                        Vec3::ZERO
+                    } else {
+                        (radiance[x] - emission).max(Vec3::ZERO)
+                            / albedo.max(Vec3::splat(ALBEDO_FLOOR))
+                    };
+                    current[x] = illumination.extend(luminance(illumination));
+                    surfaces[x] = Surface {
+                        normal: Vec3::new(normal_x[x], normal_y[x], normal_z[x]),
+                        depth: depth[x],
+                        instance: instances[x],
+                    };
                 }
             });
         // 2-5. Reproject, validate, clamp, blend.
@@ -224,8 +239,10 @@ impl TemporalFilter {
                         let (history, variance) = if surfaces[index].is_sky() {
                             (History::default(), 0.0)
                         } else {
-                            let guide = &guides.pixels[index];
-                            let before = reprojection.as_ref().and_then(|r| r.history_at(guide));
+                            let (position, normal) = guides.surface_at(x as usize, y as usize);
+                            let before = reprojection.as_ref().and_then(|r| {
+                                r.history_at(position, normal, surfaces[index].instance)
+                            });
                             let around = rows.neighbourhood(x, y);
                             blend(current[index], &around, before, settings)
                         };
@@ -351,15 +368,16 @@ struct Reprojection<'a> {
 }
 
 impl Reprojection<'_> {
-    /// The history under this pixel's first hit last frame, bilinearly weighted over the
-    /// taps that saw the same surface; None when none did (disocclusion).
-    fn history_at(&self, guide: &GuidePixel) -> Option<History> {
+    /// The history under a pixel's first hit (at `position`, facing `normal`, on
+    /// `instance`) last frame, bilinearly weighted over the taps that saw the same surface;
+    /// None when none did (disocclusion).
+    fn history_at(&self, position: Vec3A, normal: Vec3A, instance: u32) -> Option<History> {
         // Motion: where this point of the instance was last frame, and its normal then.
-        let (position, normal) = match self.motions.get(guide.instance as usize)? {
-            Motion::Still => (guide.position, guide.normal),
+        let (position, normal) = match self.motions.get(instance as usize)? {
+            Motion::Still => (position, normal),
             Motion::Moved(before_from_now) => (
-                before_from_now.transform_point3a(guide.position),
-                (before_from_now.matrix3 * guide.normal).normalize_or_zero(),
+                before_from_now.transform_point3a(position),
+                (before_from_now.matrix3 * normal).normalize_or_zero(),
             ),
         };
         let film = self.projection.project(position)?;
@@ -394,7 +412,7 @@ impl Reprojection<'_> {
             }
             let index = y as usize * self.width as usize + x as usize;
             let then = &self.surfaces[index];
-            let same_surface = then.instance == guide.instance
+            let same_surface = then.instance == instance
                 && (then.depth - depth).abs() <= depth_tolerance
                 && then.normal.dot(normal) >= normal_tolerance;
             if same_surface {
@@ -533,8 +551,21 @@ impl NeighbourhoodRows {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::GuidePixel;
     use crate::scene::world::CameraPlacement;
     use glam::Mat4;
+
+    /// `guides` with `edit` applied to every pixel.
+    fn edited(guides: &Guides, edit: impl Fn(&mut GuidePixel)) -> Guides {
+        let pixels: Vec<GuidePixel> = (0..(guides.width * guides.height) as usize)
+            .map(|index| {
+                let mut pixel = guides.pixel(index);
+                edit(&mut pixel);
+                pixel
+            })
+            .collect();
+        Guides::from_pixels(guides.width, guides.height, &pixels)
+    }
 
     fn camera(x: f32) -> Camera {
         let placement = CameraPlacement {
@@ -553,7 +584,7 @@ mod tests {
             for x in 0..32 {
                 let ray = camera.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), Vec2::ZERO);
                 let t = 5.0 / -ray.direction.z;
-                guides.pixels[(y * 32 + x) as usize] = GuidePixel {
+                let pixel = GuidePixel {
                     position: ray.origin + ray.direction * t,
                     normal: Vec3A::Z,
                     depth: t,
@@ -561,6 +592,7 @@ mod tests {
                     albedo: Vec3::splat(0.5),
                     emission: Vec3::ZERO,
                 };
+                guides.set((y * 32 + x) as usize, &pixel);
             }
         }
         guides
@@ -614,7 +646,7 @@ mod tests {
         // A pattern fixed on the wall: bright where world x > 0.
         let pattern = |camera: &Camera, guides: &Guides| {
             film(|x, y| {
-                let p = guides.pixels[(y * camera.width + x) as usize].position;
+                let p = guides.pixel((y * camera.width + x) as usize).position;
                 Vec3::splat(if p.x > 0.0 { 0.5 } else { 0.05 })
             })
         };
@@ -629,7 +661,7 @@ mod tests {
         for y in 2..14 {
             for x in 2..28 {
                 let index = (y * 32 + x) as usize;
-                let p = guides.pixels[index].position;
+                let p = guides.pixel(index).position;
                 if (p.x.abs()) < 0.5 {
                     continue; // the edge, blended by the bilinear taps
                 }
@@ -655,12 +687,10 @@ mod tests {
         let identity = [Affine3A::IDENTITY, Affine3A::IDENTITY];
         filter.accumulate(&film(|_, _| Vec3::ONE), &guides, &camera, &identity);
         // Same place, but now another instance, then the same instance much nearer.
-        let mut other = guides.clone();
-        other.pixels.iter_mut().for_each(|g| g.instance = 1);
+        let other = edited(&guides, |g| g.instance = 1);
         let out = filter.accumulate(&film(|_, _| Vec3::ONE), &other, &camera, &identity);
         assert!(out.history_length.iter().all(|&l| l == 1.0));
-        let mut nearer = other.clone();
-        nearer.pixels.iter_mut().for_each(|g| {
+        let nearer = edited(&other, |g| {
             g.depth *= 0.5;
             g.position = camera.position + (g.position - camera.position) * 0.5;
         });
@@ -668,7 +698,13 @@ mod tests {
         assert!(out.history_length.iter().all(|&l| l == 1.0));
         // Sky pixels carry nothing.
         let mut sky = nearer.clone();
-        sky.pixels[0].instance = NO_INSTANCE;
+        sky.set(
+            0,
+            &GuidePixel {
+                instance: NO_INSTANCE,
+                ..nearer.pixel(0)
+            },
+        );
         let out = filter.accumulate(&film(|_, _| Vec3::ONE), &sky, &camera, &identity);
         assert_eq!(out.signal.illumination(0), Vec3::ZERO);
     }
@@ -684,7 +720,7 @@ mod tests {
         // Frame 1: the wall at rest shows a ramp.
         let ramp = |guides: &Guides, shift: f32| {
             film(|x, y| {
-                let p = guides.pixels[(y * 32 + x) as usize].position;
+                let p = guides.pixel((y * 32 + x) as usize).position;
                 Vec3::splat(((p.x - shift) * 0.1 + 0.5).clamp(0.0, 1.0) * 0.5)
             })
         };
@@ -698,7 +734,7 @@ mod tests {
             for x in 4..28 {
                 let index = (y * 32 + x) as usize;
                 assert_eq!(out.history_length[index], 2.0);
-                let expected = guides.pixels[index].demodulate(current.pixels[index]).x;
+                let expected = guides.pixel(index).demodulate(current.pixels[index]).x;
                 assert!((out.signal.illumination(index).x - expected).abs() < 2e-3);
             }
         }
