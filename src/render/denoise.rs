@@ -4,7 +4,10 @@
 //!    and the camera's, validate it, clamp it, blend;
 //! 2. `atrous`: edge-avoiding wavelet passes over the accumulated illumination, steered by
 //!    its variance (SVGF); the first pass's output goes back into the history;
-//! 3. remodulate: illumination x albedo + emission.
+//! 3. remodulate: illumination x albedo + emission (`Guides::modulate_row`).
+//!
+//! Every step reads and writes images as rows of planes (`planes`, `Guides`), so each reads
+//! only the channels it needs and one step's output is the next one's input as it stands.
 //!
 //! Reads a frame rendered with `render_guided`; knows nothing of the ECS.
 
@@ -16,10 +19,7 @@ use rayon::prelude::*;
 use super::atrous::{self, AtrousSettings};
 use super::camera::Camera;
 use super::film::Film;
-use super::guides::{
-    ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, EMISSION_B, EMISSION_G, EMISSION_R, Guides,
-    NO_INSTANCE,
-};
+use super::guides::Guides;
 use super::planes::{BLUE, GREEN, RED, SignalPlanes};
 use super::temporal::{TemporalFilter, TemporalSettings};
 
@@ -59,7 +59,8 @@ impl FilterMode {
 pub struct FilmPhaseTimes {
     /// Step 1: demodulation, reprojection, validation, clamping, blending.
     pub temporal: f64,
-    /// Step 2: the a-trous passes (with the guide planes they read).
+    /// Step 2: the a-trous passes (with the depth slopes and prefiltered variance they
+    /// read).
     pub spatial: f64,
     /// Step 3: remodulation, and the first pass's output fed back into the history.
     pub remodulate: f64,
@@ -153,6 +154,11 @@ impl FrameFilter {
             temporal.accumulate(radiance, guides, camera, instances);
         }
         last_times.temporal = milliseconds_since(start);
+        image.width = guides.width;
+        image.height = guides.height;
+        image
+            .pixels
+            .resize((guides.width * guides.height) as usize, Vec3::ZERO);
         if *mode == FilterMode::Full && settings.iterations > 0 {
             // 2. The a-trous passes.
             let start = Instant::now();
@@ -185,40 +191,15 @@ impl FrameFilter {
 }
 
 /// Step 3: `image` = `illumination` x albedo + emission, pixel by pixel (sky: its own
-/// emission); `GuidePixel::modulate` a row of lanes at a time.
+/// emission), a row at a time (`Guides::modulate_row`).
 fn remodulate(guides: &Guides, illumination: &SignalPlanes, image: &mut Film) {
     let width = guides.width as usize;
-    image.width = guides.width;
-    image.height = guides.height;
-    image
-        .pixels
-        .resize((guides.width * guides.height) as usize, Vec3::ZERO);
-    let instances = guides.instances();
     image
         .pixels
         .par_chunks_mut(width.max(1))
         .enumerate()
         .for_each(|(y, pixels)| {
-            let instances = &instances[y * width..(y + 1) * width];
-            let channels = [
-                (RED, ALBEDO_R, EMISSION_R),
-                (GREEN, ALBEDO_G, EMISSION_G),
-                (BLUE, ALBEDO_B, EMISSION_B),
-            ];
-            for (channel, (signal, albedo, emission)) in channels.into_iter().enumerate() {
-                let (illumination, albedo, emission) = (
-                    illumination.row(y, signal),
-                    guides.row(y, albedo),
-                    guides.row(y, emission),
-                );
-                for x in 0..width {
-                    let lit = illumination[x] * albedo[x].max(ALBEDO_FLOOR) + emission[x];
-                    pixels[x][channel] = if instances[x] == NO_INSTANCE {
-                        emission[x]
-                    } else {
-                        lit
-                    };
-                }
-            }
+            let rows = [RED, GREEN, BLUE].map(|plane| illumination.row(y, plane));
+            guides.modulate_row(y, rows, pixels);
         });
 }

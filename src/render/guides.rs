@@ -183,6 +183,33 @@ impl Guides {
         &self.instances
     }
 
+    /// `GuidePixel::modulate` for row `y`, a row of lanes at a time: `illumination` (its
+    /// red, green and blue rows) times albedo plus emission, the sky its own emission.
+    pub fn modulate_row(&self, y: usize, illumination: [&[f32]; 3], out: &mut [Vec3]) {
+        let width = self.width as usize;
+        let instances = &self.instances[y * width..(y + 1) * width];
+        let out = &mut out[..width];
+        let channels = [
+            (ALBEDO_R, EMISSION_R),
+            (ALBEDO_G, EMISSION_G),
+            (ALBEDO_B, EMISSION_B),
+        ];
+        for (channel, ((albedo, emission), illumination)) in
+            channels.into_iter().zip(illumination).enumerate()
+        {
+            let (albedo, emission) = (self.row(y, albedo), self.row(y, emission));
+            let illumination = &illumination[..width];
+            for x in 0..width {
+                let lit = illumination[x] * albedo[x].max(ALBEDO_FLOOR) + emission[x];
+                out[x][channel] = if instances[x] == NO_INSTANCE {
+                    emission[x]
+                } else {
+                    lit
+                };
+            }
+        }
+    }
+
     /// Pixel (x, y)'s hit point and normal.
     #[inline(always)]
     pub fn surface_at(&self, x: usize, y: usize) -> (Vec3A, Vec3A) {
@@ -251,5 +278,13 @@ mod tests {
         assert_eq!(guides.row(1, DEPTH)[3], 4.5);
         assert_eq!(guides.row(1, EMISSION_G)[3], 5.0);
         assert_eq!(guides.surface_at(3, 1), (pixel.position, pixel.normal));
+        // A row modulated at once is each pixel modulated alone.
+        let illumination = [[0.5f32; 5], [2.0; 5], [0.0; 5]];
+        let mut row = [Vec3::ZERO; 5];
+        guides.modulate_row(1, illumination.each_ref().map(|r| &r[..]), &mut row);
+        for (x, value) in row.iter().enumerate() {
+            let expected = guides.pixel(5 + x).modulate(Vec3::new(0.5, 2.0, 0.0));
+            assert_eq!(*value, expected, "pixel {x}");
+        }
     }
 }
