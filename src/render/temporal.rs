@@ -98,9 +98,6 @@ pub struct TemporalFilter {
     accumulated: Accumulated,
     next_history: Vec<History>,
     next_surfaces: Vec<Surface>,
-    /// This frame demodulated, with its luminance in w (the neighbourhood's sums of c and
-    /// c^2 then give the colour and luminance moments in four lanes at once).
-    current: Vec<Vec4>,
 }
 
 /// What history validation reads of a pixel's first hit (20 bytes of a guide pixel's 64:
@@ -110,12 +107,6 @@ struct Surface {
     normal: Vec3,
     depth: f32,
     instance: u32,
-}
-
-impl Surface {
-    fn is_sky(&self) -> bool {
-        self.instance == NO_INSTANCE
-    }
 }
 
 /// Rec.709 luminance.
@@ -146,7 +137,7 @@ impl TemporalFilter {
         radiance: &Film,
         guides: &Guides,
         camera: &Camera,
-        instances: &[Affine3A],
+        instance_transforms: &[Affine3A],
     ) -> &Accumulated {
         let (width, height) = (radiance.width, radiance.height);
         debug_assert_eq!((guides.width, guides.height), (width, height));
@@ -157,44 +148,12 @@ impl TemporalFilter {
         }
         let count = (width * height) as usize;
         let band = width as usize * BAND_ROWS;
-        // 1. Demodulate, and keep this frame's surfaces for the next.
-        self.current.resize(count, Vec4::ZERO);
         self.next_surfaces.resize(count, Surface::default());
-        let row_length = width as usize;
-        self.current
-            .par_chunks_mut(row_length)
-            .zip(self.next_surfaces.par_chunks_mut(row_length))
-            .enumerate()
-            .for_each(|(y, (current, surfaces))| {
-                let start = y * row_length;
-                let radiance = &radiance.pixels[start..start + row_length];
-                let instances = &guides.instances()[start..start + row_length];
-                let row = |plane| guides.row(y, plane);
-                let (albedo_r, albedo_g, albedo_b) = (row(ALBEDO_R), row(ALBEDO_G), row(ALBEDO_B));
-                let (emission_r, emission_g, emission_b) =
-                    (row(EMISSION_R), row(EMISSION_G), row(EMISSION_B));
-                let (normal_x, normal_y, normal_z) = (row(NORMAL_X), row(NORMAL_Y), row(NORMAL_Z));
-                let depth = row(DEPTH);
-                for x in 0..row_length {
-                    // `GuidePixel::demodulate`, from the planes.
-                    let albedo = Vec3::new(albedo_r[x], albedo_g[x], albedo_b[x]);
-                    let emission = Vec3::new(emission_r[x], emission_g[x], emission_b[x]);
-                    let illumination = if instances[x] == NO_INSTANCE {
-                        Vec3::ZERO
-                    } else {
-                        (radiance[x] - emission).max(Vec3::ZERO)
-                            / albedo.max(Vec3::splat(ALBEDO_FLOOR))
-                    };
-                    current[x] = illumination.extend(luminance(illumination));
-                    surfaces[x] = Surface {
-                        normal: Vec3::new(normal_x[x], normal_y[x], normal_z[x]),
-                        depth: depth[x],
-                        instance: instances[x],
-                    };
-                }
-            });
-        // 2-5. Reproject, validate, clamp, blend.
-        let motions: Vec<Motion> = instances
+        // 1-5 a band of rows at a time: demodulate (the band and a row either side, for the
+        // neighbourhoods), reproject, validate, clamp, blend; and keep this frame's surfaces
+        // for the next. (Demodulated in a pass of its own, the image went through memory
+        // once more: 2 MB written and read again.)
+        let motions: Vec<Motion> = instance_transforms
             .iter()
             .zip(&self.instances)
             .map(|(now, before)| {
@@ -219,32 +178,38 @@ impl TemporalFilter {
         accumulated.signal.resize(width as usize, height as usize);
         accumulated.history_length.resize(count, 0.0);
         self.next_history.resize(count, History::default());
-        let (current, surfaces, settings) = (&self.current, &self.next_surfaces, &self.settings);
+        let settings = &self.settings;
+        let instances = guides.instances();
         let row_planes = width as usize * SIGNAL_PLANES;
         self.next_history
             .par_chunks_mut(band)
             .zip(accumulated.signal.bands_mut())
             .zip(accumulated.history_length.par_chunks_mut(band))
+            .zip(self.next_surfaces.par_chunks_mut(band))
             .enumerate()
             .for_each_init(
                 || NeighbourhoodRows::new(width as usize),
-                |rows, (band_index, ((histories, (_, signal)), lengths))| {
+                |rows, (band_index, (((histories, (_, signal)), lengths), surfaces))| {
                     let first_row = (band_index * BAND_ROWS) as u32;
                     let last_row = first_row + (histories.len() as u32).div_ceil(width) - 1;
-                    rows.sum_band(current, surfaces, width, height, first_row, last_row);
+                    rows.sum_band(radiance, guides, first_row, last_row);
+                    for (row, surfaces) in surfaces.chunks_mut(width as usize).enumerate() {
+                        surface_row(guides, first_row as usize + row, surfaces);
+                    }
                     // Row by row: x and y without a division per pixel.
                     let (mut x, mut y) = (0u32, first_row);
                     for offset in 0..histories.len() {
                         let index = (y * width + x) as usize;
-                        let (history, variance) = if surfaces[index].is_sky() {
+                        let instance = instances[index];
+                        let (history, variance) = if instance == NO_INSTANCE {
                             (History::default(), 0.0)
                         } else {
                             let (position, normal) = guides.surface_at(x as usize, y as usize);
-                            let before = reprojection.as_ref().and_then(|r| {
-                                r.history_at(position, normal, surfaces[index].instance)
-                            });
+                            let before = reprojection
+                                .as_ref()
+                                .and_then(|r| r.history_at(position, normal, instance));
                             let around = rows.neighbourhood(x, y);
-                            blend(current[index], &around, before, settings)
+                            blend(rows.current(x, y), &around, before, settings)
                         };
                         histories[offset] = history;
                         let row = &mut signal[(y - first_row) as usize * row_planes..];
@@ -265,7 +230,7 @@ impl TemporalFilter {
         std::mem::swap(&mut self.surfaces, &mut self.next_surfaces);
         self.camera = Some(camera.clone());
         self.instances.clear();
-        self.instances.extend_from_slice(instances);
+        self.instances.extend_from_slice(instance_transforms);
         &self.accumulated
     }
 
@@ -294,6 +259,45 @@ impl TemporalFilter {
                     history.illumination = Vec3::new(red[x], green[x], blue[x]);
                 }
             });
+    }
+}
+
+/// Step 1 for row `y`: each pixel demodulated (`GuidePixel::demodulate`, from the guide
+/// planes), with its luminance in w (the neighbourhood's sums of c and c^2 then give the
+/// colour and luminance moments in four lanes at once).
+fn demodulate_row(radiance: &Film, guides: &Guides, y: usize, current: &mut [Vec4]) {
+    let width = guides.width as usize;
+    let start = y * width;
+    let radiance = &radiance.pixels[start..start + width];
+    let instances = &guides.instances()[start..start + width];
+    let row = |plane| guides.row(y, plane);
+    let (albedo_r, albedo_g, albedo_b) = (row(ALBEDO_R), row(ALBEDO_G), row(ALBEDO_B));
+    let (emission_r, emission_g, emission_b) = (row(EMISSION_R), row(EMISSION_G), row(EMISSION_B));
+    for x in 0..width {
+        let albedo = Vec3::new(albedo_r[x], albedo_g[x], albedo_b[x]);
+        let emission = Vec3::new(emission_r[x], emission_g[x], emission_b[x]);
+        let illumination = if instances[x] == NO_INSTANCE {
+            Vec3::ZERO
+        } else {
+            (radiance[x] - emission).max(Vec3::ZERO) / albedo.max(Vec3::splat(ALBEDO_FLOOR))
+        };
+        current[x] = illumination.extend(luminance(illumination));
+    }
+}
+
+/// Row `y`'s first hits as history validation reads them next frame.
+fn surface_row(guides: &Guides, y: usize, surfaces: &mut [Surface]) {
+    let width = guides.width as usize;
+    let instances = &guides.instances()[y * width..(y + 1) * width];
+    let row = |plane| guides.row(y, plane);
+    let (normal_x, normal_y, normal_z, depth) =
+        (row(NORMAL_X), row(NORMAL_Y), row(NORMAL_Z), row(DEPTH));
+    for x in 0..width {
+        surfaces[x] = Surface {
+            normal: Vec3::new(normal_x[x], normal_y[x], normal_z[x]),
+            depth: depth[x],
+            instance: instances[x],
+        };
     }
 }
 
@@ -461,6 +465,8 @@ struct NeighbourhoodRows {
     squares: Vec<Vec4>,
     /// ... and how many of them there are.
     count: Vec<f32>,
+    /// The summed rows demodulated (`demodulate_row`).
+    current: Vec<Vec4>,
     /// The band's last row summed.
     last: u32,
 }
@@ -474,39 +480,39 @@ impl NeighbourhoodRows {
             sum: Vec::new(),
             squares: Vec::new(),
             count: Vec::new(),
+            current: Vec::new(),
         }
     }
 
-    /// Takes the row sums for rows `first_row..=last_row` and the rows either side.
-    fn sum_band(
-        &mut self,
-        current: &[Vec4],
-        surfaces: &[Surface],
-        width: u32,
-        height: u32,
-        first_row: u32,
-        last_row: u32,
-    ) {
-        let width = width as usize;
+    /// Demodulates rows `first_row..=last_row` and the rows either side, and takes their
+    /// row sums.
+    fn sum_band(&mut self, radiance: &Film, guides: &Guides, first_row: u32, last_row: u32) {
+        let (width, height) = (guides.width as usize, guides.height);
         self.first = first_row.saturating_sub(1);
         self.last = (last_row + 1).min(height - 1);
         let rows = (self.last - self.first + 1) as usize;
         self.sum.resize(rows * width, Vec4::ZERO);
         self.squares.resize(rows * width, Vec4::ZERO);
         self.count.resize(rows * width, 0.0);
+        self.current.resize(rows * width, Vec4::ZERO);
         for row in 0..rows {
-            let start = (self.first as usize + row) * width;
-            let (current, surfaces) = (
-                &current[start..start + width],
-                &surfaces[start..start + width],
-            );
+            let y = self.first as usize + row;
+            let current = &mut self.current[row * width..][..width];
+            demodulate_row(radiance, guides, y, current);
+            let instances = &guides.instances()[y * width..(y + 1) * width];
             let (sum, squares, count) = (
                 &mut self.sum[row * width..][..width],
                 &mut self.squares[row * width..][..width],
                 &mut self.count[row * width..][..width],
             );
             // A sky pixel's demodulated value is zero, so only its count needs masking.
-            let seen = |x: usize| if surfaces[x].is_sky() { 0.0 } else { 1.0 };
+            let seen = |x: usize| {
+                if instances[x] == NO_INSTANCE {
+                    0.0
+                } else {
+                    1.0
+                }
+            };
             for x in 0..width {
                 let (mut s, mut q, mut n) = (current[x], current[x] * current[x], seen(x));
                 if x > 0 {
@@ -525,6 +531,11 @@ impl NeighbourhoodRows {
             }
         }
         self.width = width;
+    }
+
+    /// Pixel (x, y)'s demodulated illumination and luminance (y within the band).
+    fn current(&self, x: u32, y: u32) -> Vec4 {
+        self.current[(y - self.first) as usize * self.width + x as usize]
     }
 
     /// Pixel (x, y)'s `Neighbourhood`, over its 3 x 3 pixels that are not sky (y within
