@@ -45,7 +45,10 @@ pub use transform::{
 use crate::accel::BlasKind;
 use crate::extract::{instance_user_id, refresh_triangle_lights, render_scene};
 use crate::render::denoise::{FilterMode, FrameFilter};
-use crate::render::{Camera, Film, RenderScene, RenderSettings, render, render_guided};
+use crate::render::{
+    Camera, Film, RenderOutput, RenderScene, RenderSettings, render, render_guided,
+    render_guided_reusing,
+};
 use crate::scene::model::NodeTransform;
 use crate::scene::world::{CameraPlacement, Scene};
 
@@ -87,6 +90,8 @@ pub struct Accumulation {
     pub filter: FrameFilter,
     /// The last frame through the filter.
     filtered: Option<Film>,
+    /// The last filtered frame's render, whose buffers the next one reuses.
+    rendered: Option<RenderOutput>,
     /// Set by extract when anything visible moved: the next frame starts a new sum.
     pub reset: bool,
     /// The view the sum was rendered from.
@@ -174,6 +179,7 @@ impl Accumulation {
         self.reset = true;
         self.filter.reset();
         self.filtered = None;
+        self.rendered = None;
     }
 
     /// The image to show: the filtered frame with the filter on, else the mean of the
@@ -393,6 +399,7 @@ impl Engine {
             frames: 0,
             filter: FrameFilter::new(FilterMode::Off),
             filtered: None,
+            rendered: None,
             reset: true,
         });
 
@@ -638,7 +645,10 @@ pub fn render_frame(
     let output = {
         profiling::scope!("render");
         if filtering {
-            render_guided(&state.scene, &camera, &settings)
+            match accumulation.rendered.take() {
+                Some(earlier) => render_guided_reusing(&state.scene, &camera, &settings, earlier),
+                None => render_guided(&state.scene, &camera, &settings),
+            }
         } else {
             render(&state.scene, &camera, &settings, &|_| {})
         }
@@ -665,6 +675,7 @@ pub fn render_frame(
             .filter
             .apply_into(&output.film, guides, &camera, &instances, &mut image);
         accumulation.filtered = Some(image);
+        accumulation.rendered = Some(output);
         accumulation.frames += 1;
         times.film = since(start);
         // The steps' own times, with the little around them (the instances' transforms

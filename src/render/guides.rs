@@ -8,6 +8,8 @@
 use glam::{Vec3, Vec3A};
 
 use super::integrator::NextHit;
+use rayon::prelude::*;
+
 use super::planes::RowPlanes;
 use super::scene::RenderScene;
 
@@ -151,12 +153,12 @@ impl Guides {
     /// Pixel `index`'s (row-major) guides.
     pub fn pixel(&self, index: usize) -> GuidePixel {
         let (x, y) = (index % self.width as usize, index / self.width as usize);
-        let at = |plane| self.planes.row(y, plane)[x];
-        let triple = |first| Vec3::new(at(first), at(first + 1), at(first + 2));
+        let values = self.planes.pixel(x, y);
+        let triple = |first: usize| Vec3::new(values[first], values[first + 1], values[first + 2]);
         GuidePixel {
             position: triple(POSITION_X).into(),
             normal: triple(NORMAL_X).into(),
-            depth: at(DEPTH),
+            depth: values[DEPTH],
             instance: self.instances[index],
             albedo: triple(ALBEDO_R),
             emission: triple(EMISSION_R),
@@ -165,11 +167,26 @@ impl Guides {
 
     /// Sets pixel `index`'s (row-major) guides.
     pub fn set(&mut self, index: usize, guide: &GuidePixel) {
-        let (x, y) = (index % self.width as usize, index / self.width as usize);
-        for (plane, value) in pixel_planes(guide).into_iter().enumerate() {
-            self.planes.row_mut(y, plane)[x] = value;
-        }
+        // 32-bit division: the render sets every pixel of a frame through here, serially.
+        let (x, y) = (index as u32 % self.width, index as u32 / self.width);
+        let (x, y) = (x as usize, y as usize);
+        self.planes.set_pixel(x, y, pixel_planes(guide));
         self.instances[index] = guide.instance;
+    }
+
+    /// Bands of `rows` rows, to set in parallel (the render assembles its tiles' guides
+    /// a row of tiles per job).
+    pub fn bands_mut(&mut self, rows: usize) -> impl IndexedParallelIterator<Item = GuideBand<'_>> {
+        let width = self.width as usize;
+        self.planes
+            .bands_of_mut(rows)
+            .zip(self.instances.par_chunks_mut((width * rows).max(1)))
+            .map(move |((first_row, planes), instances)| GuideBand {
+                width,
+                first_index: first_row * width,
+                planes,
+                instances,
+            })
     }
 
     /// Row `y` of plane `plane` (`NORMAL_X` ... `EMISSION_B`).
@@ -218,6 +235,31 @@ impl Guides {
             Vec3A::new(at(POSITION_X), at(POSITION_Y), at(POSITION_Z)),
             Vec3A::new(at(NORMAL_X), at(NORMAL_Y), at(NORMAL_Z)),
         )
+    }
+}
+
+/// Consecutive rows of `Guides`, to set (`Guides::bands_mut`).
+pub struct GuideBand<'a> {
+    width: usize,
+    /// The row-major index of the band's first pixel.
+    first_index: usize,
+    planes: &'a mut [f32],
+    instances: &'a mut [u32],
+}
+
+impl GuideBand<'_> {
+    /// Sets pixel `index` (row-major in the whole image; it must lie in the band).
+    pub fn set(&mut self, index: usize, guide: &GuidePixel) {
+        let local = index - self.first_index;
+        let start = local / self.width * GUIDE_PLANES * self.width + local % self.width;
+        for (stored, value) in self.planes[start..]
+            .iter_mut()
+            .step_by(self.width)
+            .zip(pixel_planes(guide))
+        {
+            *stored = value;
+        }
+        self.instances[local] = guide.instance;
     }
 }
 
@@ -278,6 +320,14 @@ mod tests {
         assert_eq!(guides.row(1, DEPTH)[3], 4.5);
         assert_eq!(guides.row(1, EMISSION_G)[3], 5.0);
         assert_eq!(guides.surface_at(3, 1), (pixel.position, pixel.normal));
+        // Set through bands of rows (pixel 8 is in the first, rows 0 and 1): the same.
+        let mut banded = Guides::new(5, 3);
+        banded.bands_mut(2).for_each(|mut band| {
+            if band.first_index == 0 {
+                band.set(8, &pixel);
+            }
+        });
+        assert_eq!(banded, guides);
         // A row modulated at once is each pixel modulated alone.
         let illumination = [[0.5f32; 5], [2.0; 5], [0.0; 5]];
         let mut row = [Vec3::ZERO; 5];

@@ -50,13 +50,47 @@ impl<const PLANES: usize> RowPlanes<PLANES> {
         &mut self.data[start..start + self.width]
     }
 
+    /// Pixel (x, y)'s value in every plane, in plane order.
+    pub fn pixel(&self, x: usize, y: usize) -> [f32; PLANES] {
+        let mut values = [0.0; PLANES];
+        let start = y * PLANES * self.width + x;
+        for (value, stored) in values
+            .iter_mut()
+            .zip(self.data[start..].iter().step_by(self.width.max(1)))
+        {
+            *value = *stored;
+        }
+        values
+    }
+
+    /// Sets pixel (x, y) in every plane (one slice a pixel, not one a plane: the render
+    /// sets every guide pixel of a frame this way, serially).
+    pub fn set_pixel(&mut self, x: usize, y: usize, values: [f32; PLANES]) {
+        let start = y * PLANES * self.width + x;
+        for (stored, value) in self.data[start..]
+            .iter_mut()
+            .step_by(self.width.max(1))
+            .zip(values)
+        {
+            *stored = value;
+        }
+    }
+
     /// Bands of `BAND_ROWS` rows, for parallel writing: (first row, its planes).
     pub fn bands_mut(&mut self) -> impl IndexedParallelIterator<Item = (usize, &mut [f32])> {
-        let band = self.width * PLANES * BAND_ROWS;
+        self.bands_of_mut(BAND_ROWS)
+    }
+
+    /// Bands of `rows` rows, for parallel writing: (first row, its planes).
+    pub fn bands_of_mut(
+        &mut self,
+        rows: usize,
+    ) -> impl IndexedParallelIterator<Item = (usize, &mut [f32])> {
+        let band = self.width * PLANES * rows;
         self.data
             .par_chunks_mut(band.max(1))
             .enumerate()
-            .map(|(index, rows)| (index * BAND_ROWS, rows))
+            .map(move |(index, data)| (index * rows, data))
     }
 }
 
