@@ -47,7 +47,7 @@ use rayon::prelude::*;
 pub use camera::Camera;
 pub use denoise::FilmPhaseTimes;
 pub use film::Film;
-pub use guides::{GuideBand, GuidePixel, Guides};
+pub use guides::{GuidePixel, Guides};
 pub use integrator::{IntegratorKind, RayCounts};
 pub use sampler::SamplerKind;
 pub use scene::RenderScene;

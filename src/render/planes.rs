@@ -115,11 +115,6 @@ impl SignalPlanes {
         )
     }
 
-    /// Pixel `index`'s (row-major) luminance variance.
-    pub fn variance(&self, index: usize) -> f32 {
-        self.row(index / self.width, VARIANCE)[index % self.width]
-    }
-
     /// The illumination of every pixel, row-major.
     pub fn colours(&self) -> Vec<Vec3> {
         // Collected, not zero-filled then written: glibc serves a freed multi-megabyte
