@@ -92,11 +92,11 @@ impl Camera {
 /// A camera's world-to-film projection.
 #[derive(Clone, Debug)]
 pub struct Projection {
-    camera_from_world: Mat3A,
-    position: Vec3A,
+    pub(super) camera_from_world: Mat3A,
+    pub(super) position: Vec3A,
     /// Film pixels per unit of x / -z and y / -z (y flipped: film rows run down).
-    scale: Vec2,
-    centre: Vec2,
+    pub(super) scale: Vec2,
+    pub(super) centre: Vec2,
 }
 
 impl Projection {

@@ -32,6 +32,7 @@ pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod planes;
+mod reproject;
 pub mod sampler;
 pub mod sampling;
 pub mod scene;

@@ -3,8 +3,9 @@
 //! Reconstruction for Path-Traced Global Illumination") with the colour clamp of TAA
 //! (Karis 2014, "High Quality Temporal Supersampling"; Salvi 2016's variance clipping).
 //!
-//! Owns last frame's history (demodulated illumination, luminance moments, history length),
-//! its guides, camera and instance transforms. Per frame, for every pixel:
+//! Owns last frame's history (demodulated illumination, luminance moments, history length)
+//! and first hits (`reproject::LastPixel`), camera and instance transforms. Per frame, a
+//! band of rows at a time, for every pixel (steps 2 and 3 are `reproject`'s):
 //! 1. demodulate: illumination = (radiance - emission) / albedo (`GuidePixel::demodulate`);
 //! 2. motion: carry the first hit back through its instance's previous transform and
 //!    project it with the previous camera; that film point is where history is read;
@@ -16,16 +17,17 @@
 //!    `alpha_min`, for the illumination and its first two luminance moments, whose spread
 //!    is the variance the spatial filter (`atrous`) steers by.
 
-use glam::{Affine3A, Vec2, Vec3, Vec3A, Vec4};
+use glam::{Affine3A, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
-use super::camera::{Camera, Projection};
+use super::camera::Camera;
 use super::film::Film;
 use super::guides::{
-    ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, DEPTH, EMISSION_B, EMISSION_G, EMISSION_R, Guides,
-    NO_INSTANCE, NORMAL_X, NORMAL_Y, NORMAL_Z,
+    ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, EMISSION_B, EMISSION_G, EMISSION_R, Guides,
+    NO_INSTANCE,
 };
 use super::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
+use super::reproject::{LastPixel, Motion, ProjectedRow, Reprojection};
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
 #[derive(Clone, Debug, PartialEq)]
@@ -58,8 +60,9 @@ impl Default for TemporalSettings {
     }
 }
 
-/// One pixel's history.
+/// One pixel's history (`repr(C)`: the reprojection's gathers read it by offset).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
 pub struct History {
     /// Demodulated illumination, averaged.
     pub illumination: Vec3,
@@ -76,7 +79,6 @@ pub struct Accumulated {
     /// or from the neighbourhood while the history is short), in the planes the a-trous
     /// passes read.
     pub signal: SignalPlanes,
-    pub history_length: Vec<f32>,
 }
 
 /// History lengths below this use the neighbourhood's variance (SVGF's rule: the moments
@@ -88,25 +90,14 @@ pub struct TemporalFilter {
     pub settings: TemporalSettings,
     width: u32,
     height: u32,
-    history: Vec<History>,
-    /// Last frame's first hits, as much of them as validation reads.
-    surfaces: Vec<Surface>,
+    /// Last frame's pixels: history, and first hits as much as validation reads.
+    last: Vec<LastPixel>,
     camera: Option<Camera>,
     instances: Vec<Affine3A>,
     /// This frame's result; its buffers, like the others here, are reused frame to frame
     /// (fresh megabyte buffers each frame cost more in page faults than the blending).
     accumulated: Accumulated,
-    next_history: Vec<History>,
-    next_surfaces: Vec<Surface>,
-}
-
-/// What history validation reads of a pixel's first hit (20 bytes of a guide pixel's 64:
-/// the copy kept for next frame is a third of the memory traffic).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct Surface {
-    normal: Vec3,
-    depth: f32,
-    instance: u32,
+    next: Vec<LastPixel>,
 }
 
 /// Rec.709 luminance.
@@ -124,8 +115,7 @@ impl TemporalFilter {
 
     /// Forgets everything (a new level, a new resolution): the next frame starts afresh.
     pub fn reset(&mut self) {
-        self.history.clear();
-        self.surfaces.clear();
+        self.last.clear();
         self.camera = None;
         self.instances.clear();
     }
@@ -148,10 +138,10 @@ impl TemporalFilter {
         }
         let count = (width * height) as usize;
         let band = width as usize * BAND_ROWS;
-        self.next_surfaces.resize(count, Surface::default());
+        self.next.resize(count, LastPixel::default());
         // 1-5 a band of rows at a time: demodulate (the band and a row either side, for the
-        // neighbourhoods), reproject, validate, clamp, blend; and keep this frame's surfaces
-        // for the next. (Demodulated in a pass of its own, the image went through memory
+        // neighbourhoods), project a row, then per pixel move, validate, clamp, blend; and
+        // keep this frame's history and first hits for the next. (Demodulated in a pass of its own, the image went through memory
         // once more: 2 MB written and read again.)
         let motions: Vec<Motion> = instance_transforms
             .iter()
@@ -166,68 +156,56 @@ impl TemporalFilter {
             .collect();
         let reprojection = self.camera.as_ref().map(|previous_camera| Reprojection {
             projection: previous_camera.projection(),
-            camera_position: previous_camera.position,
-            surfaces: &self.surfaces,
-            history: &self.history,
+            last: &self.last,
+            width: width as usize,
+            height: height as usize,
             motions: &motions,
-            width,
-            height,
             settings: &self.settings,
+            portable_only: false,
         });
         let accumulated = &mut self.accumulated;
         accumulated.signal.resize(width as usize, height as usize);
-        accumulated.history_length.resize(count, 0.0);
-        self.next_history.resize(count, History::default());
         let settings = &self.settings;
         let instances = guides.instances();
-        let row_planes = width as usize * SIGNAL_PLANES;
-        self.next_history
+        let width = width as usize;
+        self.next
             .par_chunks_mut(band)
             .zip(accumulated.signal.bands_mut())
-            .zip(accumulated.history_length.par_chunks_mut(band))
-            .zip(self.next_surfaces.par_chunks_mut(band))
-            .enumerate()
             .for_each_init(
-                || NeighbourhoodRows::new(width as usize),
-                |rows, (band_index, (((histories, (_, signal)), lengths), surfaces))| {
-                    let first_row = (band_index * BAND_ROWS) as u32;
-                    let last_row = first_row + (histories.len() as u32).div_ceil(width) - 1;
-                    rows.sum_band(radiance, guides, first_row, last_row);
-                    for (row, surfaces) in surfaces.chunks_mut(width as usize).enumerate() {
-                        surface_row(guides, first_row as usize + row, surfaces);
-                    }
-                    // Row by row: x and y without a division per pixel.
-                    let (mut x, mut y) = (0u32, first_row);
-                    for offset in 0..histories.len() {
-                        let index = (y * width + x) as usize;
-                        let instance = instances[index];
-                        let (history, variance) = if instance == NO_INSTANCE {
-                            (History::default(), 0.0)
-                        } else {
-                            let (position, normal) = guides.surface_at(x as usize, y as usize);
-                            let before = reprojection
-                                .as_ref()
-                                .and_then(|r| r.history_at(position, normal, instance));
-                            let around = rows.neighbourhood(x, y);
-                            blend(rows.current(x, y), &around, before, settings)
-                        };
-                        histories[offset] = history;
-                        let row = &mut signal[(y - first_row) as usize * row_planes..];
-                        let x_at = x as usize;
-                        row[RED * width as usize + x_at] = history.illumination.x;
-                        row[GREEN * width as usize + x_at] = history.illumination.y;
-                        row[BLUE * width as usize + x_at] = history.illumination.z;
-                        row[VARIANCE * width as usize + x_at] = variance;
-                        lengths[offset] = history.length;
-                        x += 1;
-                        if x == width {
-                            (x, y) = (0, y + 1);
+                || (NeighbourhoodRows::new(width), ProjectedRow::default()),
+                |(rows, projected), (next, (first_row, signal))| {
+                    let last_row = first_row + next.len() / width - 1;
+                    rows.sum_band(radiance, guides, first_row as u32, last_row as u32);
+                    for (row, (next, signal)) in next
+                        .chunks_mut(width)
+                        .zip(signal.chunks_mut(SIGNAL_PLANES * width))
+                        .enumerate()
+                    {
+                        let y = first_row + row;
+                        let instances = &instances[y * width..][..width];
+                        if let Some(reprojection) = &reprojection {
+                            reprojection.project_row(guides, y, projected);
+                        }
+                        for x in 0..width {
+                            let (history, variance) = if instances[x] == NO_INSTANCE {
+                                (History::default(), 0.0)
+                            } else {
+                                let before = reprojection.as_ref().and_then(|reprojection| {
+                                    reprojection.history_at(guides, projected, x, y, instances[x])
+                                });
+                                let around = rows.neighbourhood(x as u32, y as u32);
+                                blend(rows.current(x as u32, y as u32), &around, before, settings)
+                            };
+                            next[x] = LastPixel::new(guides, x, y, history);
+                            signal[RED * width + x] = history.illumination.x;
+                            signal[GREEN * width + x] = history.illumination.y;
+                            signal[BLUE * width + x] = history.illumination.z;
+                            signal[VARIANCE * width + x] = variance;
                         }
                     }
                 },
             );
-        std::mem::swap(&mut self.history, &mut self.next_history);
-        std::mem::swap(&mut self.surfaces, &mut self.next_surfaces);
+        std::mem::swap(&mut self.last, &mut self.next);
         self.camera = Some(camera.clone());
         self.instances.clear();
         self.instances.extend_from_slice(instance_transforms);
@@ -239,24 +217,30 @@ impl TemporalFilter {
         &self.accumulated
     }
 
+    /// Pixel `index`'s (row-major) history length after the last `accumulate`: 1 where
+    /// its history started again.
+    pub fn history_length(&self, index: usize) -> f32 {
+        self.last[index].history.length
+    }
+
     /// Replaces the history's illumination (SVGF keeps the first a-trous iteration's
     /// output as history: less noise carried forward).
     pub fn feed_back(&mut self, illumination: &SignalPlanes) {
         let width = illumination.width();
-        if width * illumination.height() != self.history.len() || width == 0 {
+        if width * illumination.height() != self.last.len() || width == 0 {
             return;
         }
-        self.history
+        self.last
             .par_chunks_mut(width)
             .enumerate()
-            .for_each(|(y, histories)| {
+            .for_each(|(y, last)| {
                 let (red, green, blue) = (
                     illumination.row(y, RED),
                     illumination.row(y, GREEN),
                     illumination.row(y, BLUE),
                 );
-                for (x, history) in histories.iter_mut().enumerate() {
-                    history.illumination = Vec3::new(red[x], green[x], blue[x]);
+                for (x, last) in last.iter_mut().enumerate() {
+                    last.history.illumination = Vec3::new(red[x], green[x], blue[x]);
                 }
             });
     }
@@ -282,22 +266,6 @@ fn demodulate_row(radiance: &Film, guides: &Guides, y: usize, current: &mut [Vec
             (radiance[x] - emission).max(Vec3::ZERO) / albedo.max(Vec3::splat(ALBEDO_FLOOR))
         };
         current[x] = illumination.extend(luminance(illumination));
-    }
-}
-
-/// Row `y`'s first hits as history validation reads them next frame.
-fn surface_row(guides: &Guides, y: usize, surfaces: &mut [Surface]) {
-    let width = guides.width as usize;
-    let instances = &guides.instances()[y * width..(y + 1) * width];
-    let row = |plane| guides.row(y, plane);
-    let (normal_x, normal_y, normal_z, depth) =
-        (row(NORMAL_X), row(NORMAL_Y), row(NORMAL_Z), row(DEPTH));
-    for x in 0..width {
-        surfaces[x] = Surface {
-            normal: Vec3::new(normal_x[x], normal_y[x], normal_z[x]),
-            depth: depth[x],
-            instance: instances[x],
-        };
     }
 }
 
@@ -348,99 +316,6 @@ fn blend(
         length,
     };
     (history, variance)
-}
-
-/// How an instance moved since last frame.
-enum Motion {
-    /// Not at all (most of a level): points were where they are.
-    Still,
-    /// Last frame's world-from-object times this frame's object-from-world.
-    Moved(Affine3A),
-}
-
-/// Last frame, as a pixel of this frame finds it.
-struct Reprojection<'a> {
-    projection: Projection,
-    camera_position: Vec3A,
-    surfaces: &'a [Surface],
-    history: &'a [History],
-    /// Per instance, last frame's world from this frame's.
-    motions: &'a [Motion],
-    width: u32,
-    height: u32,
-    settings: &'a TemporalSettings,
-}
-
-impl Reprojection<'_> {
-    /// The history under a pixel's first hit (at `position`, facing `normal`, on
-    /// `instance`) last frame, bilinearly weighted over the taps that saw the same surface;
-    /// None when none did (disocclusion).
-    fn history_at(&self, position: Vec3A, normal: Vec3A, instance: u32) -> Option<History> {
-        // Motion: where this point of the instance was last frame, and its normal then.
-        let (position, normal) = match self.motions.get(instance as usize)? {
-            Motion::Still => (position, normal),
-            Motion::Moved(before_from_now) => (
-                before_from_now.transform_point3a(position),
-                (before_from_now.matrix3 * normal).normalize_or_zero(),
-            ),
-        };
-        let film = self.projection.project(position)?;
-        let depth = (position - self.camera_position).length();
-
-        let corner = film - Vec2::splat(0.5);
-        // Left of or above the first pixel's centre by a pixel or more, or right of or
-        // below the last's: no tap is inside (and the casts below stay in range).
-        let (width, height) = (self.width as f32, self.height as f32);
-        if !(corner.x >= -1.0 && corner.y >= -1.0 && corner.x < width && corner.y < height) {
-            return None;
-        }
-        // floor() is a libm call on baseline x86-64; shifted to >= 0, truncation is floor.
-        let (x0, y0) = ((corner.x + 1.0) as i32 - 1, (corner.y + 1.0) as i32 - 1);
-        let (fx, fy) = (corner.x - x0 as f32, corner.y - y0 as f32);
-        let (depth_tolerance, normal_tolerance) = (
-            self.settings.depth_tolerance * depth,
-            self.settings.normal_tolerance,
-        );
-        let normal = Vec3::from(normal);
-        // The taps' bilinear weights, zero for a tap off the film or on another surface.
-        let mut taps = [(0usize, 0.0f32); 4];
-        for (tap, (dx, dy, weight)) in taps.iter_mut().zip([
-            (0, 0, (1.0 - fx) * (1.0 - fy)),
-            (1, 0, fx * (1.0 - fy)),
-            (0, 1, (1.0 - fx) * fy),
-            (1, 1, fx * fy),
-        ]) {
-            let (x, y) = (x0 + dx, y0 + dy);
-            if x < 0 || y < 0 || x >= self.width as i32 || y >= self.height as i32 {
-                continue;
-            }
-            let index = y as usize * self.width as usize + x as usize;
-            let then = &self.surfaces[index];
-            let same_surface = then.instance == instance
-                && (then.depth - depth).abs() <= depth_tolerance
-                && then.normal.dot(normal) >= normal_tolerance;
-            if same_surface {
-                *tap = (index, weight);
-            }
-        }
-        let weight_sum: f32 = taps.iter().map(|(_, weight)| weight).sum();
-        if weight_sum <= 1e-2 {
-            return None;
-        }
-        let mut sum = History::default();
-        for (index, weight) in taps {
-            let h = &self.history[index];
-            sum.illumination += h.illumination * weight;
-            sum.moments += h.moments * weight;
-            sum.length += h.length * weight;
-        }
-        let normalise = 1.0 / weight_sum;
-        Some(History {
-            illumination: sum.illumination * normalise,
-            moments: sum.moments * normalise,
-            length: sum.length * normalise,
-        })
-    }
 }
 
 /// The 3 x 3 neighbourhood's illumination over pixels that are not sky.
@@ -564,7 +439,7 @@ mod tests {
     use super::*;
     use crate::render::GuidePixel;
     use crate::scene::world::CameraPlacement;
-    use glam::Mat4;
+    use glam::{Mat4, Vec3A};
 
     /// `guides` with `edit` applied to every pixel.
     fn edited(guides: &Guides, edit: impl Fn(&mut GuidePixel)) -> Guides {
@@ -642,7 +517,7 @@ mod tests {
                 )
                 .clone();
         }
-        assert_eq!(last.history_length[5 * 32 + 7], 10.0);
+        assert_eq!(filter.history_length(5 * 32 + 7), 10.0);
         // With weights 1/n (n <= 10 = 1/alpha_min) the average is the plain mean.
         assert!((last.signal.illumination(5 * 32 + 7).x - 0.8).abs() < 1e-5);
     }
@@ -668,7 +543,9 @@ mod tests {
         // is found, the average is half the old pattern.
         let second = camera(1.0);
         let guides = wall(&second);
-        let out = filter.accumulate(&film(|_, _| Vec3::ZERO), &guides, &second, &identity);
+        let out = filter
+            .accumulate(&film(|_, _| Vec3::ZERO), &guides, &second, &identity)
+            .clone();
         for y in 2..14 {
             for x in 2..28 {
                 let index = (y * 32 + x) as usize;
@@ -683,11 +560,11 @@ mod tests {
                     p.x,
                     out.signal.illumination(index).x
                 );
-                assert_eq!(out.history_length[index], 2.0);
+                assert_eq!(filter.history_length(index), 2.0);
             }
         }
         // The rightmost column came into view: no history.
-        assert_eq!(out.history_length[5 * 32 + 31], 1.0);
+        assert_eq!(filter.history_length(5 * 32 + 31), 1.0);
     }
 
     #[test]
@@ -699,14 +576,14 @@ mod tests {
         filter.accumulate(&film(|_, _| Vec3::ONE), &guides, &camera, &identity);
         // Same place, but now another instance, then the same instance much nearer.
         let other = edited(&guides, |g| g.instance = 1);
-        let out = filter.accumulate(&film(|_, _| Vec3::ONE), &other, &camera, &identity);
-        assert!(out.history_length.iter().all(|&l| l == 1.0));
+        filter.accumulate(&film(|_, _| Vec3::ONE), &other, &camera, &identity);
+        assert!((0..32 * 16).all(|index| filter.history_length(index) == 1.0));
         let nearer = edited(&other, |g| {
             g.depth *= 0.5;
             g.position = camera.position + (g.position - camera.position) * 0.5;
         });
-        let out = filter.accumulate(&film(|_, _| Vec3::ONE), &nearer, &camera, &identity);
-        assert!(out.history_length.iter().all(|&l| l == 1.0));
+        filter.accumulate(&film(|_, _| Vec3::ONE), &nearer, &camera, &identity);
+        assert!((0..32 * 16).all(|index| filter.history_length(index) == 1.0));
         // Sky pixels carry nothing.
         let mut sky = nearer.clone();
         sky.set(
@@ -738,13 +615,15 @@ mod tests {
         filter.accumulate(&ramp(&guides, 0.0), &guides, &camera, &[Affine3A::IDENTITY]);
         // Frame 2: the wall (instance 0) moved 0.3 m right, its ramp with it.
         let moved = Affine3A::from_translation(glam::Vec3::new(0.3, 0.0, 0.0));
-        let out = filter.accumulate(&ramp(&guides, 0.3), &guides, &camera, &[moved]);
+        let out = filter
+            .accumulate(&ramp(&guides, 0.3), &guides, &camera, &[moved])
+            .clone();
         // History came from the same point of the wall: the blend equals the ramp.
         let current = ramp(&guides, 0.3);
         for y in 2..14 {
             for x in 4..28 {
                 let index = (y * 32 + x) as usize;
-                assert_eq!(out.history_length[index], 2.0);
+                assert_eq!(filter.history_length(index), 2.0);
                 let expected = guides.pixel(index).demodulate(current.pixels[index]).x;
                 assert!((out.signal.illumination(index).x - expected).abs() < 2e-3);
             }
