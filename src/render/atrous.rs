@@ -526,8 +526,8 @@ fn fast_exp(x: f32) -> f32 {
     let shifted = y + ROUND;
     let whole = shifted.to_bits() as i32 - ROUND.to_bits() as i32;
     let f = y - (shifted - ROUND);
-    let fraction =
-        1.0 + f * (0.693_147_2 + f * (0.240_226_5 + f * (0.055_504_1 + f * 0.009_618_1)));
+    let fraction = 1.0
+        + f * (std::f32::consts::LN_2 + f * (0.240_226_5 + f * (0.055_504_1 + f * 0.009_618_1)));
     f32::from_bits((fraction.to_bits() as i32 + (whole << 23)) as u32)
 }
 

@@ -234,7 +234,7 @@ impl Reprojection<'_> {
             }
         }
         let weight_sum: f32 = taps.iter().map(|(_, weight)| weight).sum();
-        if !(weight_sum > MIN_WEIGHT) {
+        if weight_sum <= MIN_WEIGHT {
             return None;
         }
         let mut sum = History::default();
