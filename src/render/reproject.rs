@@ -34,17 +34,45 @@ pub(super) struct LastPixel {
 const _: () = assert!(std::mem::size_of::<LastPixel>() == 48);
 
 impl LastPixel {
-    /// Pixel (x, y) of `guides` with its new `history`.
+    /// Pixel `x` of `row` with its new `history`.
     #[inline(always)]
-    pub fn new(guides: &Guides, x: usize, y: usize, history: History) -> LastPixel {
-        let at = |plane| guides.row(y, plane)[x];
+    pub fn new(row: &SurfaceRow, x: usize, history: History) -> LastPixel {
         LastPixel {
             history,
-            normal: Vec3::new(at(NORMAL_X), at(NORMAL_Y), at(NORMAL_Z)),
-            depth: at(DEPTH),
-            instance: guides.instances()[y * guides.width as usize + x],
+            normal: row.normal(x),
+            depth: row.depth[x],
+            instance: row.instances[x],
             padding: 0,
         }
+    }
+}
+
+/// A row of this frame's first hits as validation reads them, each plane's row cut once
+/// (cut per pixel, the eight guide reads of a pixel were eight slicings with their bounds
+/// checks).
+pub(super) struct SurfaceRow<'a> {
+    normal_x: &'a [f32],
+    normal_y: &'a [f32],
+    normal_z: &'a [f32],
+    depth: &'a [f32],
+    instances: &'a [u32],
+}
+
+impl<'a> SurfaceRow<'a> {
+    pub fn new(guides: &'a Guides, y: usize) -> SurfaceRow<'a> {
+        let width = guides.width as usize;
+        SurfaceRow {
+            normal_x: guides.row(y, NORMAL_X),
+            normal_y: guides.row(y, NORMAL_Y),
+            normal_z: guides.row(y, NORMAL_Z),
+            depth: guides.row(y, DEPTH),
+            instances: &guides.instances()[y * width..(y + 1) * width],
+        }
+    }
+
+    #[inline(always)]
+    fn normal(&self, x: usize) -> Vec3 {
+        Vec3::new(self.normal_x[x], self.normal_y[x], self.normal_z[x])
     }
 }
 
@@ -170,13 +198,14 @@ impl Reprojection<'_> {
     pub fn history_at(
         &self,
         guides: &Guides,
+        row: &SurfaceRow,
         projected: &ProjectedRow,
         x: usize,
         y: usize,
         instance: u32,
     ) -> Option<History> {
         // 1. Motion: where this point of the instance was last frame, and its normal then.
-        let (_, normal) = guides.surface_at(x, y);
+        let normal = Vec3A::from(row.normal(x));
         let (corner_x, corner_y, depth, normal) = match self.motions.get(instance as usize)? {
             Motion::Still => (
                 projected.corner_x[x],

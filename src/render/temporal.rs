@@ -27,7 +27,7 @@ use super::guides::{
     NO_INSTANCE,
 };
 use super::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
-use super::reproject::{LastPixel, Motion, ProjectedRow, Reprojection};
+use super::reproject::{LastPixel, Motion, ProjectedRow, Reprojection, SurfaceRow};
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
 #[derive(Clone, Debug, PartialEq)]
@@ -183,6 +183,7 @@ impl TemporalFilter {
                     {
                         let y = first_row + row;
                         let instances = &instances[y * width..][..width];
+                        let surfaces = SurfaceRow::new(guides, y);
                         if let Some(reprojection) = &reprojection {
                             reprojection.project_row(guides, y, projected);
                         }
@@ -191,12 +192,19 @@ impl TemporalFilter {
                                 (History::default(), 0.0)
                             } else {
                                 let before = reprojection.as_ref().and_then(|reprojection| {
-                                    reprojection.history_at(guides, projected, x, y, instances[x])
+                                    reprojection.history_at(
+                                        guides,
+                                        &surfaces,
+                                        projected,
+                                        x,
+                                        y,
+                                        instances[x],
+                                    )
                                 });
                                 let around = rows.neighbourhood(x as u32, y as u32);
                                 blend(rows.current(x as u32, y as u32), &around, before, settings)
                             };
-                            next[x] = LastPixel::new(guides, x, y, history);
+                            next[x] = LastPixel::new(&surfaces, x, history);
                             signal[RED * width + x] = history.illumination.x;
                             signal[GREEN * width + x] = history.illumination.y;
                             signal[BLUE * width + x] = history.illumination.z;
