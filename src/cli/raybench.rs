@@ -306,6 +306,29 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         ));
     }
 
+    // The largest BLAS traced on its own, no TLAS (when its instance is untransformed): what
+    // the two-level walk costs on top of the BLAS walk (and, for closest hits, the
+    // barycentrics the renderer needs).
+    let largest = accel
+        .instances()
+        .iter()
+        .max_by_key(|instance| {
+            accel.blases[instance.blas as usize]
+                .geometry
+                .triangles
+                .len()
+        })
+        .filter(|instance| instance.world_from_object() == Affine3A::IDENTITY)
+        .and_then(|instance| accel.blases[instance.blas as usize].packet_tree());
+    if let Some((tree, kernels)) = largest {
+        contenders.push(Contender::one_by_one(
+            "gloam_largest_blas_alone",
+            blas_build_ms,
+            move |ray: &Ray| tree.intersect(&ray.to_obvhs(), kernels).is_some(),
+            move |ray: &Ray| tree.occluded(&ray.to_obvhs(), kernels),
+        ));
+    }
+
     let mut wide_stats = None;
     let mut study_stats = serde_json::Map::new();
     if let Some((
