@@ -16,22 +16,18 @@ use super::guides::{
 use super::temporal::{History, TemporalSettings};
 
 /// What the next frame's reprojection reads of a pixel: its history and, for validation,
-/// its first hit, in one 48-byte record, so a tap touches one place and a pixel's two taps
+/// its first hit, in one 44-byte record, so a tap touches one place and a pixel's two taps
 /// on a row are neighbours. (As planes, a tap's 11 values were 11 places a row: the
 /// temporal pass took 4.4-6.0 ms against 4.0, and 4.1-4.2 with AVX2 gathers, which cost
 /// as much as the scalar reads on this Zen 3.)
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(C)]
 pub(super) struct LastPixel {
     pub history: History,
     pub normal: Vec3,
     pub depth: f32,
     /// `NO_INSTANCE` for the sky.
     pub instance: u32,
-    padding: u32,
 }
-
-const _: () = assert!(std::mem::size_of::<LastPixel>() == 48);
 
 impl LastPixel {
     /// Pixel `x` of `row` with its new `history`.
@@ -42,7 +38,6 @@ impl LastPixel {
             normal: row.normal(x),
             depth: row.depth[x],
             instance: row.instances[x],
-            padding: 0,
         }
     }
 }

@@ -60,9 +60,8 @@ impl Default for TemporalSettings {
     }
 }
 
-/// One pixel's history (`repr(C)`: the reprojection's gathers read it by offset).
+/// One pixel's history.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(C)]
 pub struct History {
     /// Demodulated illumination, averaged.
     pub illumination: Vec3,
