@@ -92,21 +92,53 @@ impl Camera {
 /// A camera's world-to-film projection.
 #[derive(Clone, Debug)]
 pub struct Projection {
-    pub(super) camera_from_world: Mat3A,
-    pub(super) position: Vec3A,
+    camera_from_world: Mat3A,
+    position: Vec3A,
     /// Film pixels per unit of x / -z and y / -z (y flipped: film rows run down).
-    pub(super) scale: Vec2,
-    pub(super) centre: Vec2,
+    scale: Vec2,
+    centre: Vec2,
+}
+
+/// A point as `Projection::project_lanes` finds it.
+#[derive(Clone, Copy, Debug)]
+pub struct FilmPoint {
+    /// Where on the film (pixels; meaningless when not `in_front`).
+    pub x: f32,
+    pub y: f32,
+    /// The point's distance from the camera.
+    pub distance: f32,
+    pub in_front: bool,
 }
 
 impl Projection {
     pub fn project(&self, point: Vec3A) -> Option<Vec2> {
-        let local = self.camera_from_world * (point - self.position);
-        if local.z >= -1e-6 {
-            return None;
+        let projected = self.project_lanes(point);
+        projected
+            .in_front
+            .then(|| Vec2::new(projected.x, projected.y))
+    }
+
+    /// `project` in plain lane arithmetic without branches, so a row of points projects
+    /// as lanes (`reproject`), and with the point's distance.
+    #[inline(always)]
+    pub fn project_lanes(&self, point: Vec3A) -> FilmPoint {
+        let rotation = &self.camera_from_world;
+        let (px, py, pz) = (
+            point.x - self.position.x,
+            point.y - self.position.y,
+            point.z - self.position.z,
+        );
+        // Camera space: the rotation's rows times the relative position.
+        let local_x = rotation.x_axis.x * px + rotation.y_axis.x * py + rotation.z_axis.x * pz;
+        let local_y = rotation.x_axis.y * px + rotation.y_axis.y * py + rotation.z_axis.y * pz;
+        let local_z = rotation.x_axis.z * px + rotation.y_axis.z * py + rotation.z_axis.z * pz;
+        let inverse_depth = 1.0 / -local_z;
+        FilmPoint {
+            x: local_x * inverse_depth * self.scale.x + self.centre.x,
+            y: local_y * inverse_depth * self.scale.y + self.centre.y,
+            distance: (px * px + py * py + pz * pz).sqrt(),
+            in_front: local_z < -1e-6,
         }
-        let inverse_depth = 1.0 / -local.z;
-        Some(Vec2::new(local.x, local.y) * inverse_depth * self.scale + self.centre)
     }
 }
 

@@ -160,29 +160,15 @@ impl Reprojection<'_> {
     /// arithmetic, so a row of it vectorises.
     #[inline(always)]
     fn project(&self, position: Vec3A) -> (f32, f32, f32) {
-        let Projection {
-            camera_from_world: rotation,
-            position: camera,
-            scale,
-            centre,
-        } = &self.projection;
-        let (px, py, pz) = (
-            position.x - camera.x,
-            position.y - camera.y,
-            position.z - camera.z,
-        );
-        // Camera space: the rotation's rows times the relative position.
-        let local_x = rotation.x_axis.x * px + rotation.y_axis.x * py + rotation.z_axis.x * pz;
-        let local_y = rotation.x_axis.y * px + rotation.y_axis.y * py + rotation.z_axis.y * pz;
-        let local_z = rotation.x_axis.z * px + rotation.y_axis.z * py + rotation.z_axis.z * pz;
-        let inverse_depth = 1.0 / -local_z;
-        let corner_x = local_x * inverse_depth * scale.x + centre.x - 0.5;
-        let corner_y = local_y * inverse_depth * scale.y + centre.y - 0.5;
-        let in_front = local_z < -1e-6;
+        let point = self.projection.project_lanes(position);
         (
-            if in_front { corner_x } else { f32::NAN },
-            corner_y,
-            (px * px + py * py + pz * pz).sqrt(),
+            if point.in_front {
+                point.x - 0.5
+            } else {
+                f32::NAN
+            },
+            point.y - 0.5,
+            point.distance,
         )
     }
 

@@ -140,8 +140,8 @@ impl TemporalFilter {
         self.next.resize(count, LastPixel::default());
         // 1-5 a band of rows at a time: demodulate (the band and a row either side, for the
         // neighbourhoods), project a row, then per pixel move, validate, clamp, blend; and
-        // keep this frame's history and first hits for the next. (Demodulated in a pass of its own, the image went through memory
-        // once more: 2 MB written and read again.)
+        // keep this frame's history and first hits for the next. (Demodulated in a pass of
+        // its own, the image went through memory once more: 2 MB written and read again.)
         let motions: Vec<Motion> = instance_transforms
             .iter()
             .zip(&self.instances)
