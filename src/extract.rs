@@ -5,26 +5,43 @@
 //! keeps its shape (shared by its instances), one refittable BLAS per placement of a mesh
 //! that deforms (skinned, morphing, or under a level deformer), one instance per placement,
 //! the materials with each entity's level overrides applied, textures decoded to linear
-//! values, and the light set (emissive triangles and punctual lights). Per frame, the game
-//! moves instances and deformed vertices in place and calls `refresh_triangle_lights` so
-//! emitters follow them. `gloam render`, `raybench` and the game all start here.
+//! values, and the light set (emissive triangles and punctual lights). Placements that
+//! nothing moves are marked `Mobility::Static`, and accel merges them into world-space
+//! batches. Per frame, the game moves instances and deformed vertices in place and calls
+//! `refresh_triangle_lights` so emitters follow them. `gloam render`, `raybench` and the
+//! game all start here.
 
 use std::collections::HashMap;
 
 use glam::{Affine3A, Vec3, Vec3A};
 use rayon::prelude::*;
 
-use crate::accel::{AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry};
+use crate::accel::{AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry, Mobility};
 use crate::render::light::{Light, LightSet, luminance};
 use crate::render::material::{RenderMaterial, Texture, TextureSlot};
 use crate::render::scene::{DEFAULT_MATERIAL, InstanceShading, RenderScene};
 use crate::scene::model::{AlphaMode, Asset, LightKind, Material, TextureRef};
-use crate::scene::world::{CameraPlacement, Scene};
+use crate::scene::world::{CameraPlacement, MeshPlacement, Scene};
 
 /// The accel `user_id` of the instance drawing asset node `node` of level entity `entity`:
 /// the game finds its ECS entity's instance by it.
 pub fn instance_user_id(entity: usize, node: usize) -> u64 {
     ((entity as u64) << 32) | node as u64
+}
+
+/// `Static` for a placement nothing in the level moves: its entity plays no animation, has
+/// no deformer and is not the player, and its mesh keeps its shape. Accel batches those.
+fn placement_mobility(scene: &Scene, placement: &MeshPlacement) -> Mobility {
+    let entity = &scene.level.entities[placement.entity];
+    let moves = placement.deforms
+        || entity.animation.is_some()
+        || entity.deformer.is_some()
+        || entity.player_spawn.is_some();
+    if moves {
+        Mobility::Movable
+    } else {
+        Mobility::Static
+    }
 }
 
 /// All of a glTF mesh's primitives as one triangle soup; triangle material ids are
@@ -149,7 +166,7 @@ pub fn render_scene(scene: &Scene) -> RenderScene {
     //    gets its own, refit as it moves.
     let mut blas_of: HashMap<(usize, usize, Option<usize>), u32> = HashMap::new();
     let mut meshes: Vec<(usize, usize, BlasKind)> = Vec::new();
-    let blas_key = |index: usize, placement: &crate::scene::world::MeshPlacement| {
+    let blas_key = |index: usize, placement: &MeshPlacement| {
         (
             asset_index(placement.asset),
             placement.mesh,
@@ -210,12 +227,15 @@ pub fn render_scene(scene: &Scene) -> RenderScene {
             material_base,
             asset_offset: asset_offsets[asset],
         });
-        instances.push(Instance::new(
-            blas_of[&blas_key(index, placement)],
-            Affine3A::from_mat4(placement.world_from_mesh),
-            InstanceMask::ALL,
-            instance_user_id(placement.entity, placement.node),
-        ));
+        instances.push(
+            Instance::new(
+                blas_of[&blas_key(index, placement)],
+                Affine3A::from_mat4(placement.world_from_mesh),
+                InstanceMask::ALL,
+                instance_user_id(placement.entity, placement.node),
+            )
+            .with_mobility(placement_mobility(scene, placement)),
+        );
     }
     let default_material = materials.len() as u32;
     materials.push(textures.material(0, &Material::default()));

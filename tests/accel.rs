@@ -10,8 +10,8 @@
 
 use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
 use gloam::accel::{
-    AccelScene, Blas, BlasKind, Hit, Instance, InstanceMask, Kernels, MeshGeometry, Opaque, Ray,
-    RefitOutcome, Traversal,
+    AccelScene, Blas, BlasKind, Hit, Instance, InstanceMask, Kernels, MeshGeometry, Mobility,
+    Opaque, Ray, RefitOutcome, Traversal,
 };
 use obvhs::ray::Ray as ObvhsRay;
 use obvhs::rt_triangle::RtTriangle;
@@ -118,17 +118,34 @@ fn object_ray(instance: &Instance, ray: &Ray) -> ObvhsRay {
     )
 }
 
-/// Every hit (t, instance, triangle) of `ray` on instances in `mask`, by testing all.
+/// Every hit (t, instance, triangle) of `ray` on instances in `mask`, by testing all. An
+/// instance in a static batch is tested as the batch holds it: its triangles carried into
+/// world space, against the world ray.
 fn brute_hits(scene: &AccelScene, ray: &Ray, mask: InstanceMask) -> Vec<(f32, u32, u32)> {
     let mut hits = Vec::new();
     for (index, instance) in scene.instances().iter().enumerate() {
         if !instance.mask.intersects(mask) {
             continue;
         }
-        let local = object_ray(instance, ray);
+        let batched = scene.is_batched(index as u32);
+        let local = if batched {
+            ObvhsRay::new(ray.origin, ray.direction, ray.t_min, ray.t_max)
+        } else {
+            object_ray(instance, ray)
+        };
         let geometry = &scene.blases[instance.blas as usize].geometry;
         for triangle in 0..geometry.triangles.len() {
-            let [a, b, c] = geometry.triangle_vertices(triangle);
+            let [a, b, c] = if batched {
+                geometry.triangles[triangle].map(|i| {
+                    Vec3A::from(
+                        instance
+                            .world_from_object()
+                            .transform_point3(geometry.positions[i as usize]),
+                    )
+                })
+            } else {
+                geometry.triangle_vertices(triangle)
+            };
             let t = RtTriangle::new(a, b, c).intersect(&local);
             if t.is_finite() {
                 hits.push((t, index as u32, triangle as u32));
@@ -215,6 +232,130 @@ fn closest_and_any_hit_match_brute_force() {
     }
 }
 
+/// `random_scene` with two instances in three `Mobility::Static`: batched, one batch per
+/// mask.
+fn random_batched_scene(seed: u64) -> AccelScene {
+    let scene = random_scene(seed, BlasKind::Static);
+    let instances = scene
+        .instances()
+        .iter()
+        .enumerate()
+        .map(|(index, instance)| {
+            let mobility = if index % 3 == 0 {
+                Mobility::Movable
+            } else {
+                Mobility::Static
+            };
+            instance.clone().with_mobility(mobility)
+        })
+        .collect();
+    AccelScene::new(scene.blases, instances)
+}
+
+#[test]
+fn static_batches_find_exactly_their_members_hits() {
+    for traversal in [
+        Traversal::Wide(Kernels::Best),
+        Traversal::Wide(Kernels::Portable),
+        Traversal::Bvh2,
+    ] {
+        for seed in 0..4 {
+            let mut scene = random_batched_scene(seed);
+            assert_eq!(scene.batched_instance_count(), 20, "seed {seed}");
+            scene.set_traversal(traversal);
+            let mut rng = Rng(seed + 200);
+            for (i, ray) in test_rays(&mut rng, 300).iter().enumerate() {
+                let mask = [InstanceMask::ALL, InstanceMask(1), InstanceMask(2 | 4)][i % 3];
+                let context = format!("batched, {traversal:?} seed {seed} ray {i}");
+                assert_matches_brute_force(&scene, ray, mask, &context);
+                // The hit names the member's own triangle: its surface lies on the ray.
+                if let Some(hit) = scene.intersect(ray, mask, &Opaque) {
+                    let surface = scene.surface(&hit);
+                    assert!(
+                        (surface.position - ray.at(hit.t)).length() <= 1e-3 * (1.0 + hit.t),
+                        "{context}: surface off the ray"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn moving_a_batched_instance_dissolves_its_batch() {
+    let mut scene = random_batched_scene(5);
+    let member = (0..30).find(|&i| scene.is_batched(i)).unwrap();
+    let mask = scene.instances()[member as usize].mask;
+    let moved = scene.instances()[member as usize].world_from_object()
+        * Affine3A::from_translation(Vec3::new(0.5, -1.0, 2.0));
+    scene.instances_mut()[member as usize].set_transform(moved);
+    scene.rebuild_tlas();
+    // Its batch (its mask's) is gone; the other masks' batches stay.
+    for (index, instance) in scene.instances().iter().enumerate() {
+        let same_batch = instance.mask == mask && instance.mobility == Mobility::Static;
+        assert_eq!(
+            scene.is_batched(index as u32),
+            !same_batch && index % 3 != 0
+        );
+    }
+    let mut rng = Rng(77);
+    for (i, ray) in test_rays(&mut rng, 300).iter().enumerate() {
+        assert_matches_brute_force(
+            &scene,
+            ray,
+            InstanceMask::ALL,
+            &format!("dissolved, ray {i}"),
+        );
+    }
+    // Batching again takes the member where it now is.
+    scene.rebatch();
+    assert_eq!(scene.batched_instance_count(), 20);
+    for (i, ray) in test_rays(&mut rng, 300).iter().enumerate() {
+        assert_matches_brute_force(
+            &scene,
+            ray,
+            InstanceMask::ALL,
+            &format!("rebatched, ray {i}"),
+        );
+    }
+}
+
+#[test]
+fn only_static_opaque_rigid_instances_are_batched() {
+    let mut rng = Rng(9);
+    let opaque = random_mesh(&mut rng, 50);
+    let mut alpha_tested = random_mesh(&mut rng, 50);
+    alpha_tested.uvs = vec![Vec2::ZERO; alpha_tested.positions.len()];
+    alpha_tested.alpha_tested = vec![true; alpha_tested.triangles.len()];
+    let blases = vec![
+        Blas::build(opaque.clone(), BlasKind::Static),
+        Blas::build(alpha_tested, BlasKind::Static),
+        Blas::build(opaque, BlasKind::Deforming),
+    ];
+    let placed = |blas: u32, x: f32, mobility: Mobility| {
+        Instance::new(
+            blas,
+            Affine3A::from_translation(Vec3::new(x, 0.0, 0.0)),
+            InstanceMask::ALL,
+            0,
+        )
+        .with_mobility(mobility)
+    };
+    let scene = AccelScene::new(
+        blases,
+        vec![
+            placed(0, 0.0, Mobility::Static),
+            placed(0, 3.0, Mobility::Static),
+            placed(0, 6.0, Mobility::Movable),
+            placed(1, 9.0, Mobility::Static),
+            placed(1, 12.0, Mobility::Static),
+            placed(2, 15.0, Mobility::Static),
+        ],
+    );
+    let batched: Vec<bool> = (0..6).map(|i| scene.is_batched(i)).collect();
+    assert_eq!(batched, [true, true, false, false, false, false]);
+}
+
 /// Bundles of rays as the renderer groups them, and worse: a pinhole's rays through a
 /// narrow patch (one octant) or a wide one (straddling axes, so packets split by octant);
 /// segments from nearby points to one target (shadow rays); rays leaving surfaces towards
@@ -283,12 +424,32 @@ fn packets_find_exactly_what_single_rays_find() {
         Traversal::Wide(Kernels::Portable),
         Traversal::Bvh2,
     ] {
-        for seed in 0..4 {
+        for seed in 0..6 {
             let mut scene = random_scene(seed + 20, BlasKind::Static);
             for (i, instance) in scene.instances_mut().iter_mut().enumerate() {
                 if i % 3 == 0 {
                     instance.set_transform(Affine3A::IDENTITY);
                 }
+            }
+            // Seeds 2-3: two instances in three in static batches; 4-5: every instance in
+            // one batch, the TLAS's sole entry.
+            if seed >= 2 {
+                let instances = scene
+                    .instances()
+                    .iter()
+                    .enumerate()
+                    .map(|(i, instance)| {
+                        let mut instance = instance.clone().with_mobility(Mobility::Static);
+                        if seed >= 4 {
+                            instance.mask = InstanceMask::ALL;
+                        } else if i % 3 == 1 {
+                            instance.mobility = Mobility::Movable;
+                        }
+                        instance
+                    })
+                    .collect();
+                scene = AccelScene::new(scene.blases, instances);
+                assert!(scene.batched_instance_count() >= 20);
             }
             scene.set_traversal(traversal);
             let mut rng = Rng(seed + 300);

@@ -202,3 +202,55 @@ fn rendering_interpolates_between_simulation_steps() {
     engine.advance(0.5 / 60.0); // the next step: where the simulation put it
     assert!((height(&engine) - 1.0).abs() < 1e-6);
 }
+
+#[test]
+fn static_batches_last_through_play_and_dissolve_when_a_member_moves() {
+    let scene = level("first-light.ron");
+    let mut engine = Engine::new(&scene, settings(1));
+    let batched = |engine: &Engine| {
+        engine
+            .world
+            .resource::<RenderState>()
+            .scene
+            .accel
+            .batched_instance_count()
+    };
+    let at_load = batched(&engine);
+    let instances = engine
+        .world
+        .resource::<RenderState>()
+        .scene
+        .accel
+        .instances()
+        .len();
+    assert!(
+        at_load >= instances / 2,
+        "walls, floors and pillars are batched ({at_load} of {instances})"
+    );
+    // The wardens walk; nothing static moves, so the batch stays.
+    for _ in 0..6 {
+        engine.advance(1.0 / 60.0);
+    }
+    assert_eq!(batched(&engine), at_load, "playing moved nothing static");
+
+    // The editor drags a pillar: its batch dissolves and every member is traced alone.
+    let pillar = scene
+        .level
+        .entities
+        .iter()
+        .position(|e| e.name == "pillar 1")
+        .unwrap();
+    let mut roots = engine.world.query::<(&LevelEntity, &mut Transform)>();
+    for (level_entity, mut transform) in roots.iter_mut(&mut engine.world) {
+        if level_entity.0 == pillar {
+            transform.translation += Vec3::Y;
+        }
+    }
+    engine.advance(1.0 / 60.0);
+    engine.advance(1.0 / 60.0);
+    assert_eq!(batched(&engine), 0, "the moved pillar's batch is gone");
+    // Batching again takes the pillar where it now stands.
+    let state = &mut *engine.world.resource_mut::<RenderState>();
+    state.scene.accel.rebatch();
+    assert_eq!(state.scene.accel.batched_instance_count(), at_load);
+}

@@ -1,31 +1,35 @@
 //! Frame step `accel`: ray queries over instanced meshes that move and deform every frame.
 //!
-//! Per frame (driven by the caller; accel knows nothing of the ECS, windows or materials):
+//! At load, `AccelScene::new` merges the instances marked `Mobility::Static` into
+//! world-space batches (`batch`). Per frame (driven by the caller; accel knows nothing of the
+//! ECS, windows or materials):
 //! 1. `Blas::refit` each deformed mesh (rebuilds it when its quality has decayed);
 //! 2. `AccelScene::set_transform` / `instances_mut` for moved instances;
-//! 3. `AccelScene::rebuild_tlas` over world-space instance boxes (PLOC, builder reused);
+//! 3. `AccelScene::rebuild_tlas` over world-space instance and batch boxes (PLOC, builder
+//!    reused), dissolving any batch a member of which has changed;
 //! 4. `intersect` (closest hit) and `occluded` (any hit, early exit) from many threads, one
 //!    ray at a time or, for rays that travel together, `intersect_coherent` /
 //!    `occluded_coherent` in packets of 64 (`packet`), with the very same results.
 //!
 //! Rays are traced TLAS -> instance (ray moved into object space, direction not
-//! renormalised, so t is the same in both spaces) -> BLAS (its 8-wide BVH, `wide`, or its
-//! BVH2). Instance masks select what a
-//! query sees (camera-visible, casts-shadow, pickable); materials with alpha-masked holes
+//! renormalised, so t is the same in both spaces) or static batch (world space) -> BLAS (its
+//! 8-wide BVH, `wide`, or its BVH2). Instance masks select what a query sees (camera-visible, casts-shadow, pickable); materials with alpha-masked holes
 //! are honoured through the caller's `AlphaTest`.
 //!
 //! Rays that start on a surface: spawn them with `Ray::spawn`, which offsets the origin
 //! along the geometric normal by an amount scaled to the position's magnitude (after
 //! pbrt-v4's `OffsetRayOrigin`, simplified to a conservative relative epsilon).
 
+mod batch;
 mod blas;
 pub mod packet;
 mod tlas;
 pub mod wide;
 
+pub use batch::MAX_BATCH_TRIANGLES;
 pub use blas::{Blas, BlasKind, MeshGeometry, REBUILD_RATIO, RefitOutcome, Traversal};
 pub use packet::{PACKET, RayPacket};
-pub use tlas::{AccelScene, Instance};
+pub use tlas::{AccelScene, Instance, Mobility};
 pub use wide::{Kernels, WideBvh, WideTlas};
 
 use glam::{Vec2, Vec3A};

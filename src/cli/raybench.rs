@@ -28,8 +28,8 @@ use rayon::prelude::*;
 use serde_json::{Value, json};
 
 use crate::accel::{
-    AccelScene, Blas, BlasKind, Instance, InstanceMask, Kernels, MeshGeometry, Opaque, Ray,
-    RefitOutcome, Traversal, WideBvh,
+    AccelScene, Blas, BlasKind, Instance, InstanceMask, Kernels, MeshGeometry, Mobility, Opaque,
+    Ray, RefitOutcome, Traversal, WideBvh,
 };
 use crate::extract::render_scene;
 use crate::render::light::Light;
@@ -173,11 +173,12 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     // 3. Rays.
     let rays = make_rays(&accel, &camera, &emitters, options.size);
     println!(
-        "gloam raybench {name}: {} triangles in {} BLASes, {} instances ({} triangles instanced); {} primary, {} shadow, {} diffuse rays; median of {}",
+        "gloam raybench {name}: {} triangles in {} BLASes, {} instances ({} triangles instanced, {} instances in static batches); {} primary, {} shadow, {} diffuse rays; median of {}",
         accel.blases.iter().map(Blas::triangle_count).sum::<usize>(),
         accel.blases.len(),
         accel.instances().len(),
         accel.instanced_triangle_count(),
+        accel.batched_instance_count(),
         rays.primary.len(),
         rays.shadow.len(),
         rays.diffuse.len(),
@@ -199,6 +200,15 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     };
     let portable = with_traversal(Traversal::Wide(Kernels::Portable));
     let bvh2 = with_traversal(Traversal::Bvh2);
+    // Every instance traced on its own through the TLAS, as before static batching.
+    let unbatched = AccelScene::new(
+        accel.blases.clone(),
+        accel
+            .instances()
+            .iter()
+            .map(|instance| instance.clone().with_mobility(Mobility::Movable))
+            .collect(),
+    );
     let flat_count = accel.instanced_triangle_count();
     let mut agreement = None;
     // The flat builds run on one thread (obvhs's builders use rayon where they can), so
@@ -289,6 +299,15 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             shadow,
             diffuse,
         },
+        Contender {
+            primary: packet_closest(&unbatched),
+            ..Contender::one_by_one(
+                "gloam_renderer_unbatched",
+                blas_build_ms,
+                single_closest(&unbatched),
+                |ray: &Ray| unbatched.occluded(ray, InstanceMask::ALL, &Opaque),
+            )
+        },
         // Packets for every ray type, diffuse bounces included (what the renderer does not).
         Contender::packets("gloam_packets", blas_build_ms, &accel),
         Contender::packets("gloam_packets_portable", blas_build_ms, &portable),
@@ -323,6 +342,20 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     if let Some((tree, kernels)) = largest {
         contenders.push(Contender::one_by_one(
             "gloam_largest_blas_alone",
+            blas_build_ms,
+            move |ray: &Ray| tree.intersect(&ray.to_obvhs(), kernels).is_some(),
+            move |ray: &Ray| tree.occluded(&ray.to_obvhs(), kernels),
+        ));
+    }
+
+    // The largest static batch traced on its own: the renderer's path without the TLAS.
+    let largest_batch = accel
+        .batch_blases()
+        .max_by_key(|blas| blas.triangle_count())
+        .and_then(Blas::packet_tree);
+    if let Some((tree, kernels)) = largest_batch {
+        contenders.push(Contender::one_by_one(
+            "gloam_largest_batch_alone",
             blas_build_ms,
             move |ray: &Ray| tree.intersect(&ray.to_obvhs(), kernels).is_some(),
             move |ray: &Ray| tree.occluded(&ray.to_obvhs(), kernels),
@@ -678,8 +711,13 @@ fn print_table(layouts: &[(&str, Vec<Throughput>, f64)], thread_counts: &[usize]
 }
 
 /// Adds copies of the scene's first `scene_instances` instances, moved along a square grid
-/// in X and Z spaced by the scene's size, until there are `wanted` instances in all.
+/// in X and Z spaced by the scene's size, until there are `wanted` instances in all. Every
+/// instance is made `Movable` (the scene's batches dissolve at the next TLAS rebuild): the
+/// TLAS is what this measures, so it must hold all `wanted`.
 fn replicate_instances(accel: &mut AccelScene, scene_instances: usize, wanted: usize) {
+    for instance in accel.instances_mut() {
+        instance.mobility = Mobility::Movable;
+    }
     let bounds = accel.bounds();
     let step = Vec3::from(bounds.diagonal()) * 1.1;
     let side = (wanted as f64 / scene_instances as f64)
