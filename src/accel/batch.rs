@@ -18,7 +18,7 @@
 //! editor moving a wall), and its members are traced one by one again until
 //! `AccelScene::rebatch` merges them anew.
 
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
 
 use super::blas::{Blas, BlasKind, MeshGeometry, PendingHit};
@@ -123,11 +123,9 @@ fn merge(blases: &[Blas], instances: &[Instance], members: &[u32]) -> StaticBatc
         let mesh = &blases[instance.blas as usize].geometry;
         let to_world = instance.world_from_object();
         let base = geometry.positions.len() as u32;
-        geometry.positions.extend(
-            mesh.positions
-                .iter()
-                .map(|&p| Vec3::from(to_world.transform_point3(p))),
-        );
+        geometry
+            .positions
+            .extend(mesh.positions.iter().map(|&p| to_world.transform_point3(p)));
         // The vertex order is kept, so barycentrics (b1, b2) name the same point on the
         // member's triangle (a mirroring transform flips the winding, not the corners).
         geometry

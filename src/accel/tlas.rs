@@ -447,7 +447,9 @@ impl AccelScene {
             // Per ray, the closest so far: its instance and the BLAS's pending hit.
             let mut closest = [(0u32, PendingHit::Wide(0)); PACKET];
             let mut slots = [0u32; PACKET];
-            let found = wide.walk_packet(
+            let found = walk_packet_or_visit_sole(
+                wide,
+                &self.tlas,
                 &packet,
                 first_lanes(rays.len()),
                 kernels,
@@ -518,7 +520,9 @@ impl AccelScene {
         };
         for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
             let (packet, mut t_max) = RayPacket::of_rays(rays);
-            let blocked = wide.walk_packet(
+            let blocked = walk_packet_or_visit_sole(
+                wide,
+                &self.tlas,
                 &packet,
                 first_lanes(rays.len()),
                 kernels,
@@ -645,6 +649,26 @@ fn walk_or_visit_sole(
         return visit(0, t_max).is_some();
     }
     wide.walk(world, t_max, kernels, any, visit)
+}
+
+/// `walk_or_visit_sole` for packets: a one-entry TLAS hands every ray of the packet to its
+/// entry, whose own walk tests the box.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn walk_packet_or_visit_sole(
+    wide: &WideTlas,
+    tlas: &Bvh2,
+    packet: &RayPacket,
+    rays: u64,
+    kernels: Kernels,
+    any: bool,
+    t_max: &mut [f32; PACKET],
+    mut visit: impl FnMut(usize, u64, &mut [f32; PACKET]) -> u64,
+) -> u64 {
+    if tlas.primitive_indices.len() == 1 {
+        return visit(0, rays, t_max);
+    }
+    wide.walk_packet(packet, rays, kernels, any, t_max, visit)
 }
 
 /// The world box of an object box under an affine transform (Arvo 1990, "Transforming
