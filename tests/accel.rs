@@ -16,6 +16,13 @@ use gloam::accel::{
 use obvhs::ray::Ray as ObvhsRay;
 use obvhs::rt_triangle::RtTriangle;
 
+/// Every way rays go through: wide TLAS and BLASes with each kernel set, and obvhs's BVH2s.
+const TRAVERSALS: [Traversal; 3] = [
+    Traversal::Wide(Kernels::Best),
+    Traversal::Wide(Kernels::Portable),
+    Traversal::Bvh2,
+];
+
 /// A small deterministic generator (SplitMix64), so failures reproduce from the seed.
 struct Rng(u64);
 
@@ -213,12 +220,7 @@ fn test_rays(rng: &mut Rng, count: usize) -> Vec<Ray> {
 
 #[test]
 fn closest_and_any_hit_match_brute_force() {
-    // Every way through: wide TLAS and BLASes with each kernel set, and obvhs's BVH2s.
-    for traversal in [
-        Traversal::Wide(Kernels::Best),
-        Traversal::Wide(Kernels::Portable),
-        Traversal::Bvh2,
-    ] {
+    for traversal in TRAVERSALS {
         for seed in 0..6 {
             let mut scene = random_scene(seed, BlasKind::Static);
             scene.set_traversal(traversal);
@@ -254,11 +256,7 @@ fn random_batched_scene(seed: u64) -> AccelScene {
 
 #[test]
 fn static_batches_find_exactly_their_members_hits() {
-    for traversal in [
-        Traversal::Wide(Kernels::Best),
-        Traversal::Wide(Kernels::Portable),
-        Traversal::Bvh2,
-    ] {
+    for traversal in TRAVERSALS {
         for seed in 0..4 {
             let mut scene = random_batched_scene(seed);
             assert_eq!(scene.batched_instance_count(), 20, "seed {seed}");
@@ -419,11 +417,7 @@ fn packets_find_exactly_what_single_rays_find() {
     // Every traversal (the BVH2 one falls back to single rays), random instanced scenes
     // with a third of the instances untransformed (their packets are not re-made in object
     // space) and the rest rotated, scaled and mirrored (they are).
-    for traversal in [
-        Traversal::Wide(Kernels::Best),
-        Traversal::Wide(Kernels::Portable),
-        Traversal::Bvh2,
-    ] {
+    for traversal in TRAVERSALS {
         for seed in 0..6 {
             let mut scene = random_scene(seed + 20, BlasKind::Static);
             for (i, instance) in scene.instances_mut().iter_mut().enumerate() {
@@ -576,11 +570,7 @@ fn waved(positions: &[Vec3], phase: f32, amplitude: f32) -> Vec<Vec3> {
 #[test]
 fn refit_keeps_queries_exact_and_matches_a_rebuild() {
     // Every tree a BLAS can trace: the wide one with each kernel set, and the BVH2.
-    for traversal in [
-        Traversal::Wide(Kernels::Best),
-        Traversal::Wide(Kernels::Portable),
-        Traversal::Bvh2,
-    ] {
+    for traversal in TRAVERSALS {
         let mut scene = random_scene(9, BlasKind::Deforming);
         scene.set_traversal(traversal);
         let mut rng = Rng(99);

@@ -35,6 +35,23 @@ fn pause_animation(engine: &mut Engine) {
     }
 }
 
+/// Lifts the level entity `name` by a metre; returns its index in the level.
+fn lift(engine: &mut Engine, scene: &Scene, name: &str) -> usize {
+    let entity = scene
+        .level
+        .entities
+        .iter()
+        .position(|e| e.name == name)
+        .unwrap();
+    let mut roots = engine.world.query::<(&LevelEntity, &mut Transform)>();
+    for (level_entity, mut transform) in roots.iter_mut(&mut engine.world) {
+        if level_entity.0 == entity {
+            transform.translation += Vec3::Y;
+        }
+    }
+    entity
+}
+
 #[test]
 fn propagated_transforms_match_the_static_placements() {
     for name in ["first-light.ron", "cornell.ron"] {
@@ -95,18 +112,7 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
     let before = engine.image();
 
     // Lift "pillar 1" (level entity) by a metre.
-    let pillar = scene
-        .level
-        .entities
-        .iter()
-        .position(|e| e.name == "pillar 1")
-        .unwrap();
-    let mut roots = engine.world.query::<(&LevelEntity, &mut Transform)>();
-    for (level_entity, mut transform) in roots.iter_mut(&mut engine.world) {
-        if level_entity.0 == pillar {
-            transform.translation += Vec3::Y;
-        }
-    }
+    let pillar = lift(&mut engine, &scene, "pillar 1");
     // Rendering interpolates between the last two steps: the step that moves the pillar
     // shows it where it was (alpha 0); the next one shows it lifted.
     engine.advance(1.0 / 60.0);
@@ -234,18 +240,7 @@ fn static_batches_last_through_play_and_dissolve_when_a_member_moves() {
     assert_eq!(batched(&engine), at_load, "playing moved nothing static");
 
     // The editor drags a pillar: its batch dissolves and every member is traced alone.
-    let pillar = scene
-        .level
-        .entities
-        .iter()
-        .position(|e| e.name == "pillar 1")
-        .unwrap();
-    let mut roots = engine.world.query::<(&LevelEntity, &mut Transform)>();
-    for (level_entity, mut transform) in roots.iter_mut(&mut engine.world) {
-        if level_entity.0 == pillar {
-            transform.translation += Vec3::Y;
-        }
-    }
+    lift(&mut engine, &scene, "pillar 1");
     engine.advance(1.0 / 60.0);
     engine.advance(1.0 / 60.0);
     assert_eq!(batched(&engine), 0, "the moved pillar's batch is gone");

@@ -340,11 +340,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         .filter(|instance| instance.world_from_object() == Affine3A::IDENTITY)
         .and_then(|instance| accel.blases[instance.blas as usize].packet_tree());
     if let Some((tree, kernels)) = largest {
-        contenders.push(Contender::one_by_one(
+        contenders.push(Contender::tree_alone(
             "gloam_largest_blas_alone",
             blas_build_ms,
-            move |ray: &Ray| tree.intersect(&ray.to_obvhs(), kernels).is_some(),
-            move |ray: &Ray| tree.occluded(&ray.to_obvhs(), kernels),
+            tree,
+            kernels,
         ));
     }
 
@@ -354,11 +354,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         .max_by_key(|blas| blas.triangle_count())
         .and_then(Blas::packet_tree);
     if let Some((tree, kernels)) = largest_batch {
-        contenders.push(Contender::one_by_one(
+        contenders.push(Contender::tree_alone(
             "gloam_largest_batch_alone",
             blas_build_ms,
-            move |ray: &Ray| tree.intersect(&ray.to_obvhs(), kernels).is_some(),
-            move |ray: &Ray| tree.occluded(&ray.to_obvhs(), kernels),
+            tree,
+            kernels,
         ));
     }
 
@@ -579,6 +579,21 @@ impl<'a> Contender<'a> {
             shadow: packet_any(scene),
             diffuse: packet_closest(scene),
         }
+    }
+
+    /// One wide tree walked on its own, with no TLAS above it, one ray at a time.
+    fn tree_alone(
+        name: &'static str,
+        build_ms: f64,
+        tree: &'a WideBvh,
+        kernels: Kernels,
+    ) -> Contender<'a> {
+        Contender::one_by_one(
+            name,
+            build_ms,
+            move |ray: &Ray| tree.intersect(&ray.to_obvhs(), kernels).is_some(),
+            move |ray: &Ray| tree.occluded(&ray.to_obvhs(), kernels),
+        )
     }
 
     /// A contender tracing one ray at a time (the same queries for primary and diffuse).
