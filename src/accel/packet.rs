@@ -774,8 +774,12 @@ impl WideTlas {
         kernels: Kernels,
         any: bool,
         t_max: &mut [f32; PACKET],
-        visit: impl FnMut(usize, u64, &mut [f32; PACKET]) -> u64,
+        mut visit: impl FnMut(usize, u64, &mut [f32; PACKET]) -> u64,
     ) -> u64 {
+        // A one-entry tree is not walked (`sole_entry`): every ray goes to slot 0.
+        if self.sole_entry {
+            return visit(0, rays, t_max);
+        }
         #[cfg(target_arch = "x86_64")]
         if kernels.avx2() {
             // SAFETY: the CPU has AVX2, the only feature the function enables.

@@ -378,7 +378,7 @@ impl AccelScene {
                     _ => None,
                 }
             };
-            walk_or_visit_sole(wide, &self.tlas, &world, ray.t_max, kernels, false, visit);
+            wide.walk(&world, ray.t_max, kernels, false, visit);
         } else {
             let mut tlas_hit = RayHit::none();
             self.tlas
@@ -447,9 +447,7 @@ impl AccelScene {
             // Per ray, the closest so far: its instance and the BLAS's pending hit.
             let mut closest = [(0u32, PendingHit::Wide(0)); PACKET];
             let mut slots = [0u32; PACKET];
-            let found = walk_packet_or_visit_sole(
-                wide,
-                &self.tlas,
+            let found = wide.walk_packet(
                 &packet,
                 first_lanes(rays.len()),
                 kernels,
@@ -520,9 +518,7 @@ impl AccelScene {
         };
         for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
             let (packet, mut t_max) = RayPacket::of_rays(rays);
-            let blocked = walk_packet_or_visit_sole(
-                wide,
-                &self.tlas,
+            let blocked = wide.walk_packet(
                 &packet,
                 first_lanes(rays.len()),
                 kernels,
@@ -579,7 +575,7 @@ impl AccelScene {
                 // Any t inside the segment ends the walk; its value does not matter.
                 blocked.then_some(ray.t_min)
             };
-            return walk_or_visit_sole(wide, &self.tlas, &world, ray.t_max, kernels, true, visit);
+            return wide.walk(&world, ray.t_max, kernels, true, visit);
         }
         !self
             .tlas
@@ -629,46 +625,6 @@ impl AccelScene {
             user_id: instance.user_id,
         }
     }
-}
-
-/// `wide.walk(..)`, except that a TLAS holding one entry (a level whose every instance is
-/// in one static batch) is not walked: its sole entry is visited straight away, and its
-/// BLAS's own walk tests the box. That skips a node test, a stack and a call, 8-15 ns of
-/// a 60-90 ns ray on dream-apartment.
-#[inline(always)]
-fn walk_or_visit_sole(
-    wide: &WideTlas,
-    tlas: &Bvh2,
-    world: &RayLanes,
-    t_max: f32,
-    kernels: Kernels,
-    any: bool,
-    mut visit: impl FnMut(usize, f32) -> Option<f32>,
-) -> bool {
-    if tlas.primitive_indices.len() == 1 {
-        return visit(0, t_max).is_some();
-    }
-    wide.walk(world, t_max, kernels, any, visit)
-}
-
-/// `walk_or_visit_sole` for packets: a one-entry TLAS hands every ray of the packet to its
-/// entry, whose own walk tests the box.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn walk_packet_or_visit_sole(
-    wide: &WideTlas,
-    tlas: &Bvh2,
-    packet: &RayPacket,
-    rays: u64,
-    kernels: Kernels,
-    any: bool,
-    t_max: &mut [f32; PACKET],
-    mut visit: impl FnMut(usize, u64, &mut [f32; PACKET]) -> u64,
-) -> u64 {
-    if tlas.primitive_indices.len() == 1 {
-        return visit(0, rays, t_max);
-    }
-    wide.walk_packet(packet, rays, kernels, any, t_max, visit)
 }
 
 /// The world box of an object box under an affine transform (Arvo 1990, "Transforming
