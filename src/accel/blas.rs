@@ -123,9 +123,6 @@ pub struct Blas {
     pub(crate) ordered: Vec<RtTriangle>,
     /// Original triangle index of each entry of `ordered`.
     pub(crate) ordered_ids: Vec<u32>,
-    /// Deforming meshes: the vertex indices of each entry of `ordered`, so a refit reads
-    /// the moved vertices without first looking up the triangle (empty for static meshes).
-    leaf_corners: Vec<[u32; 3]>,
     /// Alpha-tested flag per entry of `ordered`, or empty when no triangle is.
     ordered_alpha: Vec<bool>,
     /// SAH cost right after the last build (the reference for the rebuild policy).
@@ -186,13 +183,6 @@ impl Blas {
         };
         // Opaque meshes trace an 8-wide BVH; alpha-tested ones keep the BVH2, whose traversal
         // takes the per-triangle callback.
-        let leaf_corners = match kind {
-            BlasKind::Deforming => ordered_ids
-                .iter()
-                .map(|&i| geometry.triangles[i as usize])
-                .collect(),
-            BlasKind::Static => Vec::new(),
-        };
         let wide = ordered_alpha
             .is_empty()
             .then(|| WideBvh::build(&bvh, &ordered).ok())
@@ -207,7 +197,6 @@ impl Blas {
             bvh,
             ordered,
             ordered_ids,
-            leaf_corners,
             ordered_alpha,
             built_cost: 0.0,
             triangle_boxes: Vec::new(),
@@ -338,21 +327,14 @@ impl Blas {
                 // and the BVH2 wait until something needs them (`set_traversal`). Refit of
                 // raybench's 100k-triangle grid on 2 threads: 1.31x the BVH2's refit time
                 // through the copy, 1.14x like this (each pair timed in one run).
-                let (positions, ordered_ids) = (&self.geometry.positions, &self.ordered_ids);
-                let (triangles, corners) = (&self.geometry.triangles, &self.leaf_corners);
+                // The blocks name each triangle by its index in the mesh.
+                let (positions, triangles) = (&self.geometry.positions, &self.geometry.triangles);
                 self.bvh_stale = true;
                 let vertex = |i: u32| Vec3A::from(positions[i as usize]);
-                if corners.len() == ordered_ids.len() {
-                    wide.refit(|id| {
-                        let [a, b, c] = corners[id].map(vertex);
-                        RtTriangle::new(a, b, c)
-                    })
-                } else {
-                    wide.refit(|id| {
-                        let [a, b, c] = triangles[ordered_ids[id] as usize].map(vertex);
-                        RtTriangle::new(a, b, c)
-                    })
-                }
+                wide.refit(|id| {
+                    let [a, b, c] = triangles[id].map(vertex);
+                    RtTriangle::new(a, b, c)
+                })
             }
             _ => self.refit_bvh2(),
         };
@@ -483,10 +465,7 @@ impl Blas {
             (PendingHit::Known(triangle, barycentrics), _) => (triangle, barycentrics),
             (PendingHit::Wide(slot), Some(wide)) => {
                 let (id, triangle) = wide.triangle_at(slot);
-                (
-                    self.ordered_ids[id as usize],
-                    barycentrics(&triangle, origin, direction),
-                )
+                (id, barycentrics(&triangle, origin, direction))
             }
             (PendingHit::Wide(_), None) => unreachable!("a wide-tree hit from a BLAS without one"),
         }
