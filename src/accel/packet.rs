@@ -12,14 +12,18 @@
 //!    children are visited nearest first by the group's earliest entry, and skipped once
 //!    every ray has a hit nearer than that;
 //! 3. at a leaf, each ray's own slab test against the leaf's box (8 rays per AVX2 test) picks
-//!    the rays that go on to the single-ray triangle block test.
+//!    the rays that go on to the single-ray triangle block test. Any-hit (shadow) walks take
+//!    that per-ray test at every child the intervals admit and carry each subtree's rays
+//!    down with it (`walk_packet`'s `MASKED`).
 //!
 //! What pays (dream-apartment, 512 x 512, one thread, `gloam raybench`, same runs): camera
-//! rays 11.2 Mrays/s in packets against 5.5 alone. Shadow rays from a strip's hit points to
-//! points spread over an area light gave 7.4 against 9.7 alone: their origins span the
-//! strip's visible depth and their directions the light, so the intervals admit many boxes,
-//! and a group ends only when its last ray is blocked. The renderer traces those one at a
-//! time (`occluded_coherent` is here for rays that do converge, and for the comparison).
+//! rays 11.2 Mrays/s in packets against 5.5 alone (when both walked a TLAS; 16-17 against
+//! 12-15 through the static batch). Shadow rays from a strip's hit points to points spread
+//! over an area light gave 7.4 against 9.7 alone then, and 14.2-14.9 against 15-16 now:
+//! their origins span the strip's visible depth and their directions the light, so the
+//! intervals admit many boxes, and a group ends only when its last ray is blocked. The
+//! renderer traces those one at a time (`occluded_coherent` is here for rays that do
+//! converge, and for the comparison).
 //!
 //! Why no hit is lost: IEEE subtraction and multiplication round monotonically, so the
 //! interval bound computed from the corners of [origin] x [reciprocal] is below (entry) or
@@ -297,6 +301,42 @@ impl PacketBounds {
     }
 }
 
+/// Per child lane in `hits`, the rays of `rays` whose own slab test enters that child's box
+/// before their `t_max` (0 for the other lanes): a child box at a time, eight rays per test,
+/// or, when few rays are left, a ray at a time against all eight boxes (the same
+/// arithmetic either way).
+#[inline(always)]
+fn child_masks<K: PacketLanes>(
+    node: &WideNode,
+    hits: u32,
+    packet: &RayPacket,
+    bounds: &PacketBounds,
+    rays: u64,
+    t_max: &[f32; PACKET],
+) -> [u64; WIDTH] {
+    let mut masks = [0u64; WIDTH];
+    if rays.count_ones() <= hits.count_ones() {
+        for ray in lanes_of(rays) {
+            let lanes = packet.lanes(ray, bounds.near, bounds.far);
+            let (entered, _) = K::node(node, &lanes, t_max[ray]);
+            let mut entered = entered & hits;
+            while entered != 0 {
+                let lane = entered.trailing_zeros() as usize;
+                entered &= entered - 1;
+                masks[lane] |= 1 << ray;
+            }
+        }
+    } else {
+        let mut remaining = hits;
+        while remaining != 0 {
+            let lane = remaining.trailing_zeros() as usize;
+            remaining &= remaining - 1;
+            masks[lane] = K::rays_in_box(node, lane, packet, bounds, rays, t_max);
+        }
+    }
+    masks
+}
+
 /// The largest `t_max` among `rays` (-inf for none): a child entered later is of no use.
 #[inline(always)]
 fn farthest(t_max: &[f32; PACKET], rays: u64) -> f32 {
@@ -521,8 +561,18 @@ mod avx2 {
 /// leaf's box before their `t_max`; `leaf` lowers the `t_max` of rays it finds closer hits
 /// for and returns which rays hit (with `ANY`, those rays then leave the walk). Returns every
 /// ray `leaf` reported.
+///
+/// With `MASKED`, every child the group's interval test admits is also tested ray by ray
+/// (`child_masks`), and the walk carries the rays inside each subtree: a child no ray
+/// enters is skipped, and a leaf gets exactly its rays without a test of its own. That pays
+/// for shadow rays, whose origins spread over a strip's visible depth so that the
+/// intervals admit many boxes no ray enters: dream-apartment's shadow rays in packets went
+/// from 13.0-13.6 to 14.2-14.9 Mrays/s (`gloam raybench`, one thread, two runs, same
+/// runs), while camera rays, whose intervals are tight, fell from 15.5-16.3 to 14.0-15.0;
+/// so any-hit walks are masked and closest-hit walks are not. (Handing a subtree that only
+/// one to four rays enter to single-ray walks, Benthin et al. 2012, measured no better.)
 #[inline(always)]
-fn walk_packet<K: PacketLanes, const ANY: bool>(
+fn walk_packet<K: PacketLanes, const ANY: bool, const MASKED: bool>(
     nodes: &[WideNode],
     packet: &RayPacket,
     mut bounds: PacketBounds,
@@ -537,25 +587,37 @@ fn walk_packet<K: PacketLanes, const ANY: bool>(
     // Rule: node indices fit in 29 bits (a tree that large would need 100 GB), so a child's
     // parent is kept as node * 8 + lane. Entries below `depth` are written before read.
     debug_assert!(nodes.len() < 1 << 29);
-    let mut stack = [const { MaybeUninit::<(u32, f32, u32)>::uninit() }; STACK];
+    let mut stack = [const { MaybeUninit::<(u32, f32, u32, u64)>::uninit() }; STACK];
     // SAFETY: `read` is only called at indices below `depth`.
-    let read = |stack: &[MaybeUninit<(u32, f32, u32)>; STACK], at: usize| unsafe {
+    let read = |stack: &[MaybeUninit<(u32, f32, u32, u64)>; STACK], at: usize| unsafe {
         stack[at].assume_init()
     };
     let mut depth = 0usize;
     let mut current = 0u32;
     let mut parent = 0u32;
+    // With `MASKED`: the rays whose own tests enter `current`'s box.
+    let mut active = rays;
     let mut t_far = farthest(t_max, rays);
     loop {
         if current & LEAF == 0 {
             let node = &nodes[current as usize];
             let (mut hits, entry) = K::packet_node(node, &bounds, t_far);
+            let mut masks = [0u64; WIDTH];
+            if MASKED && hits != 0 {
+                masks = child_masks::<K>(node, hits, packet, &bounds, active, t_max);
+                for (lane, mask) in masks.iter().enumerate() {
+                    if *mask == 0 {
+                        hits &= !(1 << lane);
+                    }
+                }
+            }
             if hits != 0 {
                 let at = current << 3;
                 if hits.count_ones() == 1 {
                     let lane = hits.trailing_zeros();
                     parent = at | lane;
                     current = node.children[lane as usize];
+                    active = masks[lane as usize];
                     continue;
                 }
                 // Farthest first under the nearest, as the single-ray walk does.
@@ -567,6 +629,7 @@ fn walk_packet<K: PacketLanes, const ANY: bool>(
                         node.children[lane as usize],
                         entry[lane as usize],
                         at | lane,
+                        masks[lane as usize],
                     );
                     let mut slot = depth;
                     if !ANY {
@@ -579,12 +642,17 @@ fn walk_packet<K: PacketLanes, const ANY: bool>(
                     depth += 1;
                 }
                 depth -= 1;
-                (current, _, parent) = read(&stack, depth);
+                // (Masks are taken over `active`, which holds only rays still walking.)
+                (current, _, parent, active) = read(&stack, depth);
                 continue;
             }
         } else {
-            let node = &nodes[(parent >> 3) as usize];
-            let inside = K::rays_in_box(node, (parent & 7) as usize, packet, &bounds, rays, t_max);
+            let inside = if MASKED {
+                active & rays
+            } else {
+                let node = &nodes[(parent >> 3) as usize];
+                K::rays_in_box(node, (parent & 7) as usize, packet, &bounds, rays, t_max)
+            };
             if inside != 0 {
                 let hit = leaf(current, inside, t_max);
                 if hit != 0 {
@@ -611,10 +679,11 @@ fn walk_packet<K: PacketLanes, const ANY: bool>(
                 return found;
             }
             depth -= 1;
-            let (child, entry, from) = read(&stack, depth);
-            if entry <= t_far {
+            let (child, entry, from, mask) = read(&stack, depth);
+            if entry <= t_far && (!MASKED || mask & rays != 0) {
                 current = child;
                 parent = from;
+                active = mask & rays;
                 break;
             }
         }
@@ -717,42 +786,37 @@ impl WideBvh {
             }
             let bounds = PacketBounds::new(packet, group, octant);
             let (near, far) = (bounds.near, bounds.far);
-            found |= walk_packet::<K, ANY>(
-                &self.nodes,
-                packet,
-                bounds,
-                group,
-                t_max,
-                |leaf, inside, t_max| {
-                    let (first, count) = leaf_blocks(leaf);
-                    let blocks = &self.blocks[first..first + count];
-                    let mut hit = 0;
-                    for lane in lanes_of(inside) {
-                        let ray = packet.lanes(lane, near, far);
-                        for (index, block) in blocks.iter().enumerate() {
-                            let (mut hits, t) = K::block(block, &ray, t_max[lane]);
-                            if ANY {
-                                if hits != 0 {
-                                    hit |= 1 << lane;
-                                    break;
-                                }
-                                continue;
+            let leaf = |leaf, inside, t_max: &mut [f32; PACKET]| {
+                let (first, count) = leaf_blocks(leaf);
+                let blocks = &self.blocks[first..first + count];
+                let mut hit = 0;
+                for lane in lanes_of(inside) {
+                    let ray = packet.lanes(lane, near, far);
+                    for (index, block) in blocks.iter().enumerate() {
+                        let (mut hits, t) = K::block(block, &ray, t_max[lane]);
+                        if ANY {
+                            if hits != 0 {
+                                hit |= 1 << lane;
+                                break;
                             }
-                            // As the single-ray walk: strictly nearer replaces.
-                            while hits != 0 {
-                                let triangle = hits.trailing_zeros() as usize;
-                                hits &= hits - 1;
-                                if t[triangle] < t_max[lane] {
-                                    t_max[lane] = t[triangle];
-                                    slots[lane] = ((first + index) * WIDTH + triangle) as u32;
-                                    hit |= 1 << lane;
-                                }
+                            continue;
+                        }
+                        // As the single-ray walk: strictly nearer replaces.
+                        while hits != 0 {
+                            let triangle = hits.trailing_zeros() as usize;
+                            hits &= hits - 1;
+                            if t[triangle] < t_max[lane] {
+                                t_max[lane] = t[triangle];
+                                slots[lane] = ((first + index) * WIDTH + triangle) as u32;
+                                hit |= 1 << lane;
                             }
                         }
                     }
-                    hit
-                },
-            );
+                }
+                hit
+            };
+            // Any-hit walks carry per-ray masks (`walk_packet`), closest-hit walks do not.
+            found |= walk_packet::<K, ANY, ANY>(&self.nodes, packet, bounds, group, t_max, leaf);
         }
         found
     }
@@ -848,9 +912,9 @@ impl WideTlas {
                 hit
             };
             found |= if any {
-                walk_packet::<K, true>(&self.nodes, packet, bounds, group, t_max, &mut leaf)
+                walk_packet::<K, true, true>(&self.nodes, packet, bounds, group, t_max, &mut leaf)
             } else {
-                walk_packet::<K, false>(&self.nodes, packet, bounds, group, t_max, &mut leaf)
+                walk_packet::<K, false, false>(&self.nodes, packet, bounds, group, t_max, &mut leaf)
             };
         }
         found
