@@ -145,7 +145,6 @@ impl Blas {
                 RtTriangle::new(a, b, c)
             })
             .collect();
-        let alpha_tested = geometry.alpha_tested.iter().any(|&a| a);
         let params = match kind {
             // Static meshes are built once per level load and traced every frame: obvhs's
             // slow preset (PLOC search distance high, 20% of nodes reinserted; Meister &
@@ -154,14 +153,6 @@ impl Blas {
             // apartment on one thread, and its wide tree traced 2-8% faster rays in three
             // runs (21-28% in a fourth; SAH cost 18.5 against 19.2; `gloam raybench
             // --build-study`): a few seconds of play repay it.
-            //
-            // An opaque mesh is traced through its wide tree, which forms its own leaves:
-            // the BVH2 skips obvhs's leaf collapse (`WideBvh::source_params`; the same wide
-            // tree, about 60 ms less per 178k triangles). Alpha-tested meshes trace the BVH2
-            // itself, which needs those leaves.
-            BlasKind::Static if !alpha_tested => {
-                WideBvh::source_params(BvhBuildParams::slow_build())
-            }
             BlasKind::Static => BvhBuildParams::slow_build(),
             // Refit trees keep their topology for many frames: the same quality preset,
             // but 1 triangle per leaf keeps refit boxes tight as triangles move apart.
@@ -182,7 +173,7 @@ impl Blas {
         }
         let ordered_ids = bvh.primitive_indices.clone();
         let ordered: Vec<RtTriangle> = ordered_ids.iter().map(|&i| triangles[i as usize]).collect();
-        let ordered_alpha = if alpha_tested {
+        let ordered_alpha = if geometry.alpha_tested.iter().any(|&a| a) {
             ordered_ids
                 .iter()
                 .map(|&i| geometry.alpha_tested[i as usize])

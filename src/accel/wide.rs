@@ -434,18 +434,24 @@ fn collapse_node(
 impl WideBvh {
     /// obvhs's build `params` as they should be for a BVH2 that is to be collapsed 8 wide:
     /// without obvhs's leaf collapse (SAH-driven merging of subtrees into leaves of up to
-    /// `max_prims_per_leaf`) and without the reinsertion pass after it. This collapse forms
-    /// its own leaves (every subtree of at most 8 triangles, `Source::is_wide_leaf`), so the
-    /// wide tree comes out the same either way: dream-apartment's 178k triangles, one
-    /// thread, fastest of 15 builds, fast preset: SAH cost 19.23 both ways, 9,274 nodes and
-    /// 32,165 blocks both ways, and 45 against 59 ms (PLOC 21.7, reinsertion 8.4, and this
-    /// collapse 14.1 ms over the uncollapsed tree, against obvhs's collapse 18.8 and this
-    /// one 8.7 over its output). With the slow preset the reinsertion after the collapse
-    /// changed the wide SAH by 0.01 (18.51 against 18.50) and cost 37 ms.
+    /// `max_prims_per_leaf`) when no reinsertion pass follows it. This collapse forms its
+    /// own leaves (every subtree of at most 8 triangles, `Source::is_wide_leaf`), so the
+    /// wide tree comes out the same: dream-apartment's 178k triangles, one thread, fast
+    /// preset, fastest of 15 builds: SAH cost 19.23, 9,274 nodes and 32,165 blocks either
+    /// way, in 45 against 59 ms (PLOC 21.7, reinsertion 8.4 and this collapse 14.1 ms over
+    /// the uncollapsed tree, against obvhs's collapse 18.8 and this one 8.7 over its
+    /// output). Presets that reinsert after obvhs's collapse (medium, slow) keep it: that
+    /// pass moves whole 8-triangle leaves, and without it the slow preset's wide tree had
+    /// the same SAH cost (18.50) but traced 4-10% slower rays (`gloam raybench
+    /// --build-study`, three runs).
     pub fn source_params(params: BvhBuildParams) -> BvhBuildParams {
+        if params.post_collapse_reinsertion_batch_ratio_multiplier > 0.0
+            && params.reinsertion_batch_ratio > 0.0
+        {
+            return params;
+        }
         BvhBuildParams {
             max_prims_per_leaf: 1,
-            post_collapse_reinsertion_batch_ratio_multiplier: 0.0,
             ..params
         }
     }
