@@ -4,8 +4,10 @@
 //! 2008, "Getting Rid of Packets: Efficient SIMD Single-Ray Traversal using Multi-branching
 //! BVHs"): a wide node starts from a BVH2 node's two children and repeatedly opens the
 //! inner child of largest surface area, the one a random ray is likeliest to enter, until it
-//! has 8 children. Each BVH2 leaf (at most 8 triangles by the build preset) becomes one
-//! `TriangleBlock`, 8 triangles as SoA lanes.
+//! has 8 children. Each BVH2 leaf, and each subtree of at most 8 triangles, becomes one
+//! `TriangleBlock`, 8 triangles as SoA lanes (so a BVH2 built without obvhs's own leaf
+//! collapse gives the same tree, sooner: `WideBvh::source_params`). A block names each
+//! triangle by its index in the mesh.
 //!
 //! Per ray: one AVX2 slab test of a node's 8 child boxes, the hit children visited nearest
 //! first (sorted by entry distance), and one AVX2 Moller-Trumbore test (Moller & Trumbore
