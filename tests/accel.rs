@@ -197,6 +197,16 @@ fn assert_matches_brute_force(scene: &AccelScene, ray: &Ray, mask: InstanceMask,
 }
 
 /// Random rays through the scene, plus axis-parallel ones.
+/// 300 `test_rays` from `Rng(seed)`, numbered, each with one of three instance masks in turn
+/// (all instances, mask 1, masks 2 and 4).
+fn masked_test_rays(seed: u64) -> impl Iterator<Item = (usize, Ray, InstanceMask)> {
+    let masks = [InstanceMask::ALL, InstanceMask(1), InstanceMask(2 | 4)];
+    test_rays(&mut Rng(seed), 300)
+        .into_iter()
+        .enumerate()
+        .map(move |(i, ray)| (i, ray, masks[i % 3]))
+}
+
 fn test_rays(rng: &mut Rng, count: usize) -> Vec<Ray> {
     let mut rays = Vec::with_capacity(count);
     for i in 0..count {
@@ -224,11 +234,9 @@ fn closest_and_any_hit_match_brute_force() {
         for seed in 0..6 {
             let mut scene = random_scene(seed, BlasKind::Static);
             scene.set_traversal(traversal);
-            let mut rng = Rng(seed + 100);
-            for (i, ray) in test_rays(&mut rng, 300).iter().enumerate() {
-                let mask = [InstanceMask::ALL, InstanceMask(1), InstanceMask(2 | 4)][i % 3];
+            for (i, ray, mask) in masked_test_rays(seed + 100) {
                 let context = format!("{traversal:?} seed {seed} ray {i}");
-                assert_matches_brute_force(&scene, ray, mask, &context);
+                assert_matches_brute_force(&scene, &ray, mask, &context);
             }
         }
     }
@@ -261,13 +269,11 @@ fn static_batches_find_exactly_their_members_hits() {
             let mut scene = random_batched_scene(seed);
             assert_eq!(scene.batched_instance_count(), 20, "seed {seed}");
             scene.set_traversal(traversal);
-            let mut rng = Rng(seed + 200);
-            for (i, ray) in test_rays(&mut rng, 300).iter().enumerate() {
-                let mask = [InstanceMask::ALL, InstanceMask(1), InstanceMask(2 | 4)][i % 3];
+            for (i, ray, mask) in masked_test_rays(seed + 200) {
                 let context = format!("batched, {traversal:?} seed {seed} ray {i}");
-                assert_matches_brute_force(&scene, ray, mask, &context);
+                assert_matches_brute_force(&scene, &ray, mask, &context);
                 // The hit names the member's own triangle: its surface lies on the ray.
-                if let Some(hit) = scene.intersect(ray, mask, &Opaque) {
+                if let Some(hit) = scene.intersect(&ray, mask, &Opaque) {
                     let surface = scene.surface(&hit);
                     assert!(
                         (surface.position - ray.at(hit.t)).length() <= 1e-3 * (1.0 + hit.t),

@@ -367,27 +367,18 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         })
         .filter(|instance| instance.world_from_object() == Affine3A::IDENTITY)
         .and_then(|instance| accel.blases[instance.blas as usize].packet_tree());
-    if let Some((tree, kernels)) = largest {
-        contenders.push(Contender::tree_alone(
-            "gloam_largest_blas_alone",
-            blas_build_ms,
-            tree,
-            kernels,
-        ));
-    }
-
     // The largest static batch traced on its own: the renderer's path without the TLAS.
     let largest_batch = accel
         .batch_blases()
         .max_by_key(|blas| blas.triangle_count())
         .and_then(Blas::packet_tree);
-    if let Some((tree, kernels)) = largest_batch {
-        contenders.push(Contender::tree_alone(
-            "gloam_largest_batch_alone",
-            blas_build_ms,
-            tree,
-            kernels,
-        ));
+    for (name, tree) in [
+        ("gloam_largest_blas_alone", largest),
+        ("gloam_largest_batch_alone", largest_batch),
+    ] {
+        if let Some((tree, kernels)) = tree {
+            contenders.push(Contender::tree_alone(name, blas_build_ms, tree, kernels));
+        }
     }
 
     let mut wide_stats = None;
