@@ -567,8 +567,8 @@ mod avx2 {
 /// enters is skipped, and a leaf gets exactly its rays without a test of its own. That pays
 /// for shadow rays, whose origins spread over a strip's visible depth so that the
 /// intervals admit many boxes no ray enters: dream-apartment's shadow rays in packets went
-/// from 13.0-13.6 to 14.2-14.9 Mrays/s (`gloam raybench`, one thread, two runs, same
-/// runs), while camera rays, whose intervals are tight, fell from 15.5-16.3 to 14.0-15.0;
+/// from 13.0-13.6 to 14.2-14.9 Mrays/s (`gloam raybench`, one thread, two runs, both
+/// walks in each run), while camera rays, whose intervals are tight, fell from 15.5-16.3 to 14.0-15.0;
 /// so any-hit walks are masked and closest-hit walks are not. (Handing a subtree that only
 /// one to four rays enter to single-ray walks, Benthin et al. 2012, measured no better.)
 #[inline(always)]
