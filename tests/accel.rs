@@ -458,8 +458,11 @@ fn packets_find_exactly_what_single_rays_find() {
                 let mask = [InstanceMask::ALL, InstanceMask(1 | 2), InstanceMask(4)][b % 3];
                 let mut hits = vec![None; bundle.len()];
                 let mut occluded = vec![false; bundle.len()];
+                let mut streamed = vec![true; bundle.len()];
                 scene.intersect_coherent(bundle, mask, &Opaque, &mut hits);
                 scene.occluded_coherent(bundle, mask, &Opaque, &mut occluded);
+                scene.occluded_stream(bundle, mask, &Opaque, &mut streamed);
+                assert_eq!(streamed, occluded, "{traversal:?} seed {seed} bundle {b}");
                 for (i, ray) in bundle.iter().enumerate() {
                     let context = format!("{traversal:?} seed {seed} bundle {b} ray {i}");
                     assert_eq!(
@@ -477,6 +480,49 @@ fn packets_find_exactly_what_single_rays_find() {
                 }
             }
             assert!(hits_found > 100, "too few hits to compare: {hits_found}");
+        }
+    }
+}
+
+#[test]
+fn shadow_streams_find_exactly_what_single_rays_find() {
+    // A BLAS large enough to be walked in the stream (12,000 triangles fill at least 1,500
+    // blocks of 416 bytes, over `STREAMED_TREE_BYTES`' 512 KB) under small ones tested
+    // inline, instanced untransformed and transformed, in every traversal.
+    for traversal in TRAVERSALS {
+        let mut rng = Rng(77);
+        let mut blases = vec![Blas::build(random_mesh(&mut rng, 12_000), BlasKind::Static)];
+        blases.extend((0..3).map(|_| Blas::build(random_mesh(&mut rng, 60), BlasKind::Static)));
+        let instances = (0..12)
+            .map(|i| {
+                let transform = if i % 8 == 0 {
+                    Affine3A::IDENTITY
+                } else {
+                    random_transform(&mut rng)
+                };
+                let mask = InstanceMask(1 << (i % 3));
+                Instance::new((i % 4) as u32, transform, mask, i as u64)
+            })
+            .collect();
+        let mut scene = AccelScene::new(blases, instances);
+        scene.set_traversal(traversal);
+        for seed in 0..3 {
+            let rays = test_rays(&mut Rng(seed + 500), 700);
+            for mask in [InstanceMask::ALL, InstanceMask(1), InstanceMask(2 | 4)] {
+                let mut streamed = vec![true; rays.len()];
+                scene.occluded_stream(&rays, mask, &Opaque, &mut streamed);
+                let single: Vec<bool> = rays
+                    .iter()
+                    .map(|ray| scene.occluded(ray, mask, &Opaque))
+                    .collect();
+                assert_eq!(streamed, single, "{traversal:?} seed {seed} mask {mask:?}");
+                let blocked = single.iter().filter(|&&b| b).count();
+                assert!(
+                    blocked > 50 && blocked < rays.len() - 50,
+                    "too one-sided to compare: {blocked} of {} blocked",
+                    rays.len()
+                );
+            }
         }
     }
 }
@@ -726,6 +772,10 @@ fn alpha_masked_triangles_have_holes() {
     scene.intersect_coherent(&rays, InstanceMask::ALL, &holes, &mut hits);
     scene.occluded_coherent(&rays, InstanceMask::ALL, &holes, &mut occluded);
     assert_eq!(hits.map(|h| h.is_some()), [false, true, false, true, true]);
+    assert_eq!(occluded, [false, true, false, true, true]);
+    // So do streams of shadow rays.
+    let mut occluded = [false; 5];
+    scene.occluded_stream(&rays, InstanceMask::ALL, &holes, &mut occluded);
     assert_eq!(occluded, [false, true, false, true, true]);
     // Without the alpha test both rays hit.
     assert!(

@@ -9,7 +9,9 @@
 //!    reused), dissolving any batch a member of which has changed;
 //! 4. `intersect` (closest hit) and `occluded` (any hit, early exit) from many threads, one
 //!    ray at a time or, for rays that travel together, `intersect_coherent` /
-//!    `occluded_coherent` in packets of 64 (`packet`), with the very same results.
+//!    `occluded_coherent` in packets of 64 (`packet`), or, for many shadow rays at once,
+//!    `occluded_stream` in interleaved single-ray walks (`stream`), with the very same
+//!    results.
 //!
 //! Rays are traced TLAS -> instance (ray moved into object space, direction not
 //! renormalised, so t is the same in both spaces) or static batch (world space) -> BLAS (its
@@ -23,6 +25,7 @@
 mod batch;
 mod blas;
 pub mod packet;
+mod stream;
 mod tlas;
 pub mod wide;
 

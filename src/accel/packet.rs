@@ -22,8 +22,8 @@
 //! over an area light gave 7.4 against 9.7 alone then, and 14.2-14.9 against 15-16 now:
 //! their origins span the strip's visible depth and their directions the light, so the
 //! intervals admit many boxes, and a group ends only when its last ray is blocked. The
-//! renderer traces those one at a time (`occluded_coherent` is here for rays that do
-//! converge, and for the comparison).
+//! renderer traces those as interleaved streams of single rays instead (accel/stream.rs;
+//! `occluded_coherent` is here for rays that do converge, and for the comparison).
 //!
 //! Why no hit is lost: IEEE subtraction and multiplication round monotonically, so the
 //! interval bound computed from the corners of [origin] x [reciprocal] is below (entry) or
@@ -219,7 +219,7 @@ impl RayPacket {
 
     /// Lane `lane` as a single ray for the single-ray walks.
     #[inline]
-    fn single(&self, lane: usize) -> RayLanes {
+    pub(super) fn single(&self, lane: usize) -> RayLanes {
         let vector =
             |rows: &[[f32; PACKET]; 3]| Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane]);
         RayLanes::from_parts(

@@ -15,7 +15,8 @@ use obvhs::ray::{Ray as ObvhsRay, RayHit};
 use super::batch::{StaticBatch, batch_statics};
 use super::blas::{Blas, PendingHit, Traversal};
 use super::packet::{PACKET, RayPacket, first_lanes, lanes_of};
-use super::wide::{Kernels, RayLanes, WideTlas};
+use super::stream::{Job, occluded_jobs};
+use super::wide::{Kernels, Portable, RayLanes, WideTlas};
 use super::{AlphaTest, Hit, InstanceMask, Ray, SurfaceHit};
 
 /// Whether an instance may move: `Static` ones are merged into world-space batches
@@ -552,6 +553,83 @@ impl AccelScene {
         }
     }
 
+    /// `occluded` for many rays at once, `occluded[i]` for `rays[i]`: single-ray walks,
+    /// several interleaved so that their latencies overlap (accel/stream.rs).
+    pub fn occluded_stream<A: AlphaTest>(
+        &self,
+        rays: &[Ray],
+        mask: InstanceMask,
+        alpha: &A,
+        occluded: &mut [bool],
+    ) {
+        debug_assert_eq!(rays.len(), occluded.len());
+        occluded.fill(false);
+        let (Some(wide), Traversal::Wide(kernels)) = (&self.wide_tlas, self.traversal) else {
+            for (ray, blocked) in rays.iter().zip(occluded.iter_mut()) {
+                *blocked = self.occluded(ray, mask, alpha);
+            }
+            return;
+        };
+        let world = |ray: &Ray| RayLanes::from_parts(ray.origin, ray.direction, ray.t_min);
+        // A one-entry TLAS of an untransformed wide BLAS (a level that is one static batch):
+        // one job per ray, made as the walkers take them.
+        if wide.sole_entry {
+            let (instance, blas) = self.traced(self.tlas.primitive_indices[0]);
+            if !instance.mask.intersects(mask) {
+                return;
+            }
+            if let (true, Some((tree, _))) = (instance.is_identity, blas.packet_tree()) {
+                let job = |index: usize| Job {
+                    tree,
+                    ray: world(&rays[index]),
+                    t_max: rays[index].t_max,
+                    index,
+                };
+                return run_jobs(kernels, rays.len(), job, occluded);
+            }
+        }
+        // Else each ray walks the TLAS alone. A large wide BLAS it reaches becomes a job for
+        // the stream; a small one (whose walk mostly hits the caches: a mover, a prop) and
+        // one without a wide tree are tested there and then, and a block there cancels the
+        // ray's jobs.
+        let mut jobs = Vec::new();
+        for (index, ray) in rays.iter().enumerate() {
+            let lanes = world(ray);
+            let first_job = jobs.len();
+            let visit = |slot: usize, _| {
+                let (instance, blas) = self.traced(self.tlas.primitive_indices[slot]);
+                if !instance.mask.intersects(mask) {
+                    return None;
+                }
+                let blocked = match blas.packet_tree() {
+                    Some((tree, _)) if tree.bytes() >= STREAMED_TREE_BYTES => {
+                        jobs.push(Job {
+                            tree,
+                            ray: *instance.object_lanes(ray, &lanes, &mut None),
+                            t_max: ray.t_max,
+                            index,
+                        });
+                        false
+                    }
+                    Some((tree, kernels)) => tree.occluded_lanes(
+                        instance.object_lanes(ray, &lanes, &mut None),
+                        ray.t_max,
+                        kernels,
+                    ),
+                    None => blas.occluded(&instance.object_ray(&ray.to_obvhs()), alpha),
+                };
+                // Any t inside the segment ends the walk; its value does not matter.
+                blocked.then_some(ray.t_min)
+            };
+            if wide.walk(&lanes, ray.t_max, kernels, true, visit) {
+                occluded[index] = true;
+                jobs.truncate(first_job);
+            }
+        }
+        let jobs = &jobs[..];
+        run_jobs(kernels, jobs.len(), |at| jobs[at], occluded);
+    }
+
     /// True when something in `mask` blocks `ray` between t_min and t_max (any hit).
     pub fn occluded<A: AlphaTest>(&self, ray: &Ray, mask: InstanceMask, alpha: &A) -> bool {
         if self.tlas.nodes.is_empty() {
@@ -625,6 +703,36 @@ impl AccelScene {
             user_id: instance.user_id,
         }
     }
+}
+
+/// Interleaved walkers per stream (accel/stream.rs).
+const WALKERS: usize = 2;
+
+/// Trees at least this large (nodes and blocks) are walked in the stream; smaller ones
+/// mostly hit the caches, so the rays walk them at once.
+const STREAMED_TREE_BYTES: usize = 512 * 1024;
+
+/// `occluded_jobs` with the kernels asked for.
+#[inline]
+fn run_jobs<'a>(
+    kernels: Kernels,
+    count: usize,
+    job: impl Fn(usize) -> Job<'a>,
+    occluded: &mut [bool],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if kernels.avx2() {
+        // SAFETY: the CPU has AVX2, the only feature the function enables.
+        return unsafe { run_jobs_avx2(count, job, occluded) };
+    }
+    let _ = kernels;
+    occluded_jobs::<Portable, WALKERS>(count, job, occluded);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn run_jobs_avx2<'a>(count: usize, job: impl Fn(usize) -> Job<'a>, occluded: &mut [bool]) {
+    occluded_jobs::<super::wide::avx2::Avx2, WALKERS>(count, job, occluded);
 }
 
 /// The world box of an object box under an affine transform (Arvo 1990, "Transforming

@@ -484,6 +484,11 @@ impl WideBvh {
             .map_or((Vec3A::INFINITY, Vec3A::NEG_INFINITY), WideNode::union)
     }
 
+    /// Bytes of nodes and triangle blocks (what a walk may read).
+    pub fn bytes(&self) -> usize {
+        self.nodes.len() * size_of::<WideNode>() + self.blocks.len() * size_of::<TriangleBlock>()
+    }
+
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
@@ -987,6 +992,13 @@ pub(crate) trait Lanes {
     fn node(node: &WideNode, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]);
     /// Lanes whose triangle the ray crosses within (t_min, t_max), and the distances.
     fn block(block: &TriangleBlock, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]);
+    /// Writes the `children` named in `lanes` to the front of `slots`, lowest lane first,
+    /// and returns how many (the other slots may be overwritten).
+    fn push_children(
+        children: &[u32; WIDTH],
+        lanes: u32,
+        slots: &mut [MaybeUninit<u32>; WIDTH],
+    ) -> usize;
 }
 
 /// One ray against one box, portably: the entry distance, and whether the ray enters before
@@ -1027,6 +1039,22 @@ pub(super) struct Portable;
 // Lane loops index several arrays by the lane, as the SIMD kernels do.
 #[allow(clippy::needless_range_loop)]
 impl Lanes for Portable {
+    #[inline(always)]
+    fn push_children(
+        children: &[u32; WIDTH],
+        mut lanes: u32,
+        slots: &mut [MaybeUninit<u32>; WIDTH],
+    ) -> usize {
+        let mut count = 0;
+        while lanes != 0 {
+            let lane = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            slots[count % WIDTH].write(children[lane % WIDTH]);
+            count += 1;
+        }
+        count
+    }
+
     #[inline(always)]
     fn node(node: &WideNode, ray: &RayLanes, t_max: f32) -> (u32, [f32; WIDTH]) {
         let mut entry = [0.0; WIDTH];
@@ -1089,6 +1117,7 @@ pub(super) mod avx2 {
     //! The kernels in AVX2 intrinsics: the portable ones' operations, lane for lane.
 
     use std::arch::x86_64::*;
+    use std::mem::MaybeUninit;
 
     use super::{Lanes, ROBUST_FAR, RayLanes, TriangleBlock, WIDTH, WideNode};
 
@@ -1110,7 +1139,37 @@ pub(super) mod avx2 {
             // SAFETY: `Avx2` kernels run only where `Kernels::avx2` found AVX2.
             unsafe { Avx2::block_kernel(block, ray, t_max) }
         }
+
+        #[inline(always)]
+        fn push_children(
+            children: &[u32; WIDTH],
+            lanes: u32,
+            slots: &mut [MaybeUninit<u32>; WIDTH],
+        ) -> usize {
+            // SAFETY: `Avx2` kernels run only where `Kernels::avx2` found AVX2.
+            unsafe { Avx2::push_kernel(children, lanes, slots) }
+        }
     }
+
+    /// Per 8-bit lane mask, the set lanes' indices packed into the low bytes, lowest first:
+    /// the permutation that compresses those lanes to the front of a vector.
+    static COMPRESS: [u64; 256] = {
+        let mut table = [0u64; 256];
+        let mut mask = 0;
+        while mask < 256 {
+            let (mut packed, mut count, mut lane) = (0u64, 0, 0);
+            while lane < 8 {
+                if mask >> lane & 1 != 0 {
+                    packed |= (lane as u64) << (8 * count);
+                    count += 1;
+                }
+                lane += 1;
+            }
+            table[mask] = packed;
+            mask += 1;
+        }
+        table
+    };
 
     /// The lanes a ray enters (entry `near` at most exit `far`, widened by `ROBUST_FAR`),
     /// and each lane's entry: the end of every node test, single-ray or packet.
@@ -1147,6 +1206,26 @@ pub(super) mod avx2 {
                 }
                 entered(near, far)
             }
+        }
+
+        /// `push_children` as one permute and one store of all 8 lanes: no loop whose
+        /// length (the hit count) the branch predictor must guess.
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        fn push_kernel(
+            children: &[u32; WIDTH],
+            lanes: u32,
+            slots: &mut [MaybeUninit<u32>; WIDTH],
+        ) -> usize {
+            let order = COMPRESS[(lanes & 0xff) as usize];
+            // SAFETY: `children` and `slots` are 8 u32s each (unaligned loads and stores).
+            unsafe {
+                let order = _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(order as i64));
+                let children = _mm256_loadu_si256(children.as_ptr().cast());
+                let packed = _mm256_permutevar8x32_epi32(children, order);
+                _mm256_storeu_si256(slots.as_mut_ptr().cast(), packed);
+            }
+            lanes.count_ones() as usize
         }
 
         #[target_feature(enable = "avx2")]

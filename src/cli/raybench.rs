@@ -310,10 +310,9 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         )
     }));
     // The renderer's own path first (its figures are the report's top level): camera rays
-    // in packets, shadow rays and bounces one at a time, as render/mod.rs traces them.
-    let Contender {
-        shadow, diffuse, ..
-    } = Contender::one_by_one(
+    // in packets, shadow rays in interleaved streams, bounces one at a time, as
+    // render/mod.rs traces them.
+    let Contender { diffuse, .. } = Contender::one_by_one(
         "gloam_renderer",
         blas_build_ms,
         single_closest(&accel),
@@ -324,7 +323,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             name: "gloam_renderer",
             build_ms: blas_build_ms,
             primary: packet_closest(&accel),
-            shadow,
+            shadow: stream_any(&accel),
             diffuse,
         },
         Contender {
@@ -689,6 +688,16 @@ fn packet_any(scene: &AccelScene) -> Tracer<'_> {
     Box::new(move |rays: &[Ray]| {
         let mut occluded = vec![false; rays.len()];
         scene.occluded_coherent(rays, InstanceMask::ALL, &Opaque, &mut occluded);
+        occluded.iter().filter(|&&o| o).count()
+    })
+}
+
+/// gloam's shadow queries over a batch in interleaved streams
+/// (`AccelScene::occluded_stream`).
+fn stream_any(scene: &AccelScene) -> Tracer<'_> {
+    Box::new(move |rays: &[Ray]| {
+        let mut occluded = vec![false; rays.len()];
+        scene.occluded_stream(rays, InstanceMask::ALL, &Opaque, &mut occluded);
         occluded.iter().filter(|&&o| o).count()
     })
 }

@@ -190,7 +190,14 @@ pub struct ShadowQuery {
 impl ShadowQuery {
     /// Traces the shadow ray and adds the light it lets through.
     pub fn resolve(&self, scene: &RenderScene, alpha: &SceneAlpha, state: &mut PathState) {
-        if !scene.accel.occluded(&self.ray, InstanceMask::SHADOW, alpha) {
+        let blocked = scene.accel.occluded(&self.ray, InstanceMask::SHADOW, alpha);
+        self.arrive(blocked, state);
+    }
+
+    /// Adds the light the shadow ray lets through, given whether something blocks it (for
+    /// shadow rays traced together: `AccelScene::occluded_stream`).
+    pub fn arrive(&self, blocked: bool, state: &mut PathState) {
+        if !blocked {
             state.radiance += self.contribution;
         }
     }

@@ -11,8 +11,9 @@
 //!      camera ray, and the closest hits of the tile's rays, traced in packets of 16 x 4
 //!      (`AccelScene::intersect_coherent`; the same hits as one ray at a time);
 //!    - `shade`: the first vertex: emission, a light sample and a BSDF sample;
-//!    - `shadow`: the first vertex's shadow rays (all towards the lights), one at a time
-//!      (as packets they measured slower: see accel/packet.rs);
+//!    - `shadow`: the first vertex's shadow rays (all towards the lights), traced as
+//!      interleaved streams of single rays (`AccelScene::occluded_stream`; as packets
+//!      they measured slower: see accel/packet.rs and accel/stream.rs);
 //!    - `bounces`: each path onwards, one path at a time, with its own shadow rays;
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
 //!    thread count) and store the mean in the film.
@@ -53,7 +54,7 @@ pub use integrator::{IntegratorKind, RayCounts};
 pub use sampler::SamplerKind;
 pub use scene::RenderScene;
 
-use crate::accel::{Hit, Ray};
+use crate::accel::{Hit, InstanceMask, Ray};
 use integrator::{
     NextHit, PathState, VertexOutcome, camera_sample, continue_path, next_hit, next_hits,
     path_vertex, reference_radiance,
@@ -174,6 +175,9 @@ struct TileScratch<'a> {
     rays: Vec<Ray>,
     accel_hits: Vec<Option<Hit>>,
     outcomes: Vec<VertexOutcome>,
+    /// The first vertex's shadow rays, and whether something blocks each.
+    shadow_rays: Vec<Ray>,
+    blocked: Vec<bool>,
     sums: Vec<Vec3>,
 }
 
@@ -420,12 +424,26 @@ impl Tile<'_> {
             }
             phases.shade += lap(&mut clock);
 
-            // Shadow: the first vertex's shadow rays, together.
+            // Shadow: the first vertex's shadow rays, together, in interleaved streams.
             {
                 profiling::scope!("render.shadow");
+                let shadows = || scratch.outcomes.iter().filter_map(|outcome| outcome.shadow);
+                scratch.shadow_rays.clear();
+                scratch
+                    .shadow_rays
+                    .extend(shadows().map(|shadow| shadow.ray));
+                scratch.blocked.clear();
+                scratch.blocked.resize(scratch.shadow_rays.len(), false);
+                scene.accel.occluded_stream(
+                    &scratch.shadow_rays,
+                    InstanceMask::SHADOW,
+                    &alpha,
+                    &mut scratch.blocked,
+                );
+                let mut blocked = scratch.blocked.iter();
                 for (path, outcome) in scratch.paths.iter_mut().zip(&scratch.outcomes) {
                     if let Some(shadow) = &outcome.shadow {
-                        shadow.resolve(scene, &alpha, path);
+                        shadow.arrive(blocked.next() == Some(&true), path);
                     }
                 }
             }
