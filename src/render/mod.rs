@@ -14,7 +14,9 @@
 //!    - `shadow`: the first vertex's shadow rays (all towards the lights), traced as
 //!      interleaved streams of single rays (`AccelScene::occluded_stream`; as packets
 //!      they measured slower: see accel/packet.rs and accel/stream.rs);
-//!    - `bounces`: each path onwards, one path at a time, with its own shadow rays;
+//!    - `bounces`: every path onwards, a vertex at a time: each live path's bounce ray
+//!      alone (incoherent: neither packets nor streams paid), then that vertex's shadow
+//!      rays as one stream, until every path has ended;
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
 //!    thread count) and store the mean in the film.
 //!
@@ -56,10 +58,11 @@ pub use scene::RenderScene;
 
 use crate::accel::{Hit, InstanceMask, Ray};
 use integrator::{
-    NextHit, PathState, VertexOutcome, camera_sample, continue_path, next_hit, next_hits,
+    NextHit, PathState, ShadowQuery, VertexOutcome, camera_sample, next_hit, next_hits,
     path_vertex, reference_radiance,
 };
 use sampler::PixelSampler;
+use scene::SceneAlpha;
 
 const TILE: u32 = 16;
 
@@ -175,10 +178,36 @@ struct TileScratch<'a> {
     rays: Vec<Ray>,
     accel_hits: Vec<Option<Hit>>,
     outcomes: Vec<VertexOutcome>,
-    /// The first vertex's shadow rays, and whether something blocks each.
+    /// A vertex's shadow queries (path index, query), their rays, and whether something
+    /// blocks each.
+    shadows: Vec<(usize, ShadowQuery)>,
     shadow_rays: Vec<Ray>,
     blocked: Vec<bool>,
+    /// The paths still going (path index, next ray), this vertex's and the next's.
+    live: Vec<(usize, Ray)>,
+    next_live: Vec<(usize, Ray)>,
     sums: Vec<Vec3>,
+}
+
+impl TileScratch<'_> {
+    /// Traces the shadow rays of `shadows` as one stream (`AccelScene::occluded_stream`) and
+    /// adds the light each lets through to its path.
+    fn resolve_shadows(&mut self, scene: &RenderScene, alpha: &SceneAlpha) {
+        self.shadow_rays.clear();
+        self.shadow_rays
+            .extend(self.shadows.iter().map(|(_, shadow)| shadow.ray));
+        self.blocked.clear();
+        self.blocked.resize(self.shadow_rays.len(), false);
+        scene.accel.occluded_stream(
+            &self.shadow_rays,
+            InstanceMask::SHADOW,
+            alpha,
+            &mut self.blocked,
+        );
+        for ((index, shadow), &blocked) in self.shadows.iter().zip(&self.blocked) {
+            shadow.arrive(blocked, &mut self.paths[*index]);
+        }
+    }
 }
 
 pub struct RenderOutput {
@@ -427,48 +456,46 @@ impl Tile<'_> {
             // Shadow: the first vertex's shadow rays, together, in interleaved streams.
             {
                 profiling::scope!("render.shadow");
-                let shadows = || scratch.outcomes.iter().filter_map(|outcome| outcome.shadow);
-                scratch.shadow_rays.clear();
-                scratch
-                    .shadow_rays
-                    .extend(shadows().map(|shadow| shadow.ray));
-                scratch.blocked.clear();
-                scratch.blocked.resize(scratch.shadow_rays.len(), false);
-                scene.accel.occluded_stream(
-                    &scratch.shadow_rays,
-                    InstanceMask::SHADOW,
-                    &alpha,
-                    &mut scratch.blocked,
+                scratch.shadows.clear();
+                scratch.shadows.extend(
+                    (scratch.outcomes.iter().enumerate())
+                        .filter_map(|(index, outcome)| Some((index, outcome.shadow?))),
                 );
-                let mut blocked = scratch.blocked.iter();
-                for (path, outcome) in scratch.paths.iter_mut().zip(&scratch.outcomes) {
-                    if let Some(shadow) = &outcome.shadow {
-                        shadow.arrive(blocked.next() == Some(&true), path);
-                    }
-                }
+                scratch.resolve_shadows(scene, &alpha);
             }
             phases.shadow += lap(&mut clock);
 
-            // Bounces: each path onwards to its end.
+            // Bounces: every path onwards, all of them a vertex at a time (so each vertex's
+            // shadow rays are traced as one stream too), until every path has ended.
             {
                 profiling::scope!("render.bounces");
-                for ((path, outcome), sampler) in scratch
-                    .paths
-                    .iter_mut()
-                    .zip(&scratch.outcomes)
-                    .zip(&mut scratch.samplers)
-                {
-                    if let Some(ray) = outcome.next {
-                        continue_path(
+                scratch.live.clear();
+                scratch.live.extend(
+                    (scratch.outcomes.iter().enumerate())
+                        .filter_map(|(index, outcome)| Some((index, outcome.next?))),
+                );
+                while !scratch.live.is_empty() {
+                    scratch.shadows.clear();
+                    scratch.next_live.clear();
+                    for &(index, ray) in &scratch.live {
+                        let found = next_hit(scene, &ray, &alpha);
+                        let outcome = path_vertex(
                             scene,
-                            &alpha,
-                            path,
-                            ray,
-                            sampler,
+                            &mut scratch.paths[index],
+                            found,
+                            &mut scratch.samplers[index],
                             settings.max_depth,
                             &mut counts,
                         );
+                        if let Some(shadow) = outcome.shadow {
+                            scratch.shadows.push((index, shadow));
+                        }
+                        if let Some(next) = outcome.next {
+                            scratch.next_live.push((index, next));
+                        }
                     }
+                    scratch.resolve_shadows(scene, &alpha);
+                    std::mem::swap(&mut scratch.live, &mut scratch.next_live);
                 }
                 for (sum, path) in scratch.sums.iter_mut().zip(&scratch.paths) {
                     if path.radiance.is_finite() {
@@ -550,4 +577,59 @@ fn lap(clock: &mut Instant) -> f64 {
     let seconds = (now - *clock).as_secs_f64();
     *clock = now;
     seconds
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::integrator::continue_path;
+
+    /// The wavefront over each tile (its shadow rays in streams) gives, bit for bit, the
+    /// image one path at a time gives (`continue_path`, each shadow ray alone).
+    #[test]
+    fn the_wavefront_renders_what_one_path_at_a_time_renders() {
+        let level = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("levels/first-light.ron");
+        let world = crate::scene::world::Scene::load(&level).unwrap_or_else(|e| panic!("{e}"));
+        let scene = crate::extract::render_scene(&world);
+        let settings = RenderSettings {
+            width: 40,
+            height: 24,
+            spp: 2,
+            seed: 3,
+            frame: 0,
+            integrator: IntegratorKind::Path,
+            sampler: SamplerKind::Stratified,
+            max_depth: 5,
+        };
+        let camera = Camera::new(&scene.camera, settings.width, settings.height);
+        let film = render(&scene, &camera, &settings, &|_| {}).film;
+        let tile = Tile {
+            scene: &scene,
+            camera: &camera,
+            settings: &settings,
+            mask: None,
+            width: settings.width,
+            height: settings.height,
+            want_guides: false,
+        };
+        let alpha = scene.alpha();
+        let mut counts = RayCounts::default();
+        let mut lit = 0;
+        for y in 0..settings.height {
+            for x in 0..settings.width {
+                let mut sum = Vec3::ZERO;
+                for sample in 0..settings.spp {
+                    let mut sampler = tile.sampler((x, y), sample);
+                    let ray = tile.camera_ray((x, y), &mut sampler);
+                    let mut path = PathState::new(&ray);
+                    continue_path(&scene, &alpha, &mut path, ray, &mut sampler, 5, &mut counts);
+                    sum += path.radiance;
+                }
+                let one_at_a_time = sum / settings.spp as f32;
+                assert_eq!(film.pixel(x, y), one_at_a_time, "pixel ({x}, {y})");
+                lit += (one_at_a_time != Vec3::ZERO) as usize;
+            }
+        }
+        assert!(lit > 500, "too few lit pixels to compare: {lit}");
+    }
 }
