@@ -16,7 +16,7 @@ use super::batch::{StaticBatch, batch_statics};
 use super::blas::{Blas, PendingHit, Traversal};
 use super::packet::{PACKET, RayPacket, first_lanes, lanes_of};
 use super::stream::{Job, occluded_jobs};
-use super::wide::{Kernels, Portable, RayLanes, WideTlas};
+use super::wide::{Kernels, Portable, RayLanes, WideBvh, WideTlas};
 use super::{AlphaTest, Hit, InstanceMask, Ray, SurfaceHit};
 
 /// Whether an instance may move: `Static` ones are merged into world-space batches
@@ -555,8 +555,8 @@ impl AccelScene {
 
     /// `occluded` for many rays at once, `occluded[i]` for `rays[i]`: single-ray walks,
     /// several interleaved so that their latencies overlap (accel/stream.rs).
-    pub fn occluded_stream<A: AlphaTest>(
-        &self,
+    pub fn occluded_stream<'a, A: AlphaTest>(
+        &'a self,
         rays: &[Ray],
         mask: InstanceMask,
         alpha: &A,
@@ -597,29 +597,21 @@ impl AccelScene {
             let lanes = world(ray);
             let first_job = jobs.len();
             let visit = |slot: usize, _| {
-                let (instance, blas) = self.traced(self.tlas.primitive_indices[slot]);
-                if !instance.mask.intersects(mask) {
-                    return None;
-                }
-                let blocked = match blas.packet_tree() {
-                    Some((tree, _)) if tree.bytes() >= STREAMED_TREE_BYTES => {
+                let stream = |tree: &'a WideBvh, object: &RayLanes| {
+                    let large = tree.bytes() >= STREAMED_TREE_BYTES;
+                    if large {
+                        let (ray, t_max) = (*object, ray.t_max);
                         jobs.push(Job {
                             tree,
-                            ray: *instance.object_lanes(ray, &lanes, &mut None),
-                            t_max: ray.t_max,
+                            ray,
+                            t_max,
                             index,
                         });
-                        false
                     }
-                    Some((tree, kernels)) => tree.occluded_lanes(
-                        instance.object_lanes(ray, &lanes, &mut None),
-                        ray.t_max,
-                        kernels,
-                    ),
-                    None => blas.occluded(&instance.object_ray(&ray.to_obvhs()), alpha),
+                    large
                 };
                 // Any t inside the segment ends the walk; its value does not matter.
-                blocked.then_some(ray.t_min)
+                (self.entry_blocks(slot, ray, &lanes, mask, alpha, stream)).then_some(ray.t_min)
             };
             if wide.walk(&lanes, ray.t_max, kernels, true, visit) {
                 occluded[index] = true;
@@ -630,6 +622,34 @@ impl AccelScene {
         run_jobs(kernels, jobs.len(), |at| jobs[at], occluded);
     }
 
+    /// An any-hit walk's visit to TLAS slot `slot`: whether its instance or batch, if in
+    /// `mask`, blocks `ray` (`world`: the ray prepared). `defer(tree, object ray)` may take a
+    /// wide tree's walk away to be done later (returning true); the slot then counts as
+    /// clear for now.
+    #[inline(always)]
+    fn entry_blocks<'a, A: AlphaTest>(
+        &'a self,
+        slot: usize,
+        ray: &Ray,
+        world: &RayLanes,
+        mask: InstanceMask,
+        alpha: &A,
+        defer: impl FnOnce(&'a WideBvh, &RayLanes) -> bool,
+    ) -> bool {
+        let (instance, blas) = self.traced(self.tlas.primitive_indices[slot]);
+        if !instance.mask.intersects(mask) {
+            return false;
+        }
+        match blas.packet_tree() {
+            Some((tree, kernels)) => {
+                let mut moved = None;
+                let object = instance.object_lanes(ray, world, &mut moved);
+                !defer(tree, object) && tree.occluded_lanes(object, ray.t_max, kernels)
+            }
+            None => blas.occluded(&instance.object_ray(&ray.to_obvhs()), alpha),
+        }
+    }
+
     /// True when something in `mask` blocks `ray` between t_min and t_max (any hit).
     pub fn occluded<A: AlphaTest>(&self, ray: &Ray, mask: InstanceMask, alpha: &A) -> bool {
         if self.tlas.nodes.is_empty() {
@@ -638,20 +658,9 @@ impl AccelScene {
         if let (Some(wide), Traversal::Wide(kernels)) = (&self.wide_tlas, self.traversal) {
             let world = RayLanes::from_parts(ray.origin, ray.direction, ray.t_min);
             let visit = |slot: usize, _| {
-                let (instance, blas) = self.traced(self.tlas.primitive_indices[slot]);
-                if !instance.mask.intersects(mask) {
-                    return None;
-                }
-                let blocked = match blas.packet_tree() {
-                    Some((tree, kernels)) => tree.occluded_lanes(
-                        instance.object_lanes(ray, &world, &mut None),
-                        ray.t_max,
-                        kernels,
-                    ),
-                    None => blas.occluded(&instance.object_ray(&ray.to_obvhs()), alpha),
-                };
+                let walk_now = |_: &WideBvh, _: &RayLanes| false;
                 // Any t inside the segment ends the walk; its value does not matter.
-                blocked.then_some(ray.t_min)
+                (self.entry_blocks(slot, ray, &world, mask, alpha, walk_now)).then_some(ray.t_min)
             };
             return wide.walk(&world, ray.t_max, kernels, true, visit);
         }
