@@ -219,7 +219,7 @@ impl RayPacket {
 
     /// Lane `lane` as a single ray for the single-ray walks.
     #[inline]
-    pub(super) fn single(&self, lane: usize) -> RayLanes {
+    fn single(&self, lane: usize) -> RayLanes {
         let vector =
             |rows: &[[f32; PACKET]; 3]| Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane]);
         RayLanes::from_parts(

@@ -28,7 +28,6 @@ use super::wide::{LEAF, Lanes, RayLanes, STACK, WIDTH, WideBvh, WideNode, leaf_b
 
 /// One ray's walk of one BLAS.
 #[derive(Clone, Copy)]
-/// One ray's walk of one BLAS.
 pub(super) struct Job<'a> {
     pub(super) tree: &'a WideBvh,
     /// The ray in the tree's space.
@@ -59,7 +58,7 @@ pub(super) fn occluded_jobs<'a, K: Lanes, const WALKERS: usize>(
     }
     // Per walker, its job's fields and walk as separate arrays, which the compiler keeps
     // in registers once it unrolls the walker loop. Walkers past the last job hold a copy
-    // of job 0 but are not `live`.
+    // of the last job but are not `live`.
     let first: [Job; WALKERS] = std::array::from_fn(|walker| job(walker.min(count - 1)));
     let mut tree = first.map(|job| job.tree);
     let mut rays = first.map(|job| job.ray);
