@@ -591,7 +591,9 @@ impl AccelScene {
         // Else each ray walks the TLAS alone. A large wide BLAS it reaches becomes a job for
         // the stream; a small one (whose walk mostly hits the caches: a mover, a prop) and
         // one without a wide tree are tested there and then, and a block there cancels the
-        // ray's jobs.
+        // ray's jobs. (`jobs` borrows the trees, so it cannot outlive the call as scratch:
+        // it grows once per call, a few allocations per 256 rays, and none on a level with
+        // no large tree behind a TLAS of several entries.)
         let mut jobs = Vec::new();
         for (index, ray) in rays.iter().enumerate() {
             let lanes = world(ray);
@@ -721,7 +723,8 @@ const WALKERS: usize = 2;
 /// mostly hit the caches, so the rays walk them at once.
 const STREAMED_TREE_BYTES: usize = 512 * 1024;
 
-/// `occluded_jobs` with the kernels asked for.
+/// `occluded_jobs` with the kernels asked for: the TLAS's, which `set_traversal` keeps
+/// the same as every BLAS's (so a streamed BLAS runs the kernels it would run alone).
 #[inline]
 fn run_jobs<'a>(
     kernels: Kernels,
