@@ -1,24 +1,31 @@
 //! Gloam: a first-person stealth game path traced on the CPU, and the engine under it.
 //!
-//! The frame, left to right (see DESIGN.md): winit events -> input -> game schedule ->
-//! extract -> accel -> render -> film -> present. This crate grows one module per step;
-//! what exists today:
+//! The frame, left to right (no step reaches back): winit events -> input -> game (fixed
+//! 60 Hz simulation steps) -> extract (ECS -> `RenderScene`) -> accel (refit deformed
+//! BLASes, rebuild the TLAS) -> render -> film -> present. One module per step:
 //! - `app`: the window (winit + pixels), input bindings, HUD, presenting.
-//! - `game`: ECS components, transforms, clip playback, skinning/morphs/deformers with
-//!   their BLAS refits, the fixed-step and frame schedules (headless).
-//! - `scene`: load time — glTF import, the level format, validation, asset generators.
-//! - `extract`: scene data to the `RenderScene`; emitters that follow moved instances.
+//! - `frame`: the frame driver, which runs the steps below in order and times each
+//!   under its `profile::Stage`.
+//! - `game`: the simulation: ECS components, input, gameplay, animation, transforms;
+//!   spawning a level into the world and writing it back.
+//! - `extract`: the ECS made into the `RenderScene` every frame from change detection;
+//!   skinning, morphs and deformers with their BLAS refits.
 //! - `accel`: BLAS per mesh (refit when deforming), TLAS rebuilt per frame, ray queries.
-//! - `render`: camera, samplers, BSDFs, lights, path and reference integrators, film.
-//! - `profile`: per-stage frame statistics and the bench reports (JSON, CSV, Chrome trace,
-//!   PNG chart).
-//! - `cli`: the `gloam` command line (`main.rs` only calls `cli::main`), with `raybench`,
-//!   `convergence` and `bench`.
+//! - `render`: camera, samplers, BSDFs, lights, path and reference integrators, the image.
+//! - `film`: accumulation and the real-time filters (temporal, a-trous, remodulation).
+//! - `scene`: load time: glTF import, the asset cache, the level format, validation,
+//!   asset generators.
+//! - `profile`: the `Stage` list, per-stage frame statistics and the bench reports (JSON,
+//!   CSV, Chrome trace, PNG chart).
+//! - `cli`: the `gloam` command line (`main.rs` only calls `cli::main`): it parses flags
+//!   and calls the library.
 
 pub mod accel;
 pub mod app;
 pub mod cli;
 pub mod extract;
+pub mod film;
+pub mod frame;
 pub mod game;
 pub mod profile;
 pub mod render;

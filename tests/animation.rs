@@ -12,7 +12,8 @@ mod common;
 use std::path::Path;
 
 use glam::{DMat3, DMat4, DQuat, DVec3};
-use gloam::game::{DeformStats, Engine, RenderState};
+use gloam::extract::{DeformStats, RenderState};
+use gloam::frame::Engine;
 use gloam::render::{Camera, IntegratorKind, RenderSettings, SamplerKind, render};
 use gloam::scene::world::Scene;
 use serde_json::Value;
@@ -416,14 +417,11 @@ fn reference_vertices(document: &Document, node: usize, t: f64) -> Vec<(DVec3, O
 }
 
 /// Gloam's posed world-space vertices of the instance drawing asset node `node`.
-fn engine_vertices(engine: &Engine, node: usize) -> Vec<(DVec3, DVec3)> {
+fn engine_vertices(engine: &mut Engine, node: usize) -> Vec<(DVec3, DVec3)> {
+    let index = engine.node_instance(0, node).expect("an instance for the node");
     let state = engine.world.resource::<RenderState>();
     let accel = &state.scene.accel;
-    let instance = accel
-        .instances()
-        .iter()
-        .find(|i| i.user_id == node as u64)
-        .expect("an instance for the node");
+    let instance = &accel.instances()[index as usize];
     let to_world = instance.world_from_object();
     let normal_matrix = glam::Mat3::from(to_world.matrix3).inverse().transpose();
     let geometry = &accel.blases[instance.blas as usize].geometry;
@@ -494,7 +492,7 @@ fn check_against_reference(path: &Path) {
         engine.pose_at(t);
         for &node in &deforming {
             let expected = reference_vertices(&document, node, t);
-            let actual = engine_vertices(&engine, node);
+            let actual = engine_vertices(&mut engine, node);
             assert_eq!(
                 expected.len(),
                 actual.len(),
@@ -562,8 +560,11 @@ fn project_assets_match_the_reference() {
 /// vertices written into the asset, skins, morph targets and clips removed, skinned nodes
 /// given the transform that cancels their parents' (their vertices are already in the
 /// entity's space).
-fn baked(scene: &Scene, engine: &Engine) -> Scene {
+fn baked(scene: &Scene, engine: &mut Engine) -> Scene {
     let mut baked = scene.clone();
+    let instances: Vec<Vec<(usize, u32)>> = (0..scene.level.entities.len())
+        .map(|entity| engine.level_entity_instances(entity))
+        .collect();
     let state = engine.world.resource::<RenderState>();
     let accel = &state.scene.accel;
     for entity in &mut baked.level.entities {
@@ -576,17 +577,20 @@ fn baked(scene: &Scene, engine: &Engine) -> Scene {
         };
         // Entities share assets; each baked pose needs its own copy.
         let own = baked.assets.len();
-        baked.assets.push(scene.assets[asset_index].clone());
+        baked
+            .assets
+            .push(std::sync::Arc::new((*scene.assets[asset_index]).clone()));
         baked.entity_assets[entity_index] = Some(own);
-        let asset = &mut baked.assets[own];
+        let asset = std::sync::Arc::make_mut(&mut baked.assets[own]);
         for node in 0..asset.nodes.len() {
             let Some(mesh) = asset.nodes[node].mesh else {
                 continue;
             };
-            let id = ((entity_index as u64) << 32) | node as u64;
-            let Some(instance) = accel.instances().iter().find(|i| i.user_id == id) else {
+            let Some(&(_, index)) = instances[entity_index].iter().find(|(n, _)| *n == node)
+            else {
                 continue;
             };
+            let instance = &accel.instances()[index as usize];
             let blas = &accel.blases[instance.blas as usize];
             if blas.kind != gloam::accel::BlasKind::Deforming {
                 continue;
@@ -647,7 +651,7 @@ fn a_deformed_pose_renders_like_the_same_pose_baked_static() {
             "{}: nothing deformed",
             path.display()
         );
-        let static_scene = baked(&scene, &engine);
+        let static_scene = baked(&scene, &mut engine);
         let static_engine = Engine::new(&static_scene, RenderSettings::real_time(4, 4));
         assert_eq!(
             static_engine.deform_stats(),
@@ -766,13 +770,10 @@ fn a_deformer_refits_every_step_and_rebuilds_when_the_tree_decays() {
         );
     }
     // The sea's vertices really moved off the grid's rest heights (|y| <= 0.25).
+    let (_, sea) = engine.level_entity_instances(1)[0];
     let state = engine.world.resource::<RenderState>();
     let accel = &state.scene.accel;
-    let sea = accel
-        .instances()
-        .iter()
-        .find(|i| i.user_id >> 32 == 1)
-        .unwrap();
+    let sea = &accel.instances()[sea as usize];
     let geometry = &accel.blases[sea.blas as usize].geometry;
     let rest = gloam::scene::import_gltf(&grid).unwrap();
     let moved = geometry

@@ -604,7 +604,7 @@ fn broken_skins_and_channels_are_reported_at_their_place() {
         "spin"
     );
     // The engine poses it without complaint.
-    let engine = gloam::game::Engine::new(&scene, gloam::render::RenderSettings::real_time(4, 4));
+    let engine = gloam::frame::Engine::new(&scene, gloam::render::RenderSettings::real_time(4, 4));
     assert_eq!(engine.deform_stats().deformed, 1);
 
     // A skin with no joints, which the vertices' joint 0 then falls outside of.

@@ -4,9 +4,10 @@
 mod common;
 
 use glam::Vec3;
-use gloam::game::{
-    Accumulation, Engine, GlobalTransform, LevelEntity, RenderInstance, RenderState, Transform,
-};
+use bevy_ecs::prelude::Entity;
+use gloam::extract::{RenderState, instance_entity};
+use gloam::frame::Engine;
+use gloam::game::{GlobalTransform, LevelEntity, MeshNode, Transform};
 use gloam::render::{Camera, IntegratorKind, RenderSettings, SamplerKind, render};
 use gloam::scene::world::Scene;
 
@@ -35,6 +36,12 @@ fn pause_animation(engine: &mut Engine) {
     }
 }
 
+/// The level entity (index in the level file) whose asset an accel instance draws.
+fn level_entity_of(engine: &Engine, user_id: u64) -> Option<usize> {
+    let node = engine.world.get::<MeshNode>(instance_entity(user_id)?)?;
+    engine.world.get::<LevelEntity>(node.root).map(|e| e.0)
+}
+
 /// Lifts the level entity `name` by a metre; returns its index in the level.
 fn lift(engine: &mut Engine, scene: &Scene, name: &str) -> usize {
     let entity = scene
@@ -56,10 +63,18 @@ fn lift(engine: &mut Engine, scene: &Scene, name: &str) -> usize {
 fn propagated_transforms_match_the_static_placements() {
     for name in ["first-light.ron", "cornell.ron"] {
         let mut engine = Engine::new(&level(name), settings(1));
-        let mut query = engine.world.query::<(&RenderInstance, &GlobalTransform)>();
-        let placed: Vec<(u32, GlobalTransform)> =
-            query.iter(&engine.world).map(|(i, g)| (i.0, *g)).collect();
+        let mut query = engine
+            .world
+            .query::<(Entity, &MeshNode, &GlobalTransform)>();
+        let placed: Vec<(Entity, GlobalTransform)> = query
+            .iter(&engine.world)
+            .map(|(e, _, g)| (e, *g))
+            .collect();
         let state = engine.world.resource::<RenderState>();
+        let placed: Vec<(u32, GlobalTransform)> = placed
+            .into_iter()
+            .map(|(entity, global)| (state.instance_of(entity).expect("drawn"), global))
+            .collect();
         assert_eq!(
             placed.len(),
             state.scene.accel.instances().len(),
@@ -82,9 +97,9 @@ fn still_frames_accumulate_into_the_multi_sample_image() {
     for _ in 0..4 {
         engine.advance(0.0);
     }
-    assert_eq!(engine.world.resource::<Accumulation>().frames, 4);
+    assert_eq!(engine.film.frames, 4);
     // Four frames of one white-noise sample each are the four samples of a 4-spp render.
-    let render_scene = gloam::extract::render_scene(&scene);
+    let render_scene = gloam::frame::render_scene(&scene);
     let camera = Camera::new(&render_scene.camera, 24, 16);
     let four = render(&render_scene, &camera, &settings(4), &|_| {}).film;
     let accumulated = engine.image();
@@ -108,7 +123,7 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
     pause_animation(&mut engine);
     engine.advance(0.0);
     engine.advance(0.0);
-    assert_eq!(engine.world.resource::<Accumulation>().frames, 2);
+    assert_eq!(engine.film.frames, 2);
     let before = engine.image();
 
     // Lift "pillar 1" (level entity) by a metre.
@@ -116,10 +131,9 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
     // Rendering interpolates between the last two steps: the step that moves the pillar
     // shows it where it was (alpha 0); the next one shows it lifted.
     engine.advance(1.0 / 60.0);
-    assert_eq!(engine.world.resource::<Accumulation>().frames, 3);
+    assert_eq!(engine.film.frames, 3);
     engine.advance(1.0 / 60.0);
-    let accumulation = engine.world.resource::<Accumulation>();
-    assert_eq!(accumulation.frames, 1, "a change restarts accumulation");
+    assert_eq!(engine.film.frames, 1, "a change restarts accumulation");
     assert_ne!(engine.image(), before);
 
     // The pillar's instance moved with it, and the TLAS knows.
@@ -129,7 +143,7 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
         .accel
         .instances()
         .iter()
-        .find(|i| i.user_id >> 32 == pillar as u64)
+        .find(|i| level_entity_of(&engine, i.user_id) == Some(pillar))
         .expect("pillar instance");
     assert!((moved.world_from_object().translation.y - 1.0).abs() < 1e-6);
     let ray = gloam::accel::Ray::new(glam::Vec3A::new(-2.0, 3.5, 5.0), glam::Vec3A::NEG_Z);
@@ -139,8 +153,10 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
             .accel
             .intersect(&ray, gloam::accel::InstanceMask::ALL, &gloam::accel::Opaque);
     assert_eq!(
-        hit.map(|h| state.scene.accel.instances()[h.instance as usize].user_id >> 32),
-        Some(pillar as u64),
+        hit.and_then(|h| {
+            level_entity_of(&engine, state.scene.accel.instances()[h.instance as usize].user_id)
+        }),
+        Some(pillar),
         "the lifted pillar now reaches y = 3.5"
     );
 }
@@ -195,7 +211,7 @@ fn rendering_interpolates_between_simulation_steps() {
             .accel
             .instances()
             .iter()
-            .find(|i| i.user_id >> 32 == pillar as u64)
+            .find(|i| level_entity_of(engine, i.user_id) == Some(pillar))
             .unwrap()
             .world_from_object()
             .translation
@@ -245,7 +261,6 @@ fn static_batches_last_through_play_and_dissolve_when_a_member_moves() {
     engine.advance(1.0 / 60.0);
     assert_eq!(batched(&engine), 0, "the moved pillar's batch is gone");
     // Batching again takes the pillar where it now stands.
-    let state = &mut *engine.world.resource_mut::<RenderState>();
-    state.scene.accel.rebatch();
-    assert_eq!(state.scene.accel.batched_instance_count(), at_load);
+    engine.render_state_mut().rebatch();
+    assert_eq!(batched(&engine), at_load);
 }

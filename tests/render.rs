@@ -18,7 +18,7 @@ use gloam::scene::gltf_export::{
 use gloam::scene::world::Scene;
 
 fn load(path: &std::path::Path) -> RenderScene {
-    gloam::extract::render_scene(&Scene::load(path).unwrap_or_else(|e| panic!("{e}")))
+    gloam::frame::render_scene(&Scene::load(path).unwrap_or_else(|e| panic!("{e}")))
 }
 
 fn settings(

@@ -10,7 +10,7 @@ use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use gloam::game::Engine;
+use gloam::frame::Engine;
 use gloam::render::RenderSettings;
 use gloam::render::film::tone_map;
 use gloam::scene::world::Scene;

@@ -83,6 +83,27 @@ impl StaticBatch {
     }
 }
 
+impl StaticBatch {
+    /// Points each member at its index in a new instance list (by `user_id`); a member
+    /// missing from it gets an index no list has, so the batch dissolves.
+    pub(super) fn renumber(&mut self, index_of: &std::collections::HashMap<u64, u32>) {
+        for (index, batched) in &mut self.members {
+            *index = index_of.get(&batched.user_id).copied().unwrap_or(u32::MAX);
+        }
+    }
+}
+
+/// Instances that could join a batch but are traced on their own (`batched` per instance).
+pub(super) fn unbatched_candidates(blases: &[Blas], instances: &[Instance], batched: &[bool]) -> usize {
+    instances
+        .iter()
+        .enumerate()
+        .filter(|(index, instance)| {
+            can_batch(instance, blases) && !batched.get(*index).copied().unwrap_or(false)
+        })
+        .count()
+}
+
 /// May `instance` join a batch? Static, over a mesh that keeps its shape and is opaque
 /// (one with a wide tree: alpha-tested meshes need their per-triangle test, which batches,
 /// having no materials, do not run).

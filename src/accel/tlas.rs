@@ -239,6 +239,27 @@ impl AccelScene {
         &mut self.instances
     }
 
+    /// Replaces the instance list (things spawned and despawned, a new order), then
+    /// rebuilds the TLAS. A static batch stays, renumbered, while every member is still
+    /// there (found by `user_id`) exactly as it was batched; the others dissolve.
+    pub fn set_instances(&mut self, instances: Vec<Instance>) {
+        let index_of: std::collections::HashMap<u64, u32> = instances
+            .iter()
+            .enumerate()
+            .map(|(index, instance)| (instance.user_id, index as u32))
+            .collect();
+        for batch in &mut self.batches {
+            batch.renumber(&index_of);
+        }
+        self.instances = instances;
+        self.rebuild_tlas();
+    }
+
+    /// Would `rebatch` batch an instance that is traced on its own now?
+    pub fn can_rebatch(&self) -> bool {
+        super::batch::unbatched_candidates(&self.blases, &self.instances, &self.batched) > 0
+    }
+
     /// Adds an instance; call `rebuild_tlas` before the next query. Returns its index.
     pub fn push_instance(&mut self, instance: Instance) -> u32 {
         debug_assert!((instance.blas as usize) < self.blases.len());

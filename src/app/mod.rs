@@ -29,10 +29,13 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 
-use crate::game::{Accumulation, Action, DeformStats, Engine, Input, StageTimes};
+use crate::extract::DeformStats;
+use crate::frame::Engine;
+use crate::game::{Action, Input};
+use crate::profile::StageTimes;
 use crate::profile::{Profile, overlay};
 use crate::render::RenderSettings;
-use crate::render::denoise::FilterMode;
+use crate::film::FilterMode;
 use crate::render::film::tone_map;
 use crate::scene::world::Scene;
 use resolution::ResolutionController;
@@ -205,7 +208,7 @@ fn frame_settings(options: &PlayOptions) -> RenderSettings {
 /// The engine as `play` runs it: the level, the real-time settings, the chosen filters.
 fn play_engine(scene: &Scene, options: &PlayOptions) -> Engine {
     let mut engine = Engine::new(scene, frame_settings(options));
-    engine.world.resource_mut::<Accumulation>().filter.mode = options.filter;
+    engine.film.filter.mode = options.filter;
     engine
 }
 
@@ -220,10 +223,7 @@ fn adapt_resolution(
         && controller.observe(frame_ms).is_some()
     {
         let (width, height) = controller.size(options.width, options.height);
-        engine
-            .world
-            .resource_mut::<Accumulation>()
-            .set_resolution(width, height);
+        engine.film.set_resolution(width, height);
     }
 }
 
@@ -242,14 +242,14 @@ fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
         engine.advance(elapsed);
         last = now;
         log.push(
-            engine.world.resource::<StageTimes>(),
+            &engine.stage_times(),
             engine.deform_stats(),
             0.0,
             now.elapsed().as_secs_f64() * 1e3,
         );
     }
     log.print("headless");
-    let settings = &engine.world.resource::<Accumulation>().settings;
+    let settings = &engine.film.settings;
     println!(
         "film: {}, internal resolution {}x{} at the end",
         options.filter.name(),
@@ -334,7 +334,7 @@ impl App {
             }
             Binding::Profiler if pressed => self.overlay = !self.overlay,
             Binding::Filter if pressed => {
-                let mut accumulation = self.engine.world.resource_mut::<Accumulation>();
+                let accumulation = &mut self.engine.film;
                 accumulation.filter.mode = accumulation.filter.mode.next();
                 accumulation.filter.reset();
                 accumulation.reset = true;
@@ -377,7 +377,7 @@ impl App {
         let Some(pixels) = &mut self.pixels else {
             return;
         };
-        let accumulation = self.engine.world.resource::<Accumulation>();
+        let accumulation = &self.engine.film;
         let internal = (accumulation.settings.width, accumulation.settings.height);
         // The buffer keeps the configured size; a lowered internal resolution is scaled up.
         let (width, height) = (self.options.width, self.options.height);
@@ -418,7 +418,7 @@ impl App {
             return self.fail(event_loop, anyhow!("presenting the frame: {error}"));
         }
         if advanced {
-            let times = *self.engine.world.resource::<StageTimes>();
+            let times = self.engine.stage_times();
             let present = present_start.elapsed().as_secs_f64() * 1e3;
             self.log.push(
                 &times,

@@ -13,7 +13,8 @@ use std::time::Instant;
 use anyhow::Context as _;
 use glam::{Quat, Vec3};
 
-use crate::game::{Engine, Transform, ViewCamera};
+use crate::frame::Engine;
+use crate::game::{Transform, ViewCamera};
 use crate::profile::Profile;
 use crate::render::RenderSettings;
 use crate::scene::world::Scene;
@@ -124,11 +125,7 @@ pub fn measure(
         scene,
         RenderSettings::real_time(options.width, options.height),
     );
-    engine
-        .world
-        .resource_mut::<crate::game::Accumulation>()
-        .filter
-        .mode = options.filter.mode();
+    engine.film.filter.mode = options.filter.mode();
     let mut views = engine
         .world
         .query_filtered::<(bevy_ecs::entity::Entity, &Transform), bevy_ecs::query::With<ViewCamera>>();
@@ -152,7 +149,7 @@ pub fn measure(
         engine.advance(step);
         let frame_ms = started.elapsed().as_secs_f64() * 1e3;
         if frame >= options.warmup {
-            let times = *engine.world.resource::<crate::game::StageTimes>();
+            let times = engine.stage_times();
             profile.frames.push(times.sample(0.0, frame_ms));
         }
     }

@@ -52,7 +52,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         anyhow::bail!("--width, --height and --reference-spp must be at least 1");
     }
     let scene = Scene::load(&options.scene)?;
-    let render_scene = crate::extract::render_scene(&scene);
+    let render_scene = crate::frame::render_scene(&scene);
     let camera = Camera::new(&render_scene.camera, options.width, options.height);
     let settings =
         |spp: u32, integrator: IntegratorKind, sampler: SamplerKind, seed: u32| RenderSettings {

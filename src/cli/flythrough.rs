@@ -18,12 +18,13 @@ use std::time::Instant;
 use anyhow::Context as _;
 use bevy_ecs::hierarchy::Children;
 use bevy_ecs::prelude::Entity;
-use glam::{Affine3A, Vec3};
+use glam::Affine3A;
 use serde_json::json;
 
 use super::bench::camera_path;
-use crate::game::{Engine, LevelEntity, RenderInstance, Transform, ViewCamera};
-use crate::render::denoise::{FilterMode, FrameFilter};
+use crate::frame::Engine;
+use crate::game::{Patrol, Transform, ViewCamera};
+use crate::film::denoise::{FilterMode, FrameFilter};
 use crate::render::film::display_value;
 use crate::render::{Film, Guides, RenderSettings, render, render_guided};
 use crate::scene::files::write_atomically;
@@ -141,18 +142,17 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         .map(|(e, t)| (e, *t))
         .context("the level has no view camera")?;
     let mover_name = options.mover.as_deref().unwrap_or("warden 1");
-    let mover_index = scene
-        .level
-        .entities
-        .iter()
-        .position(|e| e.name == mover_name)
-        .with_context(|| format!("{}: no entity named {mover_name:?}", level.display()))?;
-    let mut roots = engine.world.query::<(Entity, &LevelEntity, &Transform)>();
+    let mut roots = engine.world.query::<(Entity, &bevy_ecs::prelude::Name, &Transform)>();
     let (mover, mover_start) = roots
         .iter(&engine.world)
-        .find(|(_, index, _)| index.0 == mover_index)
+        .find(|(_, name, _)| name.as_str() == mover_name)
         .map(|(e, _, t)| (e, *t))
-        .with_context(|| format!("{}: {mover_name:?} is not placed", level.display()))?;
+        .with_context(|| format!("{}: no entity named {mover_name:?}", level.display()))?;
+    // A 1.5 m beat either side of where it stands, a 4-second round trip.
+    engine
+        .world
+        .entity_mut(mover)
+        .insert(Patrol::new(mover_start, 1.5, 4.0));
     let mover_instances = instances_under(&mut engine, mover);
     if mover_instances.is_empty() {
         anyhow::bail!("{}: {mover_name:?} has no mesh to move", level.display());
@@ -186,13 +186,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         if let Some(mut transform) = engine.world.get_mut::<Transform>(view.0) {
             *transform = camera_path(&view.1, seconds);
         }
-        if let Some(mut transform) = engine.world.get_mut::<Transform>(mover) {
-            *transform = patrol(&mover_start, seconds);
-        }
         engine.simulate(step);
-        let camera = engine
-            .view_camera(width, height)
-            .context("the level has no view camera")?;
+        let camera = engine.view_camera(width, height);
         settings.frame = frame;
         let started = Instant::now();
         let output = render_guided(engine.render_scene(), &camera, &settings);
@@ -326,23 +321,13 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The mover's placement at `seconds`: back and forth 1.5 m along its own facing axis,
-/// a 4-second round trip (a warden's patrol).
-fn patrol(start: &Transform, seconds: f64) -> Transform {
-    let offset = 1.5 * (std::f64::consts::TAU * seconds / 4.0).sin() as f32;
-    Transform {
-        translation: start.translation + start.rotation * Vec3::new(0.0, 0.0, offset),
-        ..*start
-    }
-}
-
 /// The accel instances of `root` and everything under it.
 fn instances_under(engine: &mut Engine, root: Entity) -> Vec<u32> {
     let mut found = Vec::new();
     let mut stack = vec![root];
     while let Some(entity) = stack.pop() {
-        if let Some(instance) = engine.world.get::<RenderInstance>(entity) {
-            found.push(instance.0);
+        if let Some(instance) = engine.world.resource::<crate::extract::RenderState>().instance_of(entity) {
+            found.push(instance);
         }
         if let Some(children) = engine.world.get::<Children>(entity) {
             stack.extend(children.iter());

@@ -39,8 +39,8 @@ pub enum FilterArg {
 }
 
 impl FilterArg {
-    pub fn mode(self) -> crate::render::denoise::FilterMode {
-        use crate::render::denoise::FilterMode;
+    pub fn mode(self) -> crate::film::denoise::FilterMode {
+        use crate::film::denoise::FilterMode;
         match self {
             FilterArg::Raw => FilterMode::Off,
             FilterArg::Temporal => FilterMode::Temporal,
@@ -421,7 +421,7 @@ fn render_command(command: RenderCommand) -> anyhow::Result<()> {
         max_depth: command.max_depth,
     };
     // The game's own path to a posed scene: skinning, morphs and deformers at --time.
-    let mut engine = crate::game::Engine::new(&scene, RenderSettings::real_time(1, 1));
+    let mut engine = crate::frame::Engine::new(&scene, RenderSettings::real_time(1, 1));
     engine.pose_at(command.time);
     let render_scene = engine.render_scene();
     let camera = Camera::new(&render_scene.camera, settings.width, settings.height);

@@ -30,7 +30,7 @@ use crate::accel::{
     AccelScene, Blas, BlasKind, Instance, InstanceMask, Kernels, MeshGeometry, Mobility, Opaque,
     Ray, RefitOutcome, Traversal, WideBvh,
 };
-use crate::extract::render_scene;
+use crate::frame::render_scene;
 use crate::render::light::Light;
 use crate::scene::files::write_atomically;
 use crate::scene::world::{CameraPlacement, Scene};

@@ -60,6 +60,22 @@ pub struct Deformer {
 #[derive(Resource, Default)]
 pub struct AnimationLibrary {
     pub clips: Vec<Animation>,
+    /// Each clip's index in `clips` by (asset file, clip index in the asset).
+    by_source: std::collections::HashMap<(crate::scene::AssetKey, usize), usize>,
+}
+
+impl AnimationLibrary {
+    /// The index of `asset`'s clip `clip`, copied in on first use.
+    pub fn clip(&mut self, asset: &std::sync::Arc<crate::scene::model::Asset>, clip: usize) -> usize {
+        let clips = &mut self.clips;
+        *self
+            .by_source
+            .entry((crate::scene::AssetKey(std::sync::Arc::clone(asset)), clip))
+            .or_insert_with(|| {
+                clips.push(asset.animations[clip].clone());
+                clips.len() - 1
+            })
+    }
 }
 
 /// Fixed step: moves every animation and deformer clock on by `step` seconds.

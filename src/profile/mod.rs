@@ -56,20 +56,134 @@ pub fn start_live_profiler() -> anyhow::Result<Option<LiveProfiler>> {
     Ok(None)
 }
 
-/// The stages of a frame, in the order they run (DESIGN.md's names, plus `transforms` and
-/// `extract`, which it folds into its neighbours but Gloam times apart).
-pub const STAGES: [&str; 10] = [
-    "input",
-    "gameplay",
-    "animation",
-    "transforms",
-    "extract",
-    "blas_refit",
-    "tlas_build",
-    "render",
-    "film",
-    "present",
-];
+/// The stages of a frame, in the order they run: the one list the frame driver's schedules
+/// and timers, `StageTimes`, every report (table, JSON, CSV, trace, chart) and the F3
+/// overlay are indexed by. DESIGN's frame line, with `transforms` and `extract` timed
+/// apart from their neighbours.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Stage {
+    /// Input actions applied, last step's transforms remembered (fixed steps).
+    Input,
+    /// Gameplay systems (fixed steps).
+    Gameplay,
+    /// Clip and deformer clocks and sampling (fixed steps), plus the frame's skinning,
+    /// morph targets and procedural deformers.
+    Animation,
+    /// Transform propagation down the hierarchy (fixed steps).
+    Transforms,
+    /// The ECS made into the `RenderScene`: spawned, despawned, moved and changed things.
+    Extract,
+    /// Refitting (or rebuilding) the deformed meshes' BLASes.
+    BlasRefit,
+    /// Rebuilding the TLAS (and re-forming static batches), emitters following their
+    /// instances.
+    TlasBuild,
+    Render,
+    /// The film: accumulation, or the real-time filters.
+    Film,
+    /// Tone mapping into the window's buffer and presenting it (0 headless).
+    Present,
+}
+
+impl Stage {
+    pub const COUNT: usize = 10;
+    pub const ALL: [Stage; Stage::COUNT] = [
+        Stage::Input,
+        Stage::Gameplay,
+        Stage::Animation,
+        Stage::Transforms,
+        Stage::Extract,
+        Stage::BlasRefit,
+        Stage::TlasBuild,
+        Stage::Render,
+        Stage::Film,
+        Stage::Present,
+    ];
+    /// The simulation's stages, run once per fixed step in this order.
+    pub const FIXED_STEP: [Stage; 4] = [
+        Stage::Input,
+        Stage::Gameplay,
+        Stage::Animation,
+        Stage::Transforms,
+    ];
+
+    /// The stage's name in every report.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Stage::Input => "input",
+            Stage::Gameplay => "gameplay",
+            Stage::Animation => "animation",
+            Stage::Transforms => "transforms",
+            Stage::Extract => "extract",
+            Stage::BlasRefit => "blas_refit",
+            Stage::TlasBuild => "tlas_build",
+            Stage::Render => "render",
+            Stage::Film => "film",
+            Stage::Present => "present",
+        }
+    }
+
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// `Stage::ALL`'s names, in order.
+pub const STAGES: [&str; Stage::COUNT] = {
+    let mut names = [""; Stage::COUNT];
+    let mut index = 0;
+    while index < Stage::COUNT {
+        names[index] = Stage::ALL[index].name();
+        index += 1;
+    }
+    names
+};
+
+/// What each stage of the frame being run cost so far, and the rays it traced: the frame
+/// driver clears it, the schedules' systems and the driver's timers add to it, and it
+/// becomes the frame's `FrameSample`. A resource, so extract's systems can add the parts
+/// they time themselves (deforming under `Animation`, refits under `BlasRefit`).
+#[derive(bevy_ecs::resource::Resource, Clone, Copy, Debug, Default, PartialEq)]
+pub struct StageTimes {
+    /// Milliseconds per stage (`Stage::index`); the fixed steps' stages sum over every
+    /// step the frame ran.
+    pub ms: [f64; Stage::COUNT],
+    /// The render's wall time split over its phases (`RENDER_PHASES`) in proportion to
+    /// the CPU time each took on the tiles' threads.
+    pub render_phases: [f64; RENDER_PHASES.len()],
+    /// The film's wall time split over its steps (`FILM_PHASES`).
+    pub film_phases: [f64; FILM_PHASES.len()],
+    /// Rays the render traced (camera, bounce and shadow).
+    pub rays: u64,
+}
+
+impl StageTimes {
+    pub fn add(&mut self, stage: Stage, ms: f64) {
+        self.ms[stage.index()] += ms;
+    }
+
+    pub fn get(&self, stage: Stage) -> f64 {
+        self.ms[stage.index()]
+    }
+
+    /// This frame as a profile sample, with the shell's own `present` and whole-frame times.
+    pub fn sample(&self, present_ms: f64, frame_ms: f64) -> FrameSample {
+        let mut stages = self.ms;
+        stages[Stage::Present.index()] = present_ms;
+        FrameSample {
+            stages,
+            render_phases: self.render_phases,
+            film_phases: self.film_phases,
+            frame_ms,
+            rays: self.rays,
+        }
+    }
+}
+
+/// Milliseconds since `start`.
+pub fn since(start: std::time::Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
 
 /// The phases inside `render` (render/mod.rs's wavefront over each tile), nested under it
 /// in every report as `render.<phase>`. The same names as `render::PhaseTimes::NAMES`
@@ -198,7 +312,7 @@ impl Profile {
 
     /// Rays traced per second of render stage, in millions.
     pub fn mrays_per_s(&self) -> f64 {
-        let render = STAGES.iter().position(|&s| s == "render").unwrap_or(0);
+        let render = Stage::Render.index();
         let rays: u64 = self.frames.iter().map(|f| f.rays).sum();
         let seconds: f64 = self.frames.iter().map(|f| f.stages[render]).sum::<f64>() / 1e3;
         rays as f64 / seconds.max(1e-9) / 1e6
@@ -391,7 +505,7 @@ mod tests {
     #[test]
     fn render_phase_names_are_the_renderers() {
         assert_eq!(RENDER_PHASES, crate::render::PhaseTimes::NAMES);
-        assert_eq!(FILM_PHASES, crate::render::FilmPhaseTimes::NAMES);
+        assert_eq!(FILM_PHASES, crate::film::FilmPhaseTimes::NAMES);
     }
 
     #[test]

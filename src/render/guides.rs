@@ -92,7 +92,7 @@ impl GuidePixel {
 }
 
 /// Below this albedo a channel is treated as this dark (no division by zero).
-pub(super) const ALBEDO_FLOOR: f32 = 1e-3;
+pub(crate) const ALBEDO_FLOOR: f32 = 1e-3;
 
 /// Guide planes (`Guides::row`): the ones the a-trous passes read first, so they are near.
 pub const NORMAL_X: usize = 0;

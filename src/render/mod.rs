@@ -1,5 +1,5 @@
 //! Frame step `render`: camera rays, path tracing with next event estimation, samplers,
-//! then the `film` step. Reads a `RenderScene` (built by `extract`) and writes a `Film`;
+//! then hands its frame to `film`. Reads a `RenderScene` (built by `extract`) and writes a `Film`;
 //! knows nothing of the ECS or windows.
 //!
 //! Per call of `render`:
@@ -24,23 +24,19 @@
 //! (`integrator::continue_path` from the camera ray) does, so
 //! the wavefront and the one-path-at-a-time integrator give bit-identical images.
 
-pub mod atrous;
 pub mod blue_noise;
 pub mod bsdf;
 pub mod camera;
-pub mod denoise;
 pub mod film;
 pub mod guides;
 pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod planes;
-mod reproject;
 pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod spectrum;
-pub mod temporal;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -49,7 +45,6 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 pub use camera::Camera;
-pub use denoise::FilmPhaseTimes;
 pub use film::Film;
 pub use guides::{GuidePixel, Guides};
 pub use integrator::{IntegratorKind, RayCounts};
@@ -590,7 +585,7 @@ mod tests {
     fn the_wavefront_renders_what_one_path_at_a_time_renders() {
         let level = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("levels/first-light.ron");
         let world = crate::scene::world::Scene::load(&level).unwrap_or_else(|e| panic!("{e}"));
-        let scene = crate::extract::render_scene(&world);
+        let scene = crate::frame::render_scene(&world);
         let settings = RenderSettings {
             width: 40,
             height: 24,

@@ -6,7 +6,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// Rows per parallel job in every filter pass: tall enough to amortise the handoff.
-pub(super) const BAND_ROWS: usize = 8;
+pub(crate) const BAND_ROWS: usize = 8;
 
 /// Images stored a row at a time, each row as `PLANES` consecutive runs of `width` floats
 /// (row y's plane k starts at (y PLANES + k) width). A tap reads a run of contiguous lanes

@@ -255,6 +255,39 @@ pub enum LightDef {
     Directional { color: Vec3, intensity: f32 },
 }
 
+impl LightDef {
+    /// The light in the asset model's terms (radians, one kind enum), named `name`.
+    pub fn to_light(&self, name: &str) -> super::model::Light {
+        use super::model::LightKind;
+        let (kind, color, intensity) = match *self {
+            LightDef::Point { color, intensity } => (LightKind::Point, color, intensity),
+            LightDef::Spot {
+                color,
+                intensity,
+                inner_cone_degrees,
+                outer_cone_degrees,
+            } => (
+                LightKind::Spot {
+                    inner_cone_angle: inner_cone_degrees.to_radians(),
+                    outer_cone_angle: outer_cone_degrees.to_radians(),
+                },
+                color,
+                intensity,
+            ),
+            LightDef::Directional { color, intensity } => {
+                (LightKind::Directional, color, intensity)
+            }
+        };
+        super::model::Light {
+            name: name.to_owned(),
+            kind,
+            color,
+            intensity,
+            range: None,
+        }
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraDef {

@@ -2,12 +2,14 @@
 //!
 //! Owns glTF import (`gltf_import`) into the asset model (`model`), animation sampling over
 //! that model (`animation`), the level format
-//! (`level`), loading a level or a bare glTF into one `Scene` (`world`), validation with
+//! (`level`), loading a level or a bare glTF into one `Scene` (`world`), the cache that imports each
+//! asset file once (`assets`), validation with
 //! `file:line:column` diagnostics (`diagnostic`, `source_map`), and the generators that
 //! write Gloam's own assets (`gltf_export`, `kit`). The editor saves through this module;
 //! no other module touches asset or level files.
 
 pub mod animation;
+pub mod assets;
 pub mod diagnostic;
 pub mod files;
 pub mod gltf_export;
@@ -18,6 +20,7 @@ pub mod model;
 pub mod source_map;
 pub mod world;
 
+pub use assets::{AssetCache, AssetKey};
 pub use diagnostic::{Diagnostic, LoadError, Pointer};
 pub use gltf_import::import_gltf;
 pub use level::Level;

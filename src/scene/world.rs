@@ -4,6 +4,7 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
@@ -22,7 +23,7 @@ pub struct Scene {
     pub source: PathBuf,
     pub level: Level,
     /// Every distinct asset the level instances, in first-use order.
-    pub assets: Vec<Asset>,
+    pub assets: Vec<Arc<Asset>>,
     /// For each level entity, the index into `assets` of what it instances.
     pub entity_assets: Vec<Option<usize>>,
 }
@@ -134,7 +135,7 @@ impl Scene {
         Ok(Scene {
             source: asset.source.clone(),
             level,
-            assets: vec![asset],
+            assets: vec![Arc::new(asset)],
             entity_assets: vec![Some(0)],
         })
     }
@@ -165,7 +166,7 @@ impl Scene {
         let mut assets = Vec::new();
         for (asset_index, result) in imported.into_iter().enumerate() {
             match result {
-                Ok(asset) => assets.push(asset),
+                Ok(asset) => assets.push(Arc::new(asset)),
                 Err(error) => {
                     let user = entity_assets
                         .iter()
@@ -276,7 +277,7 @@ impl Scene {
             let Some(asset_index) = self.entity_assets[entity_index] else {
                 continue;
             };
-            let asset = &self.assets[asset_index];
+            let asset: &Asset = &self.assets[asset_index];
             let entity_world = entity.transform.matrix();
             asset.visit_nodes(entity_world, |node, world| {
                 if let Some(mesh) = asset.nodes[node].mesh {
@@ -352,7 +353,7 @@ impl Scene {
             let Some(asset_index) = self.entity_assets[entity_index] else {
                 continue;
             };
-            let asset = &self.assets[asset_index];
+            let asset: &Asset = &self.assets[asset_index];
             asset.visit_nodes(entity.transform.matrix(), |node, world| {
                 let camera = asset.nodes[node].camera.map(|c| &asset.cameras[c]);
                 if let (
@@ -386,45 +387,15 @@ impl Scene {
 
     /// Punctual lights in the world: the level's light entities and the assets' glTF lights.
     pub fn punctual_lights(&self) -> Vec<(Light, Mat4)> {
-        use super::level::LightDef;
-        use super::model::LightKind;
         let mut lights = Vec::new();
         for (entity_index, entity) in self.level.entities.iter().enumerate() {
             if let Some(light) = &entity.light {
-                let (kind, color, intensity) = match *light {
-                    LightDef::Point { color, intensity } => (LightKind::Point, color, intensity),
-                    LightDef::Spot {
-                        color,
-                        intensity,
-                        inner_cone_degrees,
-                        outer_cone_degrees,
-                    } => (
-                        LightKind::Spot {
-                            inner_cone_angle: inner_cone_degrees.to_radians(),
-                            outer_cone_angle: outer_cone_degrees.to_radians(),
-                        },
-                        color,
-                        intensity,
-                    ),
-                    LightDef::Directional { color, intensity } => {
-                        (LightKind::Directional, color, intensity)
-                    }
-                };
-                lights.push((
-                    Light {
-                        name: entity.name.clone(),
-                        kind,
-                        color,
-                        intensity,
-                        range: None,
-                    },
-                    entity.transform.matrix(),
-                ));
+                lights.push((light.to_light(&entity.name), entity.transform.matrix()));
             }
             let Some(asset_index) = self.entity_assets[entity_index] else {
                 continue;
             };
-            let asset = &self.assets[asset_index];
+            let asset: &Asset = &self.assets[asset_index];
             asset.visit_nodes(entity.transform.matrix(), |node, world| {
                 if let Some(light) = asset.nodes[node].light {
                     lights.push((asset.lights[light].clone(), world));

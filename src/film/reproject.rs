@@ -9,8 +9,8 @@
 
 use glam::{Affine3A, Vec3, Vec3A};
 
-use super::camera::Projection;
-use super::guides::{
+use crate::render::camera::Projection;
+use crate::render::guides::{
     DEPTH, Guides, NORMAL_X, NORMAL_Y, NORMAL_Z, POSITION_X, POSITION_Y, POSITION_Z,
 };
 use super::temporal::{History, TemporalSettings};

@@ -1,6 +1,8 @@
-//! Frame step "animation" (deformation) and "blas_refit": meshes that change shape.
+//! Frame step `extract`, timed as "animation" (deformation) and "blas_refit": meshes that
+//! change shape, read from the ECS (`Skin`, `MorphWeights`, `Deformer` on `MeshNode`s)
+//! and written into their own BLAS.
 //!
-//! Per displayed frame, between `extract_instances` and `update_acceleration`:
+//! Per displayed frame, between `extract_scene` and `update_acceleration`:
 //! 1. change detection, per deforming mesh entity: skinned meshes re-pose when a
 //!    `Transform` of any joint, or of a node between the joints and the entity's root,
 //!    changed since the last frame; morphing meshes when their `MorphWeights` changed;
@@ -19,16 +21,19 @@
 //! are transformed by the cofactor matrix of the blended 3x3 (the inverse transpose up to a
 //! positive scale) and renormalised, which stays right under non-uniform joint scale.
 
+use std::collections::HashMap;
 use std::sync::Arc;
 
 use bevy_ecs::prelude::*;
 use glam::{Mat3A, Mat4, Vec3, Vec3A};
 use rayon::prelude::*;
 
-use super::animation::{Deformer, MorphWeights};
-use super::{GlobalTransform, RenderState, StageTimes, Transform, since};
+use super::RenderState;
 use crate::accel::{Blas, RefitOutcome};
+use crate::game::{Deformer, GlobalTransform, MeshNode, MorphWeights, Skin, Transform};
+use crate::profile::{Stage, StageTimes, since};
 use crate::scene::level::DeformerDef;
+use crate::scene::AssetKey;
 use crate::scene::model::Asset;
 
 /// A mesh's rest geometry and deformation data, in the vertex order of
@@ -63,7 +68,7 @@ impl DeformSource {
             .map(|p| p.skin_influences.len())
             .max()
             .unwrap_or(0);
-        let rest = crate::extract::mesh_geometry(asset, mesh, 0);
+        let rest = super::mesh_geometry(asset, mesh, 0);
         let mut source = DeformSource {
             positions: rest.positions,
             normals: rest.normals,
@@ -297,50 +302,52 @@ pub fn recompute_normals(positions: &[Vec3], triangles: &[[u32; 3]], normals: &m
     }
 }
 
-/// A skinned mesh's joints as ECS entities.
-#[derive(Clone, Debug)]
-pub struct SkinBinding {
-    /// The level entity whose space the skinned vertices are computed in.
-    pub root: Entity,
-    /// The entity of each joint, in skin order.
-    pub joints: Vec<Entity>,
-    pub inverse_bind_matrices: Vec<Mat4>,
-    /// Joints and every node between them and `root`: a change to any of their
-    /// `Transform`s changes the pose.
-    pub watched: Vec<Entity>,
+/// What extract keeps for the deforming mesh nodes: each mesh's source data (shared by
+/// its instances), and per node its BLAS and whether it has been posed.
+#[derive(Default)]
+pub struct DeformCache {
+    sources: HashMap<(AssetKey, usize), Arc<DeformSource>>,
+    nodes: HashMap<Entity, DeformedMesh>,
 }
 
-/// A mesh entity whose shape changes: its BLAS and what deforms it.
-#[derive(Component, Clone, Debug)]
-pub struct DeformedMesh {
-    /// Index of its own (deforming) BLAS in the accel scene.
-    pub blas: u32,
-    /// Its accel instance.
-    pub instance: u32,
-    pub source: Arc<DeformSource>,
-    pub skin: Option<SkinBinding>,
+impl DeformCache {
+    /// Follows deforming node `entity` (mesh `mesh` of `asset`) into `blas`; a node
+    /// already followed keeps its state.
+    pub fn track(&mut self, entity: Entity, asset: &Arc<Asset>, mesh: usize, blas: u32) {
+        if self.nodes.contains_key(&entity) {
+            return;
+        }
+        let source = self
+            .sources
+            .entry((AssetKey(Arc::clone(asset)), mesh))
+            .or_insert_with(|| Arc::new(DeformSource::from_mesh(asset, mesh)))
+            .clone();
+        self.nodes.insert(
+            entity,
+            DeformedMesh {
+                blas,
+                source,
+                posed: false,
+                joint_matrices: Vec::new(),
+            },
+        );
+    }
+
+    /// Stops following a despawned node.
+    pub fn forget(&mut self, entity: Entity) {
+        self.nodes.remove(&entity);
+    }
+}
+
+/// A deforming mesh node as extract follows it.
+struct DeformedMesh {
+    /// Its own (deforming) BLAS in the accel scene.
+    blas: u32,
+    source: Arc<DeformSource>,
     /// False until the first deformation (the import's rest shape is not yet posed).
-    pub posed: bool,
+    posed: bool,
     /// This frame's skinning matrices (reused allocation).
     joint_matrices: Vec<Mat4>,
-}
-
-impl DeformedMesh {
-    pub fn new(
-        blas: u32,
-        instance: u32,
-        source: Arc<DeformSource>,
-        skin: Option<SkinBinding>,
-    ) -> Self {
-        DeformedMesh {
-            blas,
-            instance,
-            source,
-            skin,
-            posed: false,
-            joint_matrices: Vec::new(),
-        }
-    }
 }
 
 /// What deformation did in the last frame.
@@ -358,10 +365,12 @@ pub struct DeformStats {
     pub vertices: u64,
 }
 
-/// Frame step: deform what changed, refit its BLAS (or rebuild it), flag the TLAS stale.
+/// Extract: deform what changed, refit its BLAS (or rebuild it), flag the TLAS stale.
 pub fn deform_meshes(
-    mut meshes: Query<(
-        &mut DeformedMesh,
+    meshes: Query<(
+        Entity,
+        &MeshNode,
+        Option<&Skin>,
         Option<Ref<MorphWeights>>,
         Option<Ref<Deformer>>,
     )>,
@@ -373,21 +382,32 @@ pub fn deform_meshes(
     let start = std::time::Instant::now();
     profiling::scope!("animation.deform");
     *stats = DeformStats::default();
+    let state = &mut *state;
 
     // 1. Change detection and this frame's inputs.
     struct Job<'a> {
-        mesh: &'a DeformedMesh,
+        entity: Entity,
+        blas: u32,
+        source: Arc<DeformSource>,
+        joint_matrices: &'a [Mat4],
         weights: Option<&'a [f32]>,
         deformer: Option<(&'a DeformerDef, f64)>,
     }
-    let mut jobs: Vec<Job> = Vec::new();
-    for (mesh, weights, deformer) in meshes.iter_mut() {
-        let skin_changed = mesh.skin.as_ref().is_some_and(|skin| {
+    let mut changed_nodes: Vec<(Entity, Option<&Skin>, Option<&[f32]>, Option<(&DeformerDef, f64)>)> =
+        Vec::new();
+    for (entity, node, skin, weights, deformer) in &meshes {
+        if !node.deforms {
+            continue;
+        }
+        let Some(followed) = state.deform.nodes.get(&entity) else {
+            continue;
+        };
+        let skin_changed = skin.is_some_and(|skin| {
             skin.watched
                 .iter()
                 .any(|&e| transforms.get(e).is_ok_and(|(t, _)| t.is_changed()))
         });
-        let changed = !mesh.posed
+        let changed = !followed.posed
             || skin_changed
             || weights.as_ref().is_some_and(|w| w.is_changed())
             || deformer.as_ref().is_some_and(|d| d.is_changed());
@@ -395,46 +415,62 @@ pub fn deform_meshes(
             stats.skipped += 1;
             continue;
         }
-        let mesh = mesh.into_inner();
-        mesh.posed = true;
-        if let Some(skin) = &mesh.skin {
-            // Object space of the instance = the root entity's space.
+        changed_nodes.push((
+            entity,
+            skin,
+            weights.map(|w| w.into_inner().0.as_slice()),
+            deformer.map(|d| {
+                let d = d.into_inner();
+                (&d.kind, d.time)
+            }),
+        ));
+    }
+    // Skinning matrices, in the space of the instance (the skin's root entity).
+    for (entity, skin, _, _) in &changed_nodes {
+        let Some(followed) = state.deform.nodes.get_mut(entity) else {
+            continue;
+        };
+        followed.posed = true;
+        followed.joint_matrices.clear();
+        if let Some(skin) = skin {
             let object_from_world = transforms
                 .get(skin.root)
                 .map_or(Mat4::IDENTITY, |(_, g)| Mat4::from(g.0.inverse()));
-            mesh.joint_matrices.clear();
             for (&joint, inverse_bind) in skin.joints.iter().zip(&skin.inverse_bind_matrices) {
                 let world_from_joint = transforms
                     .get(joint)
                     .map_or(Mat4::IDENTITY, |(_, g)| Mat4::from(g.0));
-                mesh.joint_matrices
+                followed
+                    .joint_matrices
                     .push(object_from_world * world_from_joint * *inverse_bind);
             }
         }
-        jobs.push(Job {
-            mesh,
-            weights: weights.map(|w| w.into_inner().0.as_slice()),
-            deformer: deformer.map(|d| {
-                let d = d.into_inner();
-                (&d.kind, d.time)
-            }),
-        });
     }
+    let jobs: Vec<Job> = changed_nodes
+        .iter()
+        .filter_map(|&(entity, _, weights, deformer)| {
+            let followed = state.deform.nodes.get(&entity)?;
+            Some(Job {
+                entity,
+                blas: followed.blas,
+                source: Arc::clone(&followed.source),
+                joint_matrices: &followed.joint_matrices,
+                weights,
+                deformer,
+            })
+        })
+        .collect();
     if jobs.is_empty() {
-        times.animation += since(start);
+        times.add(Stage::Animation, since(start));
         return;
     }
 
     // Pair each job with its own BLAS (each deforming mesh has a distinct one).
-    let state = &mut *state;
     let mut blases: Vec<Option<&mut Blas>> =
         state.scene.accel.blases.iter_mut().map(Some).collect();
     let mut work: Vec<(&Job, &mut Blas)> = Vec::with_capacity(jobs.len());
     for job in &jobs {
-        if let Some(blas) = blases
-            .get_mut(job.mesh.blas as usize)
-            .and_then(Option::take)
-        {
+        if let Some(blas) = blases.get_mut(job.blas as usize).and_then(Option::take) {
             work.push((job, blas));
         }
     }
@@ -442,24 +478,19 @@ pub fn deform_meshes(
     // 2. Deform, straight into the BLAS geometry (parallel over meshes and vertices).
     work.par_iter_mut().for_each(|(job, blas)| {
         let pose = Pose {
-            joint_matrices: &job.mesh.joint_matrices,
+            joint_matrices: job.joint_matrices,
             morph_weights: job.weights.unwrap_or(&[]),
             deformer: job.deformer,
         };
         let geometry = &mut blas.geometry;
-        deform(
-            &job.mesh.source,
-            &pose,
-            &mut geometry.positions,
-            &mut geometry.normals,
-        );
+        deform(&job.source, &pose, &mut geometry.positions, &mut geometry.normals);
     });
     stats.deformed = work.len() as u32;
     stats.vertices = work
         .iter()
-        .map(|(job, _)| job.mesh.source.positions.len() as u64)
+        .map(|(job, _)| job.source.positions.len() as u64)
         .sum();
-    times.animation += since(start);
+    times.add(Stage::Animation, since(start));
 
     // 3. Refit (or rebuild) each deformed BLAS.
     let refit_start = std::time::Instant::now();
@@ -473,11 +504,16 @@ pub fn deform_meshes(
         .filter(|&&o| o == RefitOutcome::Rebuilt)
         .count() as u32;
     stats.refits = stats.deformed - stats.rebuilds;
-    times.blas_refit += since(refit_start);
+    times.add(Stage::BlasRefit, since(refit_start));
 
     // 4. Their emitters move with them; the TLAS must see their new bounds.
-    for (job, _) in &work {
-        if let Some(flag) = state.moved.get_mut(job.mesh.instance as usize) {
+    let deformed: Vec<Entity> = work.iter().map(|(job, _)| job.entity).collect();
+    drop(work);
+    drop(blases);
+    for entity in deformed {
+        if let Some(&instance) = state.instance_of.get(&entity)
+            && let Some(flag) = state.moved.get_mut(instance as usize)
+        {
             *flag = true;
         }
     }

@@ -20,13 +20,13 @@
 use glam::{Affine3A, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
-use super::camera::Camera;
-use super::film::Film;
-use super::guides::{
+use crate::render::camera::Camera;
+use crate::render::film::Film;
+use crate::render::guides::{
     ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, EMISSION_B, EMISSION_G, EMISSION_R, Guides,
     NO_INSTANCE,
 };
-use super::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
+use crate::render::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
 use super::reproject::{LastPixel, Motion, ProjectedRow, Reprojection, SurfaceRow};
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.

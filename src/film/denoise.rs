@@ -17,10 +17,10 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use super::atrous::{self, AtrousSettings};
-use super::camera::Camera;
-use super::film::Film;
-use super::guides::Guides;
-use super::planes::{BLUE, GREEN, RED, SignalPlanes};
+use crate::render::camera::Camera;
+use crate::render::film::Film;
+use crate::render::guides::Guides;
+use crate::render::planes::{BLUE, GREEN, RED, SignalPlanes};
 use super::temporal::{TemporalFilter, TemporalSettings};
 
 /// Which filters run.

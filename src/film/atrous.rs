@@ -20,10 +20,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::guides::{
+use crate::render::guides::{
     ALBEDO_B, ALBEDO_G, ALBEDO_R, DEPTH, Guides, NO_INSTANCE, NORMAL_X, NORMAL_Y, NORMAL_Z,
 };
-use super::planes::{BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
+use crate::render::planes::{BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct AtrousSettings {

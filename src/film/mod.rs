@@ -1,0 +1,177 @@
+//! Frame step `film`: what becomes of each rendered frame before it is shown. Every film
+//! step lives here:
+//! - `Accumulation`: still views add frames up into a converging image (a running sum of
+//!   per-frame means), restarted by any change;
+//! - the real-time chain (`denoise::FrameFilter`, used by the window and `bench`):
+//!   `temporal` reprojection (`reproject` carries last frame's pixels through each
+//!   instance's and the camera's motion), then the `atrous` wavelet filter, then
+//!   remodulation by the surface's albedo.
+//!
+//! The image itself (`render::Film`), its tone mapper and its file writers and readers
+//! are in `render::film`: render writes that buffer and everything downstream reads it.
+//! Knows nothing of the ECS or windows.
+
+pub mod atrous;
+pub mod denoise;
+mod reproject;
+pub mod temporal;
+
+use glam::Vec3;
+
+pub use denoise::{FilmPhaseTimes, FilterMode, FrameFilter};
+
+use crate::extract::SceneChanges;
+use crate::profile::{Stage, StageTimes, since};
+use crate::render::{
+    Camera, Film, RenderOutput, RenderScene, RenderSettings, render, render_guided,
+    render_guided_reusing,
+};
+
+/// The film: frames accumulated since the last change, as a running sum of per-frame
+/// means, or (filter on) the last filtered frame.
+pub struct Accumulation {
+    pub settings: RenderSettings,
+    sum: Vec<Vec3>,
+    pub frames: u32,
+    /// The real-time filter chain (`FilterMode::Off` unless the shell turns it on).
+    pub filter: FrameFilter,
+    /// The last frame through the filter.
+    filtered: Option<Film>,
+    /// The last filtered frame's render, whose buffers the next one reuses.
+    rendered: Option<RenderOutput>,
+    /// Set when anything visible changed: the next frame starts a new sum.
+    pub reset: bool,
+    /// The view the sum was rendered from.
+    view: Option<glam::Mat4>,
+}
+
+impl Accumulation {
+    pub fn new(settings: RenderSettings) -> Accumulation {
+        let pixels = (settings.width * settings.height) as usize;
+        Accumulation {
+            settings,
+            sum: vec![Vec3::ZERO; pixels],
+            frames: 0,
+            filter: FrameFilter::new(FilterMode::Off),
+            filtered: None,
+            rendered: None,
+            reset: true,
+            view: None,
+        }
+    }
+
+    /// Renders at `width` x `height` from the next frame on, starting the image and the
+    /// filter's history again.
+    pub fn set_resolution(&mut self, width: u32, height: u32) {
+        let (width, height) = (width.max(1), height.max(1));
+        if (width, height) == (self.settings.width, self.settings.height) {
+            return;
+        }
+        self.settings.width = width;
+        self.settings.height = height;
+        self.sum = vec![Vec3::ZERO; (width * height) as usize];
+        self.frames = 0;
+        self.reset = true;
+        self.filter.reset();
+        self.filtered = None;
+        self.rendered = None;
+    }
+
+    /// Takes note of what extract changed: anything visible restarts the sum; instances
+    /// numbered anew restart the filter's history, which names instances by index.
+    pub fn scene_changed(&mut self, changes: SceneChanges) {
+        if changes.visible {
+            self.reset = true;
+        }
+        if changes.renumbered {
+            self.filter.reset();
+        }
+    }
+
+    /// The image to show: the filtered frame with the filter on, else the mean of the
+    /// accumulated frames.
+    pub fn image(&self) -> Film {
+        if self.filter.mode != FilterMode::Off
+            && let Some(filtered) = &self.filtered
+        {
+            return filtered.clone();
+        }
+        let scale = 1.0 / self.frames.max(1) as f32;
+        Film {
+            width: self.settings.width,
+            height: self.settings.height,
+            pixels: self.sum.iter().map(|p| *p * scale).collect(),
+        }
+    }
+
+    /// Render and film: one frame of samples from `scene`'s camera, added to the running
+    /// sum (or starting it again after a change), or through the filter; the stages'
+    /// times go into `times`.
+    pub fn render_frame(&mut self, scene: &RenderScene, times: &mut StageTimes) {
+        let view = scene.camera.world_from_camera;
+        if self.view != Some(view) {
+            self.view = Some(view);
+            self.reset = true;
+        }
+        if self.reset {
+            self.sum.iter_mut().for_each(|p| *p = Vec3::ZERO);
+            self.frames = 0;
+            self.reset = false;
+        }
+        let mut settings = self.settings.clone();
+        settings.frame = self.frames;
+        let camera = Camera::new(&scene.camera, settings.width, settings.height);
+        let filtering = self.filter.mode != FilterMode::Off;
+        let start = std::time::Instant::now();
+        let output = {
+            profiling::scope!("render");
+            if filtering {
+                match self.rendered.take() {
+                    Some(earlier) => render_guided_reusing(scene, &camera, &settings, earlier),
+                    None => render_guided(scene, &camera, &settings),
+                }
+            } else {
+                render(scene, &camera, &settings, &|_| {})
+            }
+        };
+        let render_ms = since(start);
+        times.add(Stage::Render, render_ms);
+        times.render_phases = output.phases.share_of(render_ms);
+        times.rays = output.rays.total();
+        let start = std::time::Instant::now();
+        profiling::scope!("film");
+        if let Some(guides) = &output.guides {
+            let instances: Vec<glam::Affine3A> = scene
+                .accel
+                .instances()
+                .iter()
+                .map(|instance| instance.world_from_object())
+                .collect();
+            // Last frame's image is overwritten (a fresh buffer a frame costs page faults).
+            let mut image = self.filtered.take().unwrap_or_else(|| Film::new(0, 0));
+            self.filter
+                .apply_into(&output.film, guides, &camera, &instances, &mut image);
+            self.filtered = Some(image);
+            self.rendered = Some(output);
+            self.frames += 1;
+            let film_ms = since(start);
+            times.add(Stage::Film, film_ms);
+            // The steps' own times, with the little around them (the instances' transforms
+            // gathered) shared out so they add up to the stage.
+            let steps = self.filter.last_times.as_array();
+            let timed: f64 = steps.iter().sum();
+            times.film_phases = if timed > 0.0 {
+                steps.map(|step| film_ms * step / timed)
+            } else {
+                [0.0; 3]
+            };
+            return;
+        }
+        for (sum, pixel) in self.sum.iter_mut().zip(&output.film.pixels) {
+            *sum += *pixel;
+        }
+        self.frames += 1;
+        times.add(Stage::Film, since(start));
+        times.film_phases = [0.0; 3];
+    }
+}

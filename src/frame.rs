@@ -1,0 +1,231 @@
+//! The frame driver: runs one displayed frame down the frame line, left to right, and
+//! times every stage under its `Stage`.
+//!
+//! Per frame (`Engine::advance`):
+//! 1. simulate: the clock accumulates real time and runs the game's fixed 60 Hz step as
+//!    many times as it owes (`Stage::Input`, `Gameplay`, `Animation`, `Transforms`:
+//!    `game::fixed_step_schedules`);
+//! 2. extract -> accel: `extract::extract_schedule` makes the ECS into the `RenderScene`
+//!    (`Stage::Extract`), deforms and refits what changed shape (`Animation`,
+//!    `BlasRefit`), rebuilds the TLAS (`TlasBuild`);
+//! 3. render (`Stage::Render`): one frame of samples from the view;
+//! 4. film (`Stage::Film`, `film::Accumulation`): with the filter off, frames add up into
+//!    a converging image while nothing changes; with it on (the window and `bench`), the
+//!    frame goes through temporal reprojection and the a-trous filter.
+//!
+//! The window shell (`app`) presents the result and times `Stage::Present`; headless tools
+//! (`bench`, `render`, `flythrough`, tests) drive the same `Engine`.
+
+use bevy_ecs::prelude::*;
+
+use crate::extract::{DeformStats, RenderState, extract_schedule};
+use crate::film::Accumulation;
+use crate::game::{
+    Animator, Deformer, GlobalTransform, LevelEntity, MeshNode, PreviousGlobalTransform,
+    SIMULATION_HZ,
+    SimulationClock, Transform, ViewCamera, fixed_step_schedules, pose_schedule, spawn_level,
+};
+use crate::profile::{Stage, StageTimes, since};
+use crate::render::{Camera, RenderScene, RenderSettings};
+use crate::scene::world::{CameraPlacement, Scene};
+
+/// The ECS world, its schedules and the film: one running level.
+pub struct Engine {
+    pub world: World,
+    /// One 1/60 s simulation step, a schedule per stage.
+    fixed_step: Vec<(Stage, Schedule)>,
+    /// Animation applied and transforms propagated, without moving any clock (posing).
+    pose: Schedule,
+    /// Extract, deform and refit, TLAS: the scene made ready to trace.
+    extract: Schedule,
+    /// The film the frames go into.
+    pub film: Accumulation,
+    /// Real time not yet simulated, in seconds.
+    owed: f64,
+    /// Fixed steps run so far.
+    pub steps: u64,
+}
+
+impl Engine {
+    /// Spawns `scene` into a new world (`game::spawn_level`), poses it at time 0 and makes
+    /// the scene ready to trace. A level with no camera of its own or in its assets is
+    /// viewed from a camera that frames its posed bounds.
+    pub fn new(scene: &Scene, settings: RenderSettings) -> Engine {
+        let mut world = World::new();
+        world.init_resource::<StageTimes>();
+        world.init_resource::<DeformStats>();
+        world.init_resource::<RenderState>();
+        spawn_level(&mut world, scene);
+        let mut engine = Engine {
+            world,
+            fixed_step: fixed_step_schedules(),
+            pose: pose_schedule(),
+            extract: extract_schedule(),
+            film: Accumulation::new(settings),
+            owed: 0.0,
+            steps: 0,
+        };
+        engine.settle();
+        let mut views = engine.world.query_filtered::<(), With<ViewCamera>>();
+        if views.iter(&engine.world).next().is_none() {
+            // A skinned file's rest vertices may lie anywhere: frame the posed scene.
+            let bounds = engine.render_scene().accel.bounds();
+            let camera = CameraPlacement::framing(bounds.min.into(), bounds.max.into());
+            let placed = Transform::from_matrix(camera.world_from_camera);
+            engine.world.spawn((
+                Name::new(camera.name),
+                placed,
+                GlobalTransform(placed.affine()),
+                PreviousGlobalTransform(placed.affine()),
+                ViewCamera {
+                    yfov: camera.yfov,
+                    znear: camera.znear,
+                },
+            ));
+            // Extract again for the view; the deformation counts stay the first pass's
+            // (this pass finds everything already posed).
+            let posed = engine.deform_stats();
+            engine.extract.run(&mut engine.world);
+            engine.world.insert_resource(posed);
+        }
+        engine
+    }
+
+    /// Poses the world as it stands (clips at their clocks, transforms propagated) with
+    /// nothing to interpolate from, and makes the scene ready to trace.
+    fn settle(&mut self) {
+        self.pose.run(&mut self.world);
+        let mut settle = self
+            .world
+            .query::<(&GlobalTransform, &mut PreviousGlobalTransform)>();
+        for (global, mut previous) in settle.iter_mut(&mut self.world) {
+            previous.0 = global.0;
+        }
+        self.extract.run(&mut self.world);
+        self.film.reset = true;
+    }
+
+    /// Sets every clip and deformer clock to `seconds` after level start and poses the
+    /// scene there (for `gloam render --time` and tests); no simulation step runs.
+    pub fn pose_at(&mut self, seconds: f64) {
+        let mut animators = self.world.query::<&mut Animator>();
+        for mut animator in animators.iter_mut(&mut self.world) {
+            animator.elapsed = animator.start + seconds * animator.speed as f64;
+        }
+        let mut deformers = self.world.query::<&mut Deformer>();
+        for mut deformer in deformers.iter_mut(&mut self.world) {
+            deformer.time = seconds;
+        }
+        self.settle();
+    }
+
+    /// The scene as the renderer sees it now.
+    pub fn render_scene(&self) -> &RenderScene {
+        &self.world.resource::<RenderState>().scene
+    }
+
+    /// The render scene and its caches (to re-form batches, find an entity's instance).
+    pub fn render_state_mut(&mut self) -> Mut<'_, RenderState> {
+        self.world.resource_mut::<RenderState>()
+    }
+
+    /// The accel instances drawing level entity `level_entity` (its index in the level
+    /// file), as (glTF node, instance), in node order.
+    pub fn level_entity_instances(&mut self, level_entity: usize) -> Vec<(usize, u32)> {
+        let mut meshes = self.world.query::<(Entity, &MeshNode)>();
+        let mut found: Vec<(usize, Entity)> = meshes
+            .iter(&self.world)
+            .filter(|(_, node)| {
+                self.world
+                    .get::<LevelEntity>(node.root)
+                    .is_some_and(|e| e.0 == level_entity)
+            })
+            .map(|(entity, node)| (node.node, entity))
+            .collect();
+        found.sort_by_key(|&(node, _)| node);
+        let state = self.world.resource::<RenderState>();
+        found
+            .into_iter()
+            .filter_map(|(node, entity)| Some((node, state.instance_of(entity)?)))
+            .collect()
+    }
+
+    /// The accel instance drawing glTF node `node` of level entity `level_entity`.
+    pub fn node_instance(&mut self, level_entity: usize, node: usize) -> Option<u32> {
+        self.level_entity_instances(level_entity)
+            .into_iter()
+            .find(|&(n, _)| n == node)
+            .map(|(_, instance)| instance)
+    }
+
+    /// Deformation counts of the last prepared frame.
+    pub fn deform_stats(&self) -> DeformStats {
+        *self.world.resource::<DeformStats>()
+    }
+
+    /// What each stage of the last frame cost.
+    pub fn stage_times(&self) -> StageTimes {
+        *self.world.resource::<StageTimes>()
+    }
+
+    /// Simulates `seconds` of real time in fixed 1/60 s steps (the remainder carries
+    /// over), then renders one frame into the film.
+    pub fn advance(&mut self, seconds: f64) {
+        // A live profiler's frame boundary (the previous frame's present ends before it).
+        profiling::finish_frame!();
+        self.simulate(seconds);
+        self.render_frame();
+    }
+
+    /// `advance` without the frame: the steps owed, then extract, deform and TLAS, so the
+    /// scene is ready to trace from `view_camera` (for tools that render it themselves).
+    pub fn simulate(&mut self, seconds: f64) {
+        self.world.insert_resource(StageTimes::default());
+        self.owed += seconds.max(0.0);
+        let step = 1.0 / SIMULATION_HZ;
+        while self.owed >= step {
+            profiling::scope!("fixed step");
+            for (stage, schedule) in &mut self.fixed_step {
+                let start = std::time::Instant::now();
+                profiling::scope!(stage.name());
+                schedule.run(&mut self.world);
+                self.world.resource_mut::<StageTimes>().add(*stage, since(start));
+            }
+            self.owed -= step;
+            self.steps += 1;
+        }
+        self.world.resource_mut::<SimulationClock>().alpha = (self.owed / step) as f32;
+        self.extract.run(&mut self.world);
+        let changes = self.world.resource::<RenderState>().changes;
+        self.film.scene_changed(changes);
+    }
+
+    /// The camera the next frame renders from, at `width` x `height`.
+    pub fn view_camera(&self, width: u32, height: u32) -> Camera {
+        Camera::new(&self.render_scene().camera, width, height)
+    }
+
+    /// Render and film: one frame of samples from the view into the film.
+    fn render_frame(&mut self) {
+        let state = self.world.resource::<RenderState>();
+        let mut times = *self.world.resource::<StageTimes>();
+        self.film.render_frame(&state.scene, &mut times);
+        self.world.insert_resource(times);
+    }
+
+    /// The image to show: the film's.
+    pub fn image(&self) -> crate::render::Film {
+        self.film.image()
+    }
+}
+
+/// The `RenderScene` of `scene` posed at level start, as the game would show its first
+/// frame (for tools and tests that render a level without playing it).
+pub fn render_scene(scene: &Scene) -> RenderScene {
+    let mut engine = Engine::new(scene, RenderSettings::real_time(1, 1));
+    engine
+        .world
+        .remove_resource::<RenderState>()
+        .map(|state| state.scene)
+        .expect("the engine keeps its render state")
+}

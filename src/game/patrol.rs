@@ -1,0 +1,53 @@
+//! Game schedule, fixed step "gameplay": scripted movers. A `Patrol` walks its entity back
+//! and forth along its own forward axis, a warden's beat in its simplest form; `gloam
+//! flythrough` uses one to measure how the film copes with a moving lamp-carrier.
+
+use bevy_ecs::prelude::*;
+use glam::Vec3;
+
+use super::{SIMULATION_HZ, Transform};
+
+/// Moves the entity `amplitude` metres either side of `origin` along the origin's local
+/// +Z, a sine over `period` seconds, by the simulation clock.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Patrol {
+    /// Where the beat is centred (the entity's transform when the patrol was given).
+    pub origin: Transform,
+    pub amplitude: f32,
+    /// Seconds for one round trip.
+    pub period: f64,
+    /// Seconds walked so far.
+    pub elapsed: f64,
+}
+
+impl Patrol {
+    /// A patrol centred on `origin`, starting there.
+    pub fn new(origin: Transform, amplitude: f32, period: f64) -> Patrol {
+        Patrol {
+            origin,
+            amplitude,
+            period,
+            elapsed: 0.0,
+        }
+    }
+
+    /// Where the patrol puts its entity `seconds` in.
+    pub fn at(&self, seconds: f64) -> Transform {
+        let phase = std::f64::consts::TAU * seconds / self.period;
+        let offset = self.amplitude * phase.sin() as f32;
+        Transform {
+            translation: self.origin.translation
+                + self.origin.rotation * Vec3::new(0.0, 0.0, offset),
+            ..self.origin
+        }
+    }
+}
+
+/// Fixed step: every patrol one step further on.
+pub fn patrol(mut movers: Query<(&mut Patrol, &mut Transform)>) {
+    for (mut patrol, mut transform) in &mut movers {
+        patrol.elapsed += 1.0 / SIMULATION_HZ;
+        let placed = patrol.at(patrol.elapsed);
+        transform.set_if_neq(placed);
+    }
+}
