@@ -20,9 +20,11 @@
 //! 2. `deform::deform_meshes` (`Stage::Animation`, then `Stage::BlasRefit`): skinning,
 //!    morph targets and procedural deformers for meshes whose pose changed, then their
 //!    BLAS refits;
-//! 3. `update_acceleration` (`Stage::TlasBuild`): emitters follow their instances, the
-//!    TLAS is rebuilt when anything moved, and static batches re-form once the static
-//!    instances have kept still for `REBATCH_AFTER_FRAMES`.
+//! 3. `update_acceleration` (`Stage::TlasBuild`): the TLAS is rebuilt when anything
+//!    moved, emitters follow their instances (or the light set is built, when step 1
+//!    asked for it: after deformation, so emitters are weighted by the shape they have),
+//!    and static batches re-form once the static instances have kept still for
+//!    `REBATCH_AFTER_FRAMES`.
 //!
 //! Since instances, override blocks and lights enter in an order that depends only on
 //! content, the same world renders the same image however it came to be (loaded, or
@@ -141,6 +143,9 @@ pub struct RenderState {
     instance_of: HashMap<Entity, u32>,
     /// Each lit punctual light's entity and its index in the light set.
     light_of: Vec<(Entity, u32)>,
+    /// The light set is to be built anew this frame, with these punctual lights (lit
+    /// ones, in content order, placed).
+    pending_lights: Option<Vec<(Entity, LightDef, Affine3A)>>,
     /// Deformation sources and per-node state (`deform`).
     pub(crate) deform: deform::DeformCache,
     /// Frames since a static instance was last added, removed or moved.
@@ -172,6 +177,7 @@ impl Default for RenderState {
             free_blases: Vec::new(),
             instance_of: HashMap::new(),
             light_of: Vec::new(),
+            pending_lights: None,
             deform: deform::DeformCache::default(),
             still_frames: 0,
             assembled: false,
@@ -320,15 +326,13 @@ pub fn extract_scene(
             }
         }
         found.sort_by(|a, b| a.0.cmp(&b.0));
-        let placed: Vec<(LightDef, Affine3A)> =
-            found.iter().map(|(_, _, l, t)| (l.clone(), *t)).collect();
-        state.scene.lights = lights::light_set(&state.scene, &placed);
-        let first = (state.scene.lights.lights.len() - placed.len()) as u32;
-        state.light_of = found
-            .iter()
-            .enumerate()
-            .map(|(k, (_, entity, _, _))| (*entity, first + k as u32))
-            .collect();
+        // Built in `update_acceleration`, once deformed emitters have their shape.
+        state.pending_lights = Some(
+            found
+                .into_iter()
+                .map(|(_, entity, light, transform)| (entity, light, transform))
+                .collect(),
+        );
         state.changes.visible = true;
     } else {
         for &(entity, light) in &state.light_of {
@@ -598,9 +602,10 @@ fn assemble_instances(
     state.changes.renumbered = true;
 }
 
-/// Accel: when any instance moved or deformed, its emissive triangles follow it and the
-/// TLAS is rebuilt over the new instance boxes; static batches re-form once the static
-/// instances have kept still for `REBATCH_AFTER_FRAMES`.
+/// Accel: when any instance moved or deformed, the TLAS is rebuilt over the new instance
+/// boxes and its emissive triangles follow it (or the light set is built anew, when
+/// extract asked for it); static batches re-form once the static instances have kept
+/// still for `REBATCH_AFTER_FRAMES`.
 pub fn update_acceleration(mut state: ResMut<RenderState>, mut times: ResMut<StageTimes>) {
     let start = std::time::Instant::now();
     profiling::scope!("tlas_build");
@@ -609,11 +614,23 @@ pub fn update_acceleration(mut state: ResMut<RenderState>, mut times: ResMut<Sta
         state.scene.accel.rebuild_tlas();
         state.tlas_stale = false;
         state.changes.visible = true;
-        if state.moved.contains(&true) {
-            refresh_triangle_lights(&mut state.scene, &state.moved);
-            state.moved.fill(false);
-        }
     }
+    if let Some(punctual) = state.pending_lights.take() {
+        // A new set, weighted by the emitters' current shapes (the same world gives the
+        // same weights however it came to be).
+        let placed: Vec<(LightDef, Affine3A)> =
+            punctual.iter().map(|(_, l, t)| (l.clone(), *t)).collect();
+        state.scene.lights = lights::light_set(&state.scene, &placed);
+        let first = (state.scene.lights.lights.len() - placed.len()) as u32;
+        state.light_of = punctual
+            .iter()
+            .enumerate()
+            .map(|(k, (entity, _, _))| (*entity, first + k as u32))
+            .collect();
+    } else if state.moved.contains(&true) {
+        refresh_triangle_lights(&mut state.scene, &state.moved);
+    }
+    state.moved.fill(false);
     state.still_frames = state.still_frames.saturating_add(1);
     if state.still_frames == REBATCH_AFTER_FRAMES && state.scene.accel.can_rebatch() {
         state.scene.accel.rebatch();

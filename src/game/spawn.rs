@@ -13,6 +13,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use bevy_ecs::prelude::*;
+use glam::Affine3A;
 
 use super::{
     AnimationLibrary, AnimationSource, Animator, AssetInstance, AssetLight, AuthoredRotation,
@@ -123,6 +124,33 @@ fn first_camera(asset: &Asset) -> Option<usize> {
 /// Spawns a level entity at run time: its asset (if any) through the world's `Assets`
 /// cache, at the level's next free place.
 pub fn spawn(world: &mut World, def: &EntityDef) -> Result<Entity, LoadError> {
+    let source = world
+        .get_resource::<LevelInfo>()
+        .map(|l| l.source.clone())
+        .unwrap_or_default();
+    // The level's own checks, on this entity alone.
+    let alone = crate::scene::Level {
+        version: crate::scene::level::LEVEL_VERSION,
+        name: String::new(),
+        playable: false,
+        environment: Environment::default(),
+        entities: vec![def.clone()],
+    };
+    let problems = crate::scene::level::validate_level(&alone);
+    if !problems.is_empty() {
+        return Err(LoadError {
+            diagnostics: problems
+                .into_iter()
+                .map(|(pointer, message)| {
+                    let place = pointer.to_string().replacen("/entities/0", "", 1);
+                    crate::scene::Diagnostic::whole_file(
+                        &source,
+                        format!("spawning '{}': {place}: {message}", def.name),
+                    )
+                })
+                .collect(),
+        });
+    }
     let asset = match &def.instance {
         Some(instance) => Some(
             world
@@ -154,13 +182,16 @@ pub fn spawn_entity(
         rotation: def.transform.rotation_quat(),
         scale: def.transform.scale,
     };
+    // Placed from the start (not at the origin until the next propagation), with nothing
+    // to interpolate from, so a thing spawned mid-game shows where it was put.
+    let placed = transform.affine();
     let mut root = world.spawn((
         order,
         Name::new(def.name.clone()),
         transform,
         AuthoredRotation(def.transform.rotation),
-        GlobalTransform::default(),
-        PreviousGlobalTransform::default(),
+        GlobalTransform(placed),
+        PreviousGlobalTransform(placed),
     ));
     if let Some(light) = &def.light {
         root.insert(PunctualLight(light.clone()));
@@ -195,7 +226,7 @@ pub fn spawn_entity(
         asset: Arc::clone(&asset),
         material_overrides: instance.material_overrides.clone(),
     });
-    let nodes = spawn_nodes(world, root, &asset, def);
+    let nodes = spawn_nodes(world, (root, placed), &asset, def);
     if let Some(animation) = &def.animation
         && let Some(clip) = asset.animation_by_name(&animation.clip)
     {
@@ -217,12 +248,21 @@ pub fn spawn_entity(
 /// The asset's nodes under `root`, parents before children. A skinned mesh's node hangs
 /// straight off the root with no transform of its own: glTF places skinned vertices by
 /// their joints alone.
-fn spawn_nodes(world: &mut World, root: Entity, asset: &Arc<Asset>, def: &EntityDef) -> Vec<Entity> {
+fn spawn_nodes(
+    world: &mut World,
+    (root, world_from_root): (Entity, Affine3A),
+    asset: &Arc<Asset>,
+    def: &EntityDef,
+) -> Vec<Entity> {
     let mut node_entities = vec![Entity::PLACEHOLDER; asset.nodes.len()];
     let mut parent_node = vec![None; asset.nodes.len()];
-    let mut stack: Vec<(usize, Entity)> =
-        asset.roots.iter().rev().map(|&node| (node, root)).collect();
-    while let Some((node, parent)) = stack.pop() {
+    let mut stack: Vec<(usize, Entity, Affine3A)> = asset
+        .roots
+        .iter()
+        .rev()
+        .map(|&node| (node, root, world_from_root))
+        .collect();
+    while let Some((node, parent, world_from_parent)) = stack.pop() {
         let gltf_node = &asset.nodes[node];
         let skinned_mesh = gltf_node.skin.is_some() && gltf_node.mesh.is_some();
         let transform = match gltf_node.transform {
@@ -238,10 +278,15 @@ fn spawn_nodes(world: &mut World, root: Entity, asset: &Arc<Asset>, def: &Entity
             },
             NodeTransform::Matrix(matrix) => Transform::from_matrix(matrix),
         };
+        let world_from_node = if skinned_mesh {
+            world_from_root
+        } else {
+            world_from_parent * transform.affine()
+        };
         let mut spawned = world.spawn((
             transform,
-            GlobalTransform::default(),
-            PreviousGlobalTransform::default(),
+            GlobalTransform(world_from_node),
+            PreviousGlobalTransform(world_from_node),
             ChildOf(if skinned_mesh { root } else { parent }),
         ));
         if let Some(light) = gltf_node.light {
@@ -261,7 +306,13 @@ fn spawn_nodes(world: &mut World, root: Entity, asset: &Arc<Asset>, def: &Entity
         for &child in &gltf_node.children {
             parent_node[child] = Some(node);
         }
-        stack.extend(gltf_node.children.iter().rev().map(|&child| (child, id)));
+        stack.extend(
+            gltf_node
+                .children
+                .iter()
+                .rev()
+                .map(|&child| (child, id, world_from_node)),
+        );
     }
 
     // Meshes: what extract instances, and what changes their shape.
