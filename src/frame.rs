@@ -22,8 +22,8 @@ use crate::extract::{DeformStats, RenderState, extract_schedule};
 use crate::film::Accumulation;
 use crate::game::{
     Animator, Deformer, GlobalTransform, LevelEntity, MeshNode, PreviousGlobalTransform,
-    SIMULATION_HZ,
-    SimulationClock, Transform, ViewCamera, fixed_step_schedules, pose_schedule, spawn_level,
+    SIMULATION_HZ, SimulationClock, Transform, ViewCamera, fixed_step_schedules, pose_schedule,
+    spawn_level,
 };
 use crate::profile::{Stage, StageTimes, since};
 use crate::render::{Camera, RenderScene, RenderSettings};
@@ -189,7 +189,9 @@ impl Engine {
                 let start = std::time::Instant::now();
                 profiling::scope!(stage.name());
                 schedule.run(&mut self.world);
-                self.world.resource_mut::<StageTimes>().add(*stage, since(start));
+                self.world
+                    .resource_mut::<StageTimes>()
+                    .add(*stage, since(start));
             }
             self.owed -= step;
             self.steps += 1;

@@ -17,11 +17,14 @@
 //!   asset generators.
 //! - `profile`: the `Stage` list, per-stage frame statistics and the bench reports (JSON,
 //!   CSV, Chrome trace, PNG chart).
+//! - `bench`: the measurement tools behind `bench`, `raybench`, `flythrough` and
+//!   `convergence`.
 //! - `cli`: the `gloam` command line (`main.rs` only calls `cli::main`): it parses flags
 //!   and calls the library.
 
 pub mod accel;
 pub mod app;
+pub mod bench;
 pub mod cli;
 pub mod extract;
 pub mod film;

@@ -418,7 +418,9 @@ fn reference_vertices(document: &Document, node: usize, t: f64) -> Vec<(DVec3, O
 
 /// Gloam's posed world-space vertices of the instance drawing asset node `node`.
 fn engine_vertices(engine: &mut Engine, node: usize) -> Vec<(DVec3, DVec3)> {
-    let index = engine.node_instance(0, node).expect("an instance for the node");
+    let index = engine
+        .node_instance(0, node)
+        .expect("an instance for the node");
     let state = engine.world.resource::<RenderState>();
     let accel = &state.scene.accel;
     let instance = &accel.instances()[index as usize];
@@ -586,8 +588,7 @@ fn baked(scene: &Scene, engine: &mut Engine) -> Scene {
             let Some(mesh) = asset.nodes[node].mesh else {
                 continue;
             };
-            let Some(&(_, index)) = instances[entity_index].iter().find(|(n, _)| *n == node)
-            else {
+            let Some(&(_, index)) = instances[entity_index].iter().find(|(n, _)| *n == node) else {
                 continue;
             };
             let instance = &accel.instances()[index as usize];

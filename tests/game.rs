@@ -3,8 +3,8 @@
 
 mod common;
 
-use glam::Vec3;
 use bevy_ecs::prelude::Entity;
+use glam::Vec3;
 use gloam::extract::{RenderState, instance_entity};
 use gloam::frame::Engine;
 use gloam::game::{GlobalTransform, LevelEntity, MeshNode, Transform};
@@ -66,10 +66,8 @@ fn propagated_transforms_match_the_static_placements() {
         let mut query = engine
             .world
             .query::<(Entity, &MeshNode, &GlobalTransform)>();
-        let placed: Vec<(Entity, GlobalTransform)> = query
-            .iter(&engine.world)
-            .map(|(e, _, g)| (e, *g))
-            .collect();
+        let placed: Vec<(Entity, GlobalTransform)> =
+            query.iter(&engine.world).map(|(e, _, g)| (e, *g)).collect();
         let state = engine.world.resource::<RenderState>();
         let placed: Vec<(u32, GlobalTransform)> = placed
             .into_iter()
@@ -154,7 +152,10 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
             .intersect(&ray, gloam::accel::InstanceMask::ALL, &gloam::accel::Opaque);
     assert_eq!(
         hit.and_then(|h| {
-            level_entity_of(&engine, state.scene.accel.instances()[h.instance as usize].user_id)
+            level_entity_of(
+                &engine,
+                state.scene.accel.instances()[h.instance as usize].user_id,
+            )
         }),
         Some(pillar),
         "the lifted pillar now reaches y = 3.5"

@@ -13,8 +13,8 @@ use gloam::game::{
 use gloam::render::{Camera, Film, IntegratorKind, RenderSettings, SamplerKind, render};
 use gloam::scene::Scene;
 use gloam::scene::level::{
-    EntityDef, InstanceDef, LightDef, MaterialOverride, TransformDef, level_to_string,
-    parse_level, save_level,
+    EntityDef, InstanceDef, LightDef, MaterialOverride, TransformDef, level_to_string, parse_level,
+    save_level,
 };
 
 fn settings() -> RenderSettings {
@@ -138,9 +138,10 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
         .retain(|e| e.name != "crate 2" && e.name != "warden lamp");
     let crate_file = kit.join("crate.glb").display().to_string();
     b_level.entities.insert(0, blue_lamp());
-    b_level
-        .entities
-        .insert(5, crate_def("crate 4", &crate_file, Vec3::new(-4.0, 0.0, 1.0)));
+    b_level.entities.insert(
+        5,
+        crate_def("crate 4", &crate_file, Vec3::new(-4.0, 0.0, 1.0)),
+    );
     let dir = common::scratch_dir("edit-into");
     let b_path = dir.join("b.ron");
     save_level(&b_level, &b_path).unwrap();
@@ -153,7 +154,11 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
     let warden_lamp = named(&mut edited, "warden lamp");
     edited.world.despawn(warden_lamp);
     let pillar = named(&mut edited, "pillar 3");
-    edited.world.get_mut::<Transform>(pillar).unwrap().translation = Vec3::new(-2.5, 0.0, 2.5);
+    edited
+        .world
+        .get_mut::<Transform>(pillar)
+        .unwrap()
+        .translation = Vec3::new(-2.5, 0.0, 2.5);
     let crate_3 = named(&mut edited, "crate 3");
     edited
         .world
@@ -168,7 +173,11 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
     };
     spawn(
         &mut edited.world,
-        &crate_def("crate 4", "../assets/kit/crate.glb", Vec3::new(-4.0, 0.0, 1.0)),
+        &crate_def(
+            "crate 4",
+            "../assets/kit/crate.glb",
+            Vec3::new(-4.0, 0.0, 1.0),
+        ),
     )
     .unwrap();
     spawn(&mut edited.world, &blue_lamp()).unwrap();
@@ -215,7 +224,11 @@ fn a_hundred_spawns_despawned_leave_the_image_as_it_was() {
     let mut spawned = Vec::new();
     for i in 0..100 {
         let at = Vec3::new(-5.0 + (i % 10) as f32, 0.0, -5.0 + (i / 10) as f32);
-        let def = crate_def(&format!("spawned crate {i:03}"), "../assets/kit/crate.glb", at);
+        let def = crate_def(
+            &format!("spawned crate {i:03}"),
+            "../assets/kit/crate.glb",
+            at,
+        );
         spawned.push(spawn(&mut engine.world, &def).unwrap());
     }
     for i in 0..20 {
@@ -344,7 +357,10 @@ fn the_world_writes_back_as_its_level() {
         .find(|e| e.name == "pillar 2")
         .unwrap();
     let angle = pillar_def.transform.rotation_quat().angle_between(turned);
-    assert!(angle < 1e-5, "the saved degrees make the rotation ({angle} rad off)");
+    assert!(
+        angle < 1e-5,
+        "the saved degrees make the rotation ({angle} rad off)"
+    );
     let scene = Scene::load(&path).unwrap();
     let mut again = Engine::new(&scene, RenderSettings::real_time(4, 4));
     let mut resaved = level_from_world(&mut again.world);

@@ -94,7 +94,11 @@ impl StaticBatch {
 }
 
 /// Instances that could join a batch but are traced on their own (`batched` per instance).
-pub(super) fn unbatched_candidates(blases: &[Blas], instances: &[Instance], batched: &[bool]) -> usize {
+pub(super) fn unbatched_candidates(
+    blases: &[Blas],
+    instances: &[Instance],
+    batched: &[bool],
+) -> usize {
     instances
         .iter()
         .enumerate()

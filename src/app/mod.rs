@@ -30,12 +30,12 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 
 use crate::extract::DeformStats;
+use crate::film::FilterMode;
 use crate::frame::Engine;
 use crate::game::{Action, Input};
 use crate::profile::StageTimes;
 use crate::profile::{Profile, overlay};
 use crate::render::RenderSettings;
-use crate::film::FilterMode;
 use crate::render::film::tone_map;
 use crate::scene::world::Scene;
 use resolution::ResolutionController;

@@ -1,11 +1,6 @@
 //! The `gloam` command line: parses arguments and calls into the library. Outside the frame;
 //! this is where user errors become one line on stderr and exit status 1.
 
-mod bench;
-mod convergence;
-mod flythrough;
-mod raybench;
-
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -13,6 +8,8 @@ use std::time::Instant;
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 
+use crate::bench::{FilterArg, convergence, flythrough, frames, raybench};
+use crate::scene::files::default_level;
 use crate::scene::world::Scene;
 
 #[derive(Debug, Parser)]
@@ -25,28 +22,6 @@ pub struct Cli {
     /// Without a command, `gloam` plays the default level (levels/first-light.ron).
     #[command(subcommand)]
     pub command: Option<Command>,
-}
-
-/// `--filter`: which of the film's real-time filters run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum FilterArg {
-    /// The raw frame (still views accumulate).
-    Raw,
-    /// Temporal reprojection only.
-    Temporal,
-    /// Temporal reprojection, then the a-trous spatial filter.
-    Full,
-}
-
-impl FilterArg {
-    pub fn mode(self) -> crate::film::denoise::FilterMode {
-        use crate::film::denoise::FilterMode;
-        match self {
-            FilterArg::Raw => FilterMode::Off,
-            FilterArg::Temporal => FilterMode::Temporal,
-            FilterArg::Full => FilterMode::Full,
-        }
-    }
 }
 
 #[derive(Debug, Subcommand)]
@@ -100,7 +75,7 @@ pub enum Command {
     Convergence(convergence::Options),
     /// Headless frame-time profile along a fixed camera path: per-stage mean, p50, p95,
     /// p99 and max; JSON, CSV, Chrome trace and PNG chart reports.
-    Bench(bench::Options),
+    Bench(frames::Options),
     /// Fly through a level at 1 spp with a warden patrolling, and print each frame's RMSE
     /// against converged references for the raw frame, temporal filtering, and temporal +
     /// spatial filtering, plus a ghosting measure over the warden's trail.
@@ -129,20 +104,6 @@ pub enum SamplerArg {
     Blue,
     Stratified,
     White,
-}
-
-/// levels/first-light.ron under the working folder, else in the source tree it was built from.
-fn default_level() -> PathBuf {
-    let relative = PathBuf::from("levels/first-light.ron");
-    if relative.exists() {
-        relative
-    } else {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
-    }
-}
-
-pub(crate) fn default_threads() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 #[derive(Debug, Subcommand)]
@@ -270,7 +231,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Bench(options) => {
-            bench::run(&options)?;
+            frames::run(&options)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Flythrough(options) => {
@@ -461,65 +422,21 @@ fn render_command(command: RenderCommand) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Reads an .exr written by `gloam render` into a film.
-pub fn read_exr(path: &Path) -> anyhow::Result<crate::render::Film> {
-    let image = image::open(path)
-        .with_context(|| format!("reading {}", path.display()))?
-        .into_rgb32f();
-    let (width, height) = image.dimensions();
-    Ok(crate::render::Film {
-        width,
-        height,
-        pixels: image
-            .pixels()
-            .map(|p| glam::Vec3::from_array(p.0))
-            .collect(),
-    })
-}
-
 /// `gloam compare`.
 fn compare(image: &Path, reference: &Path) -> anyhow::Result<()> {
-    let (a, b) = (read_exr(image)?, read_exr(reference)?);
-    if (a.width, a.height) != (b.width, b.height) {
-        anyhow::bail!(
-            "{} is {}x{} but {} is {}x{}",
-            image.display(),
-            a.width,
-            a.height,
-            reference.display(),
-            b.width,
-            b.height
-        );
-    }
-    println!(
-        "mean radiance: {} {:.5} | {} {:.5}",
-        image.display(),
-        a.mean(),
-        reference.display(),
-        b.mean()
+    let (a, b) = (
+        crate::render::Film::read_exr(image)?,
+        crate::render::Film::read_exr(reference)?,
     );
-    println!(
-        "RMSE: {:.6} (relative to the reference mean: {:.4})",
-        a.rmse(&b),
-        a.rmse(&b) / b.mean().element_sum().max(1e-12) * 3.0
+    let comparison = a
+        .compare(&b)
+        .with_context(|| format!("comparing {} with {}", image.display(), reference.display()))?;
+    print!(
+        "{}",
+        comparison.report(
+            &image.display().to_string(),
+            &reference.display().to_string()
+        )
     );
-    println!("region mean ratios (image / reference), 4 x 4 grid, top row first:");
-    for region_y in 0..4 {
-        let mut row = String::new();
-        for region_x in 0..4 {
-            let (mut sum_a, mut sum_b) = (glam::Vec3::ZERO, glam::Vec3::ZERO);
-            for y in region_y * a.height / 4..(region_y + 1) * a.height / 4 {
-                for x in region_x * a.width / 4..(region_x + 1) * a.width / 4 {
-                    sum_a += a.pixel(x, y);
-                    sum_b += b.pixel(x, y);
-                }
-            }
-            row += &format!(
-                " {:6.3}",
-                sum_a.element_sum() / sum_b.element_sum().max(1e-12)
-            );
-        }
-        println!("{row}");
-    }
     Ok(())
 }

@@ -32,8 +32,8 @@ use super::RenderState;
 use crate::accel::{Blas, RefitOutcome};
 use crate::game::{Deformer, GlobalTransform, MeshNode, MorphWeights, Skin, Transform};
 use crate::profile::{Stage, StageTimes, since};
-use crate::scene::level::DeformerDef;
 use crate::scene::AssetKey;
+use crate::scene::level::DeformerDef;
 use crate::scene::model::Asset;
 
 /// A mesh's rest geometry and deformation data, in the vertex order of
@@ -365,15 +365,26 @@ pub struct DeformStats {
     pub vertices: u64,
 }
 
+/// A mesh node and what may shape it, with change ticks.
+type DeformingNode<'a> = (
+    Entity,
+    &'a MeshNode,
+    Option<&'a Skin>,
+    Option<Ref<'a, MorphWeights>>,
+    Option<Ref<'a, Deformer>>,
+);
+
+/// A node whose shape changed this frame: its skin, morph weights and deformer clock.
+type ChangedNode<'a> = (
+    Entity,
+    Option<&'a Skin>,
+    Option<&'a [f32]>,
+    Option<(&'a DeformerDef, f64)>,
+);
+
 /// Extract: deform what changed, refit its BLAS (or rebuild it), flag the TLAS stale.
 pub fn deform_meshes(
-    meshes: Query<(
-        Entity,
-        &MeshNode,
-        Option<&Skin>,
-        Option<Ref<MorphWeights>>,
-        Option<Ref<Deformer>>,
-    )>,
+    meshes: Query<DeformingNode>,
     transforms: Query<(Ref<Transform>, &GlobalTransform)>,
     mut state: ResMut<RenderState>,
     mut stats: ResMut<DeformStats>,
@@ -393,8 +404,7 @@ pub fn deform_meshes(
         weights: Option<&'a [f32]>,
         deformer: Option<(&'a DeformerDef, f64)>,
     }
-    let mut changed_nodes: Vec<(Entity, Option<&Skin>, Option<&[f32]>, Option<(&DeformerDef, f64)>)> =
-        Vec::new();
+    let mut changed_nodes: Vec<ChangedNode> = Vec::new();
     for (entity, node, skin, weights, deformer) in &meshes {
         if !node.deforms {
             continue;
@@ -483,7 +493,12 @@ pub fn deform_meshes(
             deformer: job.deformer,
         };
         let geometry = &mut blas.geometry;
-        deform(&job.source, &pose, &mut geometry.positions, &mut geometry.normals);
+        deform(
+            &job.source,
+            &pose,
+            &mut geometry.positions,
+            &mut geometry.normals,
+        );
     });
     stats.deformed = work.len() as u32;
     stats.vertices = work

@@ -11,8 +11,8 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use crate::render::material::{RenderMaterial, Texture, TextureSlot};
-use crate::scene::level::MaterialOverride;
 use crate::scene::AssetKey;
+use crate::scene::level::MaterialOverride;
 use crate::scene::model::{Asset, ColorEncoding, Material, TextureRef};
 
 /// The materials and textures the render scene reads, as extract grows and rebuilds them.

@@ -50,6 +50,7 @@ use crate::game::{
 };
 use crate::profile::{Stage, StageTimes, since};
 use crate::render::light::LightSet;
+pub use crate::render::scene::SceneChanges;
 use crate::render::scene::{DEFAULT_MATERIAL, InstanceShading, RenderScene};
 use crate::scene::AssetKey;
 use crate::scene::model::{AlphaMode, Asset, Light as LightDef};
@@ -108,17 +109,6 @@ pub fn mesh_geometry(asset: &Asset, mesh: usize, material_offset: u32) -> MeshGe
         geometry.alpha_tested.clear();
     }
     geometry
-}
-
-/// What changed in the render scene during the last extract, for the film.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SceneChanges {
-    /// Anything visible changed (moved, deformed, spawned, despawned, relit): an
-    /// accumulated image must start again.
-    pub visible: bool,
-    /// The instances were assembled anew, so instance indices of earlier frames name
-    /// other instances now (a filter's history keyed by them must start again).
-    pub renumbered: bool,
 }
 
 /// The scene as the renderer reads it, and the caches extract keeps it with.
@@ -239,6 +229,23 @@ type MeshData<'a> = (
     &'a PreviousGlobalTransform,
 );
 
+/// A light component changed (added or edited).
+type LightChanged = Or<(Changed<PunctualLight>, Changed<AssetLight>)>;
+
+/// Level lights as extract reads them: whose, what, where, and switched off or not.
+type PunctualData<'a> = (
+    Entity,
+    &'a Name,
+    &'a PunctualLight,
+    &'a GlobalTransform,
+    &'a PreviousGlobalTransform,
+    Has<SwitchedOff>,
+);
+
+/// A lit punctual light found this frame: its content key (root name, asset node), its
+/// entity, the light and its placement.
+type FoundLight<'a> = ((&'a str, Option<usize>), Entity, LightDef, Affine3A);
+
 /// What, since the last frame, calls for assembling instances or lights anew.
 #[derive(bevy_ecs::system::SystemParam)]
 pub struct Structure<'w, 's> {
@@ -247,7 +254,7 @@ pub struct Structure<'w, 's> {
     instances_changed: Query<'w, 's, (), Changed<AssetInstance>>,
     switched: Query<'w, 's, (), Changed<SwitchedOff>>,
     unswitched: RemovedComponents<'w, 's, SwitchedOff>,
-    lights_changed: Query<'w, 's, (), Or<(Changed<PunctualLight>, Changed<AssetLight>)>>,
+    lights_changed: Query<'w, 's, (), LightChanged>,
     punctual_removed: RemovedComponents<'w, 's, PunctualLight>,
     asset_lights_removed: RemovedComponents<'w, 's, AssetLight>,
 }
@@ -255,8 +262,7 @@ pub struct Structure<'w, 's> {
 impl Structure<'_, '_> {
     /// (instances must be assembled again, lights must be).
     fn changes(&mut self) -> (bool, bool) {
-        let switched =
-            !self.switched.is_empty() || self.unswitched.read().next().is_some();
+        let switched = !self.switched.is_empty() || self.unswitched.read().next().is_some();
         let instances = !self.meshes_added.is_empty()
             || self.meshes_removed.read().next().is_some()
             || !self.instances_changed.is_empty()
@@ -280,9 +286,19 @@ pub fn extract_scene(
     mut structure: Structure,
     meshes: Query<MeshData>,
     roots: Query<RootData>,
-    punctual: Query<(Entity, &Name, &PunctualLight, &GlobalTransform, &PreviousGlobalTransform, Has<SwitchedOff>)>,
-    asset_lights: Query<(Entity, &AssetLight, &GlobalTransform, &PreviousGlobalTransform)>,
-    views: Query<(Option<&Name>, &GlobalTransform, &PreviousGlobalTransform, &ViewCamera)>,
+    punctual: Query<PunctualData>,
+    asset_lights: Query<(
+        Entity,
+        &AssetLight,
+        &GlobalTransform,
+        &PreviousGlobalTransform,
+    )>,
+    views: Query<(
+        Option<&Name>,
+        &GlobalTransform,
+        &PreviousGlobalTransform,
+        &ViewCamera,
+    )>,
     level: Option<Res<LevelInfo>>,
     clock: Res<SimulationClock>,
     mut state: ResMut<RenderState>,
@@ -299,11 +315,9 @@ pub fn extract_scene(
         move_instances(state, &meshes, clock.alpha);
     }
     // The punctual lights, lit ones only, in content order: (root name, asset node).
-    let lit = |switched: bool, root: Entity| {
-        !switched && !roots.get(root).is_ok_and(|r| r.2)
-    };
+    let lit = |switched: bool, root: Entity| !switched && !roots.get(root).is_ok_and(|r| r.2);
     if lights_changed {
-        let mut found: Vec<((&str, Option<usize>), Entity, LightDef, Affine3A)> = Vec::new();
+        let mut found: Vec<FoundLight> = Vec::new();
         for (entity, name, light, global, previous, switched) in &punctual {
             if lit(switched, entity) {
                 found.push((
@@ -315,7 +329,9 @@ pub fn extract_scene(
             }
         }
         for (entity, light, global, previous) in &asset_lights {
-            let Ok(root) = roots.get(light.root) else { continue };
+            let Ok(root) = roots.get(light.root) else {
+                continue;
+            };
             if lit(false, light.root) {
                 found.push((
                     (root.0.as_str(), Some(light.node)),
@@ -506,7 +522,9 @@ fn assemble_instances(
     }
     let built: Vec<Blas> = needed
         .par_iter()
-        .map(|(_, asset, mesh, kind, offset)| Blas::build(mesh_geometry(asset, *mesh, *offset), *kind))
+        .map(|(_, asset, mesh, kind, offset)| {
+            Blas::build(mesh_geometry(asset, *mesh, *offset), *kind)
+        })
         .collect();
     for ((needed, ..), blas) in needed.into_iter().zip(built) {
         let slot = match state.free_blases.pop() {
@@ -547,9 +565,7 @@ fn assemble_instances(
             *blocks.entry(entry.node.root).or_insert_with(|| {
                 let base = materials.len() as u32;
                 let empty = Default::default();
-                let overrides = entry
-                    .instance
-                    .map_or(&empty, |i| &i.material_overrides);
+                let overrides = entry.instance.map_or(&empty, |i| &i.material_overrides);
                 materials.extend(state.materials.resolved_block(asset, overrides, entry.dark));
                 base
             })
@@ -580,7 +596,9 @@ fn assemble_instances(
     }
     for entry in entries.iter().filter(|e| e.node.deforms) {
         let blas = state.node_blases[&entry.entity];
-        state.deform.track(entry.entity, &entry.node.asset, entry.node.mesh, blas);
+        state
+            .deform
+            .track(entry.entity, &entry.node.asset, entry.node.mesh, blas);
     }
 
     // 4. Into the scene: accel keeps the batches whose members are all unchanged.

@@ -17,11 +17,11 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use super::atrous::{self, AtrousSettings};
+use super::temporal::{TemporalFilter, TemporalSettings};
 use crate::render::camera::Camera;
 use crate::render::film::Film;
 use crate::render::guides::Guides;
 use crate::render::planes::{BLUE, GREEN, RED, SignalPlanes};
-use super::temporal::{TemporalFilter, TemporalSettings};
 
 /// Which filters run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -20,8 +20,8 @@ use glam::Vec3;
 
 pub use denoise::{FilmPhaseTimes, FilterMode, FrameFilter};
 
-use crate::extract::SceneChanges;
 use crate::profile::{Stage, StageTimes, since};
+use crate::render::scene::SceneChanges;
 use crate::render::{
     Camera, Film, RenderOutput, RenderScene, RenderSettings, render, render_guided,
     render_guided_reusing,

@@ -9,11 +9,11 @@
 
 use glam::{Affine3A, Vec3, Vec3A};
 
+use super::temporal::{History, TemporalSettings};
 use crate::render::camera::Projection;
 use crate::render::guides::{
     DEPTH, Guides, NORMAL_X, NORMAL_Y, NORMAL_Z, POSITION_X, POSITION_Y, POSITION_Z,
 };
-use super::temporal::{History, TemporalSettings};
 
 /// What the next frame's reprojection reads of a pixel: its history and, for validation,
 /// its first hit, in one 44-byte record, so a tap touches one place and a pixel's two taps

@@ -20,6 +20,7 @@
 use glam::{Affine3A, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
+use super::reproject::{LastPixel, Motion, ProjectedRow, Reprojection, SurfaceRow};
 use crate::render::camera::Camera;
 use crate::render::film::Film;
 use crate::render::guides::{
@@ -27,7 +28,6 @@ use crate::render::guides::{
     NO_INSTANCE,
 };
 use crate::render::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
-use super::reproject::{LastPixel, Motion, ProjectedRow, Reprojection, SurfaceRow};
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
 #[derive(Clone, Debug, PartialEq)]

@@ -66,7 +66,11 @@ pub struct AnimationLibrary {
 
 impl AnimationLibrary {
     /// The index of `asset`'s clip `clip`, copied in on first use.
-    pub fn clip(&mut self, asset: &std::sync::Arc<crate::scene::model::Asset>, clip: usize) -> usize {
+    pub fn clip(
+        &mut self,
+        asset: &std::sync::Arc<crate::scene::model::Asset>,
+        clip: usize,
+    ) -> usize {
         let clips = &mut self.clips;
         *self
             .by_source

@@ -31,7 +31,18 @@ pub fn level_from_world(world: &mut World) -> Level {
     let mut entities: Vec<(LevelEntity, EntityDef)> = query
         .iter(world)
         .map(
-            |(order, name, transform, authored, instance, light, camera, spawn, animation, deformer)| {
+            |(
+                order,
+                name,
+                transform,
+                authored,
+                instance,
+                light,
+                camera,
+                spawn,
+                animation,
+                deformer,
+            )| {
                 let def = EntityDef {
                     name: name.as_str().to_owned(),
                     transform: TransformDef {

@@ -113,7 +113,10 @@ fn first_camera(asset: &Asset) -> Option<usize> {
     asset.visit_nodes(glam::Mat4::IDENTITY, |node, _| {
         if found.is_none()
             && let Some(camera) = asset.nodes[node].camera
-            && matches!(asset.cameras[camera].projection, Projection::Perspective { .. })
+            && matches!(
+                asset.cameras[camera].projection,
+                Projection::Perspective { .. }
+            )
         {
             found = Some(node);
         }

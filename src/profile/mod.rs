@@ -190,7 +190,7 @@ pub fn since(start: std::time::Instant) -> f64 {
 /// (a test holds them equal; the profiler depends on nothing above it).
 pub const RENDER_PHASES: [&str; 4] = ["primary", "shade", "shadow", "bounces"];
 
-/// The steps inside `film` (render/denoise.rs's filter chain), nested under it as
+/// The steps inside `film` (film/denoise.rs's filter chain), nested under it as
 /// `film.<step>`: the same names as `render::FilmPhaseTimes::NAMES`.
 pub const FILM_PHASES: [&str; 3] = ["temporal", "spatial", "remodulate"];
 

@@ -118,7 +118,7 @@ mod tests {
         let mut frame = vec![128u8; (width * height * 4) as usize];
         draw(&mut frame, width, height, &vec![sample.clone(); 300], 2, 1);
         // The render stage's colour fills most of the newest column.
-        let render = COLOURS[STAGES.iter().position(|&s| s == "render").unwrap()];
+        let render = COLOURS[crate::profile::Stage::Render.index()];
         let column = width - 4;
         let render_pixels = (0..height)
             .filter(|&y| {

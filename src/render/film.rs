@@ -1,4 +1,6 @@
-//! Frame step `film`: the image a render produces, and the files it is written to.
+//! Frame step `render`, its output: the image a render produces, the files it is written to
+//! and read from, and how it compares with a reference (`gloam compare`). The film steps
+//! that work on it frame after frame are in `crate::film`.
 //!
 //! A film pixel holds the mean radiance over the pixel's area (box filter, uniform jitter),
 //! in linear Rec.709 RGB, W/(sr m^2). `.exr` files store exactly that (no exposure, no tone
@@ -128,6 +130,94 @@ impl Film {
 }
 
 /// Linear radiance to display sRGB bytes (see the module doc).
+/// How an image compares with a reference of the same size (`gloam compare`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Comparison {
+    pub mean: Vec3,
+    pub reference_mean: Vec3,
+    pub rmse: f32,
+    /// The RMSE over the reference's mean radiance (averaged over the channels).
+    pub relative_rmse: f32,
+    /// The image's summed radiance over the reference's in a 4 x 4 grid of regions, top
+    /// row first: a local bias shows there.
+    pub region_ratios: [[f32; 4]; 4],
+}
+
+impl Comparison {
+    /// The report `gloam compare` prints, naming the two images.
+    pub fn report(&self, image: &str, reference: &str) -> String {
+        let mut text = format!(
+            "mean radiance: {image} [{:.5}, {:.5}, {:.5}] | {reference} [{:.5}, {:.5}, {:.5}]\n",
+            self.mean.x,
+            self.mean.y,
+            self.mean.z,
+            self.reference_mean.x,
+            self.reference_mean.y,
+            self.reference_mean.z
+        );
+        text += &format!(
+            "RMSE: {:.6} (relative to the reference mean: {:.4})\n",
+            self.rmse, self.relative_rmse
+        );
+        text += "region mean ratios (image / reference), 4 x 4 grid, top row first:\n";
+        for row in &self.region_ratios {
+            text += &row.iter().map(|r| format!(" {r:6.3}")).collect::<String>();
+            text += "\n";
+        }
+        text
+    }
+}
+
+impl Film {
+    /// Reads an .exr (as `gloam render` writes them) into a film.
+    pub fn read_exr(path: &Path) -> anyhow::Result<Film> {
+        let image = image::open(path)
+            .with_context(|| format!("reading {}", path.display()))?
+            .into_rgb32f();
+        let (width, height) = image.dimensions();
+        Ok(Film {
+            width,
+            height,
+            pixels: image.pixels().map(|p| Vec3::from_array(p.0)).collect(),
+        })
+    }
+
+    /// This image against `reference`, which must be the same size.
+    pub fn compare(&self, reference: &Film) -> anyhow::Result<Comparison> {
+        if (self.width, self.height) != (reference.width, reference.height) {
+            bail!(
+                "the image is {}x{} but the reference is {}x{}",
+                self.width,
+                self.height,
+                reference.width,
+                reference.height
+            );
+        }
+        let rmse = self.rmse(reference);
+        let mut region_ratios = [[0.0; 4]; 4];
+        for (region_y, row) in region_ratios.iter_mut().enumerate() {
+            for (region_x, ratio) in row.iter_mut().enumerate() {
+                let (mut sum_a, mut sum_b) = (Vec3::ZERO, Vec3::ZERO);
+                let (region_x, region_y) = (region_x as u32, region_y as u32);
+                for y in region_y * self.height / 4..(region_y + 1) * self.height / 4 {
+                    for x in region_x * self.width / 4..(region_x + 1) * self.width / 4 {
+                        sum_a += self.pixel(x, y);
+                        sum_b += reference.pixel(x, y);
+                    }
+                }
+                *ratio = sum_a.element_sum() / sum_b.element_sum().max(1e-12);
+            }
+        }
+        Ok(Comparison {
+            mean: self.mean(),
+            reference_mean: reference.mean(),
+            rmse,
+            relative_rmse: rmse / reference.mean().element_sum().max(1e-12) * 3.0,
+            region_ratios,
+        })
+    }
+}
+
 pub fn tone_map(radiance: Vec3, exposure: f32) -> [u8; 3] {
     display_value(radiance, exposure)
         .to_array()
@@ -159,6 +249,32 @@ pub fn srgb_encode(linear: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn comparison_finds_a_local_bias_and_refuses_other_sizes() {
+        let reference = Film {
+            width: 8,
+            height: 8,
+            pixels: vec![Vec3::splat(0.5); 64],
+        };
+        let same = reference.compare(&reference).unwrap();
+        assert_eq!(same.rmse, 0.0);
+        assert!(same.region_ratios.iter().flatten().all(|&r| r == 1.0));
+        // The top-left quarter's top-left region twice as bright.
+        let mut brighter = reference.clone();
+        for y in 0..2 {
+            for x in 0..2 {
+                brighter.pixels[(y * 8 + x) as usize] = Vec3::ONE;
+            }
+        }
+        let found = brighter.compare(&reference).unwrap();
+        assert_eq!(found.region_ratios[0][0], 2.0);
+        assert_eq!(found.region_ratios[3][3], 1.0);
+        assert!(found.rmse > 0.0);
+        assert!(found.report("a.exr", "b.exr").contains(" 2.000"));
+        let error = Film::new(4, 4).compare(&reference).unwrap_err().to_string();
+        assert!(error.contains("4x4") && error.contains("8x8"), "{error}");
+    }
 
     #[test]
     fn tone_map_is_monotonic_and_bounded() {

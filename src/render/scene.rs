@@ -22,6 +22,17 @@ pub struct InstanceShading {
     pub asset_offset: u32,
 }
 
+/// What changed in a `RenderScene` since the frame before (extract says; the film reads).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SceneChanges {
+    /// Anything visible changed (moved, deformed, spawned, despawned, relit): an
+    /// accumulated image must start again.
+    pub visible: bool,
+    /// The instances were numbered anew, so instance indices of earlier frames name other
+    /// instances now (a filter's history keyed by them must start again).
+    pub renumbered: bool,
+}
+
 pub struct RenderScene {
     pub accel: AccelScene,
     /// The assets' materials (by global id), then per-entity override copies, then the

@@ -38,3 +38,14 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// The level played and measured when none is named: levels/first-light.ron under the
+/// working folder, else in the source tree Gloam was built from.
+pub fn default_level() -> PathBuf {
+    let relative = PathBuf::from("levels/first-light.ron");
+    if relative.exists() {
+        relative
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
+    }
+}

@@ -21,10 +21,10 @@ use bevy_ecs::prelude::Entity;
 use glam::Affine3A;
 use serde_json::json;
 
-use super::bench::camera_path;
+use super::frames::camera_path;
+use crate::film::denoise::{FilterMode, FrameFilter};
 use crate::frame::Engine;
 use crate::game::{Patrol, Transform, ViewCamera};
-use crate::film::denoise::{FilterMode, FrameFilter};
 use crate::render::film::display_value;
 use crate::render::{Film, Guides, RenderSettings, render, render_guided};
 use crate::scene::files::write_atomically;
@@ -127,7 +127,10 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             options.frames
         );
     }
-    let level = options.level.clone().unwrap_or_else(super::default_level);
+    let level = options
+        .level
+        .clone()
+        .unwrap_or_else(crate::scene::files::default_level);
     let scene = Scene::load(&level)?;
     let (width, height) = (options.width, options.height);
     let mut engine = Engine::new(&scene, RenderSettings::real_time(width, height));
@@ -142,7 +145,9 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         .map(|(e, t)| (e, *t))
         .context("the level has no view camera")?;
     let mover_name = options.mover.as_deref().unwrap_or("warden 1");
-    let mut roots = engine.world.query::<(Entity, &bevy_ecs::prelude::Name, &Transform)>();
+    let mut roots = engine
+        .world
+        .query::<(Entity, &bevy_ecs::prelude::Name, &Transform)>();
     let (mover, mover_start) = roots
         .iter(&engine.world)
         .find(|(_, name, _)| name.as_str() == mover_name)
@@ -326,7 +331,11 @@ fn instances_under(engine: &mut Engine, root: Entity) -> Vec<u32> {
     let mut found = Vec::new();
     let mut stack = vec![root];
     while let Some(entity) = stack.pop() {
-        if let Some(instance) = engine.world.resource::<crate::extract::RenderState>().instance_of(entity) {
+        if let Some(instance) = engine
+            .world
+            .resource::<crate::extract::RenderState>()
+            .instance_of(entity)
+        {
             found.push(instance);
         }
         if let Some(children) = engine.world.get::<Children>(entity) {
