@@ -7,12 +7,7 @@ use gloam::scene::Scene;
 use gloam::scene::level::{Level, level_to_string, parse_level, save_level};
 
 fn shipped_levels() -> Vec<std::path::PathBuf> {
-    let mut levels: Vec<_> = std::fs::read_dir(common::repo().join("levels"))
-        .unwrap()
-        .map(|entry| entry.unwrap().path())
-        .filter(|path| path.extension().is_some_and(|e| e == "ron"))
-        .collect();
-    levels.sort();
+    let levels = common::shipped_levels();
     assert!(
         levels.len() >= 2,
         "levels/ should hold cornell.ron and a first test level"

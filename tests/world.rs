@@ -306,12 +306,7 @@ fn a_moving_light_follows_its_entity() {
 /// byte for byte; an edited world saved and loaded again is the same world.
 #[test]
 fn the_world_writes_back_as_its_level() {
-    let mut levels: Vec<_> = std::fs::read_dir(common::repo().join("levels"))
-        .unwrap()
-        .map(|entry| entry.unwrap().path())
-        .filter(|path| path.extension().is_some_and(|e| e == "ron"))
-        .collect();
-    levels.sort();
+    let levels = common::shipped_levels();
     for path in &levels {
         let scene = Scene::load(path).unwrap();
         let mut engine = Engine::new(&scene, RenderSettings::real_time(4, 4));

@@ -42,3 +42,14 @@ pub fn write(dir: &Path, name: &str, contents: impl AsRef<[u8]>) -> PathBuf {
     std::fs::write(&path, contents).expect("write test file");
     path
 }
+
+/// Every level shipped in levels/, sorted.
+pub fn shipped_levels() -> Vec<PathBuf> {
+    let mut levels: Vec<_> = std::fs::read_dir(repo().join("levels"))
+        .expect("levels/ exists")
+        .map(|entry| entry.expect("a readable folder entry").path())
+        .filter(|path| path.extension().is_some_and(|e| e == "ron"))
+        .collect();
+    levels.sort();
+    levels
+}
