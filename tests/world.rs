@@ -383,3 +383,63 @@ fn a_bad_spawn_is_refused_with_its_place() {
     let error = spawn(&mut engine.world, &missing).unwrap_err().to_string();
     assert!(error.contains("no-such.glb"), "{error}");
 }
+
+/// The light set is built anew only when a light or emitter is added, removed, switched or
+/// changes power: not for a spawned prop, a moved lamp or a moved emitter.
+#[test]
+fn the_light_set_is_rebuilt_only_when_the_lights_change() {
+    let scene = Scene::load(&first_light()).unwrap();
+    let mut engine = Engine::new(&scene, settings());
+    pause_animation(&mut engine);
+    engine.advance(1.0 / 60.0);
+    let builds = |engine: &Engine| {
+        engine
+            .world
+            .resource::<gloam::extract::RenderState>()
+            .light_set_builds
+    };
+    let at_load = builds(&engine);
+    let crate_4 = spawn(
+        &mut engine.world,
+        &crate_def(
+            "crate 4",
+            "../assets/kit/crate.glb",
+            Vec3::new(-4.0, 0.0, 1.0),
+        ),
+    )
+    .unwrap();
+    engine.advance(1.0 / 60.0);
+    let shard = named(&mut engine, "shard 2");
+    engine
+        .world
+        .get_mut::<Transform>(shard)
+        .unwrap()
+        .translation
+        .y += 0.5;
+    let lamp = named(&mut engine, "hanging lamp");
+    engine
+        .world
+        .get_mut::<Transform>(lamp)
+        .unwrap()
+        .translation
+        .x += 0.5;
+    engine.advance(1.0 / 60.0);
+    engine.world.despawn(crate_4);
+    engine.advance(1.0 / 60.0);
+    assert_eq!(builds(&engine), at_load, "a prop and moves keep the set");
+    // The moved shard's emitters went with it, as a new set would have them.
+    let kept = engine.render_scene().lights.lights.clone();
+    engine.render_state_mut().rebatch();
+    let lamp_light = engine.world.get::<PunctualLight>(lamp).unwrap().0.clone();
+    engine.world.get_mut::<PunctualLight>(lamp).unwrap().0 = lamp_light;
+    engine.advance(1.0 / 60.0);
+    assert_eq!(builds(&engine), at_load + 1, "a touched light builds a set");
+    assert_eq!(
+        format!("{kept:?}"),
+        format!("{:?}", engine.render_scene().lights.lights),
+        "the kept set had every light where a new one puts it"
+    );
+    spawn(&mut engine.world, &blue_lamp()).unwrap();
+    engine.advance(1.0 / 60.0);
+    assert_eq!(builds(&engine), at_load + 2, "a new lamp builds a set");
+}

@@ -16,7 +16,8 @@
 //! map keeps them; they differ from the object-space ones by rounding only). The members'
 //! BLASes stay, for shading and for the day the batch dissolves: `AccelScene::rebuild_tlas`
 //! drops a batch as soon as any member's transform, mask, BLAS or mobility has changed (the
-//! editor moving a wall), and its members are traced one by one again until
+//! editor moving a wall) or a member is gone (`AccelScene::set_instances` finds members by
+//! `user_id` in a new instance list), and its members are traced one by one again until
 //! `AccelScene::rebatch` merges them anew.
 
 use glam::{Vec2, Vec3A};

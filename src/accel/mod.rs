@@ -4,7 +4,8 @@
 //! world-space batches (`batch`). Per frame (driven by the caller; accel knows nothing of the
 //! ECS, windows or materials):
 //! 1. `Blas::refit` each deformed mesh (rebuilds it when its quality has decayed);
-//! 2. `AccelScene::set_transform` / `instances_mut` for moved instances;
+//! 2. `instances_mut` for moved instances, or `AccelScene::set_instances` for a new list
+//!    (things spawned and despawned: batches whose members are all unchanged survive);
 //! 3. `AccelScene::rebuild_tlas` over world-space instance and batch boxes (PLOC, builder
 //!    reused), dissolving any batch a member of which has changed;
 //! 4. `intersect` (closest hit) and `occluded` (any hit, early exit) from many threads, one

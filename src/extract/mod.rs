@@ -9,8 +9,9 @@
 //!      overrides), a `SwitchedOff` marker added or removed: the instances are assembled
 //!      again in content order (level entity name, then glTF node index), reusing each
 //!      mesh's BLAS (one per distinct asset mesh that keeps its shape, one per deforming
-//!      node), with the materials' override blocks and the light set rebuilt; accel
-//!      keeps the static batches whose members are all unchanged;
+//!      node), with the materials' override blocks rebuilt; accel keeps the static
+//!      batches whose members are all unchanged; the light set is built anew only if an
+//!      emitter was added, removed or changed its emission (else its entries are renumbered);
 //!    - a punctual light added, removed or changed (colour, intensity, cone): the light
 //!      set is rebuilt;
 //!    - otherwise, only moved things: each instance whose entity moved gets its
@@ -117,6 +118,9 @@ pub struct RenderState {
     pub scene: RenderScene,
     /// What the last frame's extract changed.
     pub changes: SceneChanges,
+    /// Light sets built so far (a new set is built only when a light or emitter is added,
+    /// removed, switched or changes power).
+    pub light_set_builds: u64,
     /// The TLAS must be rebuilt before the next query.
     tlas_stale: bool,
     /// Per accel instance: moved or deformed this frame (its emissive triangles follow).
@@ -138,6 +142,10 @@ pub struct RenderState {
     pending_lights: Option<Vec<(Entity, LightDef, Affine3A)>>,
     /// Deformation sources and per-node state (`deform`).
     pub(crate) deform: deform::DeformCache,
+    /// Each BLAS's distinct triangle material ids (which materials an instance can emit by).
+    blas_materials: HashMap<u32, Vec<u32>>,
+    /// A light set has been built (the first assembly always builds one).
+    assembled_lights: bool,
     /// Frames since a static instance was last added, removed or moved.
     still_frames: u32,
     /// The first assembly builds batches at once (a level's load), later ones wait.
@@ -159,6 +167,7 @@ impl Default for RenderState {
                 camera: CameraPlacement::framing(Vec3::ZERO, Vec3::ONE),
             },
             changes: SceneChanges::default(),
+            light_set_builds: 0,
             tlas_stale: false,
             moved: Vec::new(),
             materials,
@@ -169,6 +178,8 @@ impl Default for RenderState {
             light_of: Vec::new(),
             pending_lights: None,
             deform: deform::DeformCache::default(),
+            blas_materials: HashMap::new(),
+            assembled_lights: false,
             still_frames: 0,
             assembled: false,
         }
@@ -260,14 +271,14 @@ pub struct Structure<'w, 's> {
 }
 
 impl Structure<'_, '_> {
-    /// (instances must be assembled again, lights must be).
+    /// (instances must be assembled again, punctual lights must be gathered again).
     fn changes(&mut self) -> (bool, bool) {
         let switched = !self.switched.is_empty() || self.unswitched.read().next().is_some();
         let instances = !self.meshes_added.is_empty()
             || self.meshes_removed.read().next().is_some()
             || !self.instances_changed.is_empty()
             || switched;
-        let lights = instances
+        let lights = switched
             || !self.lights_changed.is_empty()
             || self.punctual_removed.read().next().is_some()
             || self.asset_lights_removed.read().next().is_some();
@@ -308,12 +319,14 @@ pub fn extract_scene(
     profiling::scope!("extract");
     let state = &mut *state;
     state.changes = SceneChanges::default();
-    let (instances_changed, lights_changed) = structure.changes();
+    let (instances_changed, punctual_changed) = structure.changes();
+    let mut emitters_changed = false;
     if instances_changed {
-        assemble_instances(state, &meshes, &roots, clock.alpha);
+        emitters_changed = assemble_instances(state, &meshes, &roots, clock.alpha);
     } else {
         move_instances(state, &meshes, clock.alpha);
     }
+    let lights_changed = punctual_changed || emitters_changed;
     // The punctual lights, lit ones only, in content order: (root name, asset node).
     let lit = |switched: bool, root: Entity| !switched && !roots.get(root).is_ok_and(|r| r.2);
     if lights_changed {
@@ -425,14 +438,25 @@ fn move_instances(state: &mut RenderState, meshes: &Query<MeshData>, alpha: f32)
     }
 }
 
-/// Assembles every instance again in content order (see the module doc).
+/// Assembles every instance again in content order (see the module doc). Returns whether
+/// the emitters changed (one added, removed, re-materialed or switched): the light set must
+/// then be built anew; otherwise its emissive triangles are only renumbered.
 fn assemble_instances(
     state: &mut RenderState,
     meshes: &Query<MeshData>,
     roots: &Query<RootData>,
     alpha: f32,
-) {
+) -> bool {
     profiling::scope!("extract.assemble");
+    // The emitters as they were (before any BLAS slot is emptied or reused).
+    let emitters_before = emitters(&state.scene, &mut state.blas_materials);
+    let old_users: Vec<u64> = state
+        .scene
+        .accel
+        .instances()
+        .iter()
+        .map(|i| i.user_id)
+        .collect();
     // 1. The drawn mesh nodes, in content order.
     struct Entry<'a> {
         key: (&'a str, usize, u64),
@@ -484,6 +508,7 @@ fn assemble_instances(
         if let Some(slot) = state.node_blases.remove(&entity) {
             state.scene.accel.blases[slot as usize] =
                 Blas::build(MeshGeometry::default(), BlasKind::Static);
+            state.blas_materials.remove(&slot);
             state.free_blases.push(slot);
         }
         state.deform.forget(entity);
@@ -537,6 +562,7 @@ fn assemble_instances(
                 state.scene.accel.blases.len() as u32 - 1
             }
         };
+        state.blas_materials.remove(&slot);
         match needed {
             Needed::Mesh(asset, mesh) => {
                 state.mesh_blases.insert((asset, mesh), slot);
@@ -618,6 +644,71 @@ fn assemble_instances(
     state.still_frames = 0;
     state.changes.visible = true;
     state.changes.renumbered = true;
+
+    // 5. The light set: the same emitters keep their entries under their new numbers (and
+    //    follow any move); others call for a new set.
+    let emitters_after = emitters(&state.scene, &mut state.blas_materials);
+    let same_emitters = emitters_before
+        .iter()
+        .map(|(_, signature)| signature)
+        .eq(emitters_after.iter().map(|(_, signature)| signature));
+    if !same_emitters || !state.assembled_lights {
+        state.assembled_lights = true;
+        return true;
+    }
+    let new_index: Vec<Option<u32>> = old_users
+        .iter()
+        .map(|&user| instance_entity(user).and_then(|e| state.instance_of.get(&e).copied()))
+        .collect();
+    state.scene.lights.renumber_instances(&new_index);
+    for (index, _) in &emitters_after {
+        state.moved[*index as usize] = true;
+    }
+    false
+}
+
+/// The emissive materials of one instance, as (triangle material id, emitted radiance
+/// bits, double-sided), in id order: what its emitters' power depends on.
+type EmitterMaterials = Vec<(u32, [u32; 3], bool, Option<u32>)>;
+
+/// Every instance that emits light, by `user_id`, with its BLAS and emissive materials,
+/// sorted by `user_id` (as instance index, signature): equal lists mean the same emitters
+/// with the same power. `blas_materials` caches each BLAS's distinct material ids.
+fn emitters(
+    scene: &RenderScene,
+    blas_materials: &mut HashMap<u32, Vec<u32>>,
+) -> Vec<(u32, (u64, u32, EmitterMaterials))> {
+    let mut found = Vec::new();
+    for (index, instance) in scene.accel.instances().iter().enumerate() {
+        let ids = blas_materials.entry(instance.blas).or_insert_with(|| {
+            let mut ids = scene.accel.blases[instance.blas as usize]
+                .geometry
+                .materials
+                .clone();
+            ids.sort_unstable();
+            ids.dedup();
+            ids
+        });
+        let emissive: EmitterMaterials = ids
+            .iter()
+            .filter_map(|&id| {
+                let material = scene.material(index as u32, id);
+                material.is_emissive().then(|| {
+                    (
+                        id,
+                        material.emissive.to_array().map(f32::to_bits),
+                        material.double_sided,
+                        material.emissive_texture.map(|t| t.texture),
+                    )
+                })
+            })
+            .collect();
+        if !emissive.is_empty() {
+            found.push((index as u32, (instance.user_id, instance.blas, emissive)));
+        }
+    }
+    found.sort_by_key(|(_, (user, ..))| *user);
+    found
 }
 
 /// Accel: when any instance moved or deformed, the TLAS is rebuilt over the new instance
@@ -639,6 +730,7 @@ pub fn update_acceleration(mut state: ResMut<RenderState>, mut times: ResMut<Sta
         let placed: Vec<(LightDef, Affine3A)> =
             punctual.iter().map(|(_, l, t)| (l.clone(), *t)).collect();
         state.scene.lights = lights::light_set(&state.scene, &placed);
+        state.light_set_builds += 1;
         let first = (state.scene.lights.lights.len() - placed.len()) as u32;
         state.light_of = punctual
             .iter()

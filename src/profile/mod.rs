@@ -1,8 +1,9 @@
 //! Profiling: what every stage of every frame cost, summarised and written as reports.
 //!
-//! Not a step of the frame but a witness to all of them: the game's `StageTimes` resource
-//! (filled by the schedules' own timers) becomes one `FrameSample` per frame, and a
-//! `Profile` of them is what `gloam bench` prints and writes:
+//! Not a step of the frame but a witness to all of them. `Stage` names the frame's stages
+//! once; the frame driver's `StageTimes` (filled by its timers and by the extract systems
+//! that time their own parts) becomes one `FrameSample` per frame, and a `Profile` of them
+//! is what `gloam bench` prints and writes:
 //! - JSON in DESIGN.md's schema (`frames`, `width`, `height`, `stages.<name>.{mean_ms,
 //!   p50_ms, p95_ms, p99_ms, max_ms}`, `frame`, `mrays_per_s`), plus rays per frame;
 //! - CSV, a row per frame and a column per stage;
@@ -12,7 +13,7 @@
 //!
 //! `overlay` draws the same statistics live over the game's frame (F3).
 //!
-//! Depends on nothing above it (DESIGN.md): plain numbers in, files and pixels out.
+//! Depends on nothing above it: plain numbers in, files and pixels out.
 
 use std::path::Path;
 

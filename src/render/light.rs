@@ -162,6 +162,19 @@ impl LightSet {
             .collect()
     }
 
+    /// Renames the instances the emissive triangles are keyed by, after the instances were
+    /// numbered anew: `new_index[old]` (None: the instance is gone, and with it the key).
+    pub fn renumber_instances(&mut self, new_index: &[Option<u32>]) {
+        self.by_triangle = self
+            .by_triangle
+            .drain()
+            .filter_map(|((instance, triangle), light)| {
+                let renamed = new_index.get(instance as usize).copied().flatten()?;
+                Some(((renamed, triangle), light))
+            })
+            .collect();
+    }
+
     /// The light of an emissive triangle, if it is one.
     pub fn triangle_light(&self, instance: u32, triangle: u32) -> Option<u32> {
         self.by_triangle.get(&(instance, triangle)).copied()
