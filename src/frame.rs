@@ -198,8 +198,8 @@ impl Engine {
         }
         self.world.resource_mut::<SimulationClock>().alpha = (self.owed / step) as f32;
         self.extract.run(&mut self.world);
-        let changes = self.world.resource::<RenderState>().changes;
-        self.film.scene_changed(changes);
+        let state = self.world.resource::<RenderState>();
+        self.film.scene_changed(&state.changes);
     }
 
     /// The camera the next frame renders from, at `width` x `height`.

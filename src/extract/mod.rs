@@ -642,8 +642,11 @@ fn assemble_instances(
     state.moved = vec![false; count];
     state.tlas_stale = false;
     state.still_frames = 0;
+    let new_index: Vec<Option<u32>> = old_users
+        .iter()
+        .map(|&user| instance_entity(user).and_then(|e| state.instance_of.get(&e).copied()))
+        .collect();
     state.changes.visible = true;
-    state.changes.renumbered = true;
 
     // 5. The light set: the same emitters keep their entries under their new numbers (and
     //    follow any move); others call for a new set.
@@ -652,19 +655,16 @@ fn assemble_instances(
         .iter()
         .map(|(_, signature)| signature)
         .eq(emitters_after.iter().map(|(_, signature)| signature));
-    if !same_emitters || !state.assembled_lights {
-        state.assembled_lights = true;
-        return true;
+    let rebuild = !same_emitters || !state.assembled_lights;
+    if !rebuild {
+        state.scene.lights.renumber_instances(&new_index);
+        for (index, _) in &emitters_after {
+            state.moved[*index as usize] = true;
+        }
     }
-    let new_index: Vec<Option<u32>> = old_users
-        .iter()
-        .map(|&user| instance_entity(user).and_then(|e| state.instance_of.get(&e).copied()))
-        .collect();
-    state.scene.lights.renumber_instances(&new_index);
-    for (index, _) in &emitters_after {
-        state.moved[*index as usize] = true;
-    }
-    false
+    state.assembled_lights = true;
+    state.changes.renumbered = Some(new_index);
+    rebuild
 }
 
 /// The emissive materials of one instance, as (triangle material id, emitted radiance

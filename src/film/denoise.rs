@@ -106,6 +106,11 @@ impl FrameFilter {
         self.temporal.reset();
     }
 
+    /// The scene's instances were numbered anew (`TemporalFilter::renumber_instances`).
+    pub fn renumber_instances(&mut self, new_index: &[Option<u32>]) {
+        self.temporal.renumber_instances(new_index);
+    }
+
     /// Filters this frame's `radiance` (rendered with `guides` from `camera`, the scene's
     /// instances at `instances`): the image to show.
     pub fn apply(

@@ -78,13 +78,13 @@ impl Accumulation {
     }
 
     /// Takes note of what extract changed: anything visible restarts the sum; instances
-    /// numbered anew restart the filter's history, which names instances by index.
-    pub fn scene_changed(&mut self, changes: SceneChanges) {
+    /// numbered anew are renumbered in the filter's history, which names them by index.
+    pub fn scene_changed(&mut self, changes: &SceneChanges) {
         if changes.visible {
             self.reset = true;
         }
-        if changes.renumbered {
-            self.filter.reset();
+        if let Some(new_index) = &changes.renumbered {
+            self.filter.renumber_instances(new_index);
         }
     }
 

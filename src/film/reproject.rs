@@ -78,6 +78,8 @@ pub(super) enum Motion {
     Still,
     /// Last frame's world-from-object times this frame's object-from-world.
     Moved(Affine3A),
+    /// Not there last frame (spawned since): nothing of it to reproject.
+    New,
 }
 
 /// Last frame, as this frame's pixels find it.
@@ -201,6 +203,7 @@ impl Reprojection<'_> {
                 let normal = (before_from_now.matrix3 * normal).normalize_or_zero();
                 (corner_x, corner_y, depth, normal)
             }
+            Motion::New => return None,
         };
         // Left of or above the first pixel's centre by a pixel or more, or right of or
         // below the last's, or behind the camera (NaN): no tap is inside (and the casts

@@ -92,7 +92,8 @@ pub struct TemporalFilter {
     /// Last frame's pixels: history, and first hits as much as validation reads.
     last: Vec<LastPixel>,
     camera: Option<Camera>,
-    instances: Vec<Affine3A>,
+    /// Last frame's world-from-object per instance (None: an instance spawned since).
+    instances: Vec<Option<Affine3A>>,
     /// This frame's result; its buffers, like the others here, are reused frame to frame
     /// (fresh megabyte buffers each frame cost more in page faults than the blending).
     accumulated: Accumulated,
@@ -144,14 +145,14 @@ impl TemporalFilter {
         // its own, the image went through memory once more: 2 MB written and read again.)
         let motions: Vec<Motion> = instance_transforms
             .iter()
-            .zip(&self.instances)
-            .map(|(now, before)| {
-                if now == before {
-                    Motion::Still
-                } else {
-                    Motion::Moved(*before * now.inverse())
-                }
-            })
+            .enumerate()
+            .map(
+                |(index, now)| match self.instances.get(index).copied().flatten() {
+                    Some(before) if before == *now => Motion::Still,
+                    Some(before) => Motion::Moved(before * now.inverse()),
+                    None => Motion::New,
+                },
+            )
             .collect();
         let reprojection = self.camera.as_ref().map(|previous_camera| Reprojection {
             projection: previous_camera.projection(),
@@ -215,8 +216,33 @@ impl TemporalFilter {
         std::mem::swap(&mut self.last, &mut self.next);
         self.camera = Some(camera.clone());
         self.instances.clear();
-        self.instances.extend_from_slice(instance_transforms);
+        self.instances
+            .extend(instance_transforms.iter().copied().map(Some));
         &self.accumulated
+    }
+
+    /// The instances were numbered anew (things spawned or despawned): `new_index[old]` is
+    /// each old instance's new index (None: gone). The history follows its surfaces to
+    /// their new numbers, so a spawn does not start every pixel's history again; a gone
+    /// instance's pixels lose theirs, as a disocclusion would.
+    pub fn renumber_instances(&mut self, new_index: &[Option<u32>]) {
+        let count = new_index.iter().flatten().map(|&i| i as usize + 1).max();
+        let mut renumbered = vec![None; count.unwrap_or(0)];
+        for (old, new) in new_index.iter().enumerate() {
+            if let (Some(new), Some(before)) = (new, self.instances.get(old).copied().flatten()) {
+                renumbered[*new as usize] = Some(before);
+            }
+        }
+        self.instances = renumbered;
+        for pixel in &mut self.last {
+            if pixel.instance != NO_INSTANCE {
+                pixel.instance = new_index
+                    .get(pixel.instance as usize)
+                    .copied()
+                    .flatten()
+                    .unwrap_or(NO_INSTANCE);
+            }
+        }
     }
 
     /// What the last `accumulate` gave.
@@ -635,5 +661,40 @@ mod tests {
                 assert!((out.signal.illumination(index).x - expected).abs() < 2e-3);
             }
         }
+    }
+
+    #[test]
+    fn renumbered_instances_keep_their_history_and_gone_ones_lose_it() {
+        let mut filter = TemporalFilter::new(TemporalSettings::default());
+        let camera = camera(0.0);
+        let guides = wall(&camera);
+        let lit = film(|_, _| Vec3::splat(0.3));
+        for _ in 0..3 {
+            filter.accumulate(&lit, &guides, &camera, &[Affine3A::IDENTITY]);
+        }
+        // Something spawned before the wall: the wall is instance 1 now.
+        filter.renumber_instances(&[Some(1)]);
+        let mut renumbered = guides.clone();
+        for index in 0..32 * 16 {
+            let pixel = GuidePixel {
+                instance: 1,
+                ..renumbered.pixel(index)
+            };
+            renumbered.set(index, &pixel);
+        }
+        let moved_in = [
+            Affine3A::from_translation(glam::Vec3::X),
+            Affine3A::IDENTITY,
+        ];
+        filter.accumulate(&lit, &renumbered, &camera, &moved_in);
+        assert_eq!(
+            filter.history_length(5 * 32 + 7),
+            4.0,
+            "the wall's history went on"
+        );
+        // The wall despawned (and the same pixels show a new instance 0): history restarts.
+        filter.renumber_instances(&[Some(0), None]);
+        filter.accumulate(&lit, &guides, &camera, &[Affine3A::IDENTITY]);
+        assert_eq!(filter.history_length(5 * 32 + 7), 1.0);
     }
 }

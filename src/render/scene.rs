@@ -23,14 +23,15 @@ pub struct InstanceShading {
 }
 
 /// What changed in a `RenderScene` since the frame before (extract says; the film reads).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct SceneChanges {
     /// Anything visible changed (moved, deformed, spawned, despawned, relit): an
     /// accumulated image must start again.
     pub visible: bool,
-    /// The instances were numbered anew, so instance indices of earlier frames name other
-    /// instances now (a filter's history keyed by them must start again).
-    pub renumbered: bool,
+    /// The instances were numbered anew (things spawned or despawned): each earlier
+    /// instance's new index, None for one that is gone. A history keyed by instance
+    /// follows its surfaces through this.
+    pub renumbered: Option<Vec<Option<u32>>>,
 }
 
 pub struct RenderScene {
