@@ -3,8 +3,10 @@
 //!
 //! Per frame (`Engine::advance`):
 //! 1. simulate: the clock accumulates real time and runs the game's fixed 60 Hz step as
-//!    many times as it owes (`Stage::Input`, `Gameplay`, `Animation`, `Transforms`:
-//!    `game::fixed_step_schedules`);
+//!    many times as it owes: first the simulation's copy of the level is brought up to
+//!    date (`extract::step_world`, timed under `Gameplay`: the geometry the step's queries
+//!    see), then `Stage::Input`, `Gameplay`, `Animation`, `Transforms`
+//!    (`game::fixed_step_schedules`);
 //! 2. extract -> accel: `extract::extract_schedule` makes the ECS into the `RenderScene`
 //!    (`Stage::Extract`), deforms and refits what changed shape (`Animation`,
 //!    `BlasRefit`), rebuilds the TLAS (`TlasBuild`);
@@ -18,12 +20,13 @@
 
 use bevy_ecs::prelude::*;
 
+use crate::extract::step_world::{StepWorld, step_world_schedule};
 use crate::extract::{DeformStats, RenderState, extract_schedule};
 use crate::film::Accumulation;
 use crate::game::{
     Animator, Deformer, GlobalTransform, LevelEntity, MeshNode, PreviousGlobalTransform,
-    SIMULATION_HZ, SimulationClock, Transform, ViewCamera, fixed_step_schedules, pose_schedule,
-    spawn_level,
+    SIMULATION_HZ, SimulationClock, Transform, ViewCamera, WorldGeometry, fixed_step_schedules,
+    pose_schedule, spawn_level,
 };
 use crate::profile::{Stage, StageTimes, since};
 use crate::render::{Camera, RenderScene, RenderSettings};
@@ -38,6 +41,8 @@ pub struct Engine {
     pose: Schedule,
     /// Extract, deform and refit, TLAS: the scene made ready to trace.
     extract: Schedule,
+    /// The simulation's copy of the level brought up to date, before each fixed step.
+    step_world: Schedule,
     /// The film the frames go into.
     pub film: Accumulation,
     /// Real time not yet simulated, in seconds.
@@ -55,12 +60,14 @@ impl Engine {
         world.init_resource::<StageTimes>();
         world.init_resource::<DeformStats>();
         world.init_resource::<RenderState>();
+        world.insert_resource(WorldGeometry(Box::new(StepWorld::default())));
         spawn_level(&mut world, scene);
         let mut engine = Engine {
             world,
             fixed_step: fixed_step_schedules(),
             pose: pose_schedule(),
             extract: extract_schedule(),
+            step_world: step_world_schedule(),
             film: Accumulation::new(settings),
             owed: 0.0,
             steps: 0,
@@ -185,6 +192,8 @@ impl Engine {
         let step = 1.0 / SIMULATION_HZ;
         while self.owed >= step {
             profiling::scope!("fixed step");
+            // The geometry the step's queries see: the world as the last step left it.
+            self.step_world.run(&mut self.world);
             for (stage, schedule) in &mut self.fixed_step {
                 let start = std::time::Instant::now();
                 profiling::scope!(stage.name());

@@ -848,3 +848,122 @@ fn empty_and_single_instance_scenes_work() {
         assert_matches_brute_force(&one, &ray, InstanceMask::ALL, "single instance");
     }
 }
+
+/// Every (instance, triangle) within `radius` of `center`, with its distance, by testing
+/// every triangle of every instance in world space.
+fn brute_contacts(
+    scene: &AccelScene,
+    center: Vec3A,
+    radius: f32,
+    mask: InstanceMask,
+) -> Vec<(u32, u32, f32)> {
+    let mut found = Vec::new();
+    for (index, instance) in scene.instances().iter().enumerate() {
+        if !instance.mask.intersects(mask) {
+            continue;
+        }
+        let geometry = &scene.blases[instance.blas as usize].geometry;
+        for triangle in 0..geometry.triangles.len() {
+            let [a, b, c] = geometry
+                .triangle_vertices(triangle)
+                .map(|v| instance.world_from_object().transform_point3a(v));
+            let point = gloam::accel::overlap::closest_point_on_triangle(center, a, b, c);
+            let distance = (center - point).length();
+            if distance < radius {
+                found.push((index as u32, triangle as u32, distance));
+            }
+        }
+    }
+    found.sort_by_key(|x| (x.0, x.1));
+    found
+}
+
+#[test]
+fn sphere_contacts_find_exactly_the_triangles_in_reach() {
+    for (seed, scene) in [
+        (31, random_scene(31, BlasKind::Static)),
+        (32, random_scene(32, BlasKind::Deforming)),
+        (33, random_batched_scene(33)),
+    ] {
+        let mut rng = Rng(seed * 7);
+        let mut found = Vec::new();
+        let mut total = 0;
+        for query in 0..300 {
+            let center = Vec3A::from(rng.vec3(-8.0, 8.0));
+            let radius = rng.range(0.05, 1.5);
+            let mask = InstanceMask([1, 2, 4, 7][query % 4]);
+            found.clear();
+            scene.sphere_contacts(center, radius, mask, &mut found);
+            let mut got: Vec<(u32, u32, f32)> = found
+                .iter()
+                .map(|c| (c.instance, c.triangle, c.distance))
+                .collect();
+            got.sort_by_key(|x| (x.0, x.1));
+            let expected = brute_contacts(&scene, center, radius, mask);
+            let key = |v: &[(u32, u32, f32)]| v.iter().map(|c| (c.0, c.1)).collect::<Vec<_>>();
+            assert_eq!(key(&got), key(&expected), "seed {seed} query {query}");
+            for (a, b) in got.iter().zip(&expected) {
+                // Batched members are tested as the batch holds them (world space).
+                assert!(
+                    (a.2 - b.2).abs() < 1e-4,
+                    "seed {seed}: distance {a:?} vs {b:?}"
+                );
+            }
+            for contact in &found {
+                assert!((contact.normal.length() - 1.0).abs() < 1e-4);
+                assert!(
+                    ((center - contact.point).length() - contact.distance).abs() < 1e-4,
+                    "the contact point is `distance` from the centre"
+                );
+            }
+            total += expected.len();
+        }
+        assert!(
+            total > 100,
+            "seed {seed}: too few contacts to compare ({total})"
+        );
+    }
+}
+
+#[test]
+fn a_sphere_resting_on_a_floor_touches_it_from_above() {
+    // A 2 x 2 floor quad at y = 0, as two triangles, and a sphere of radius 0.3 sunk 0.1.
+    let floor = MeshGeometry {
+        positions: vec![
+            Vec3::new(-1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, -1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(-1.0, 0.0, 1.0),
+        ],
+        triangles: vec![[0, 2, 1], [0, 3, 2]],
+        materials: vec![0, 0],
+        ..MeshGeometry::default()
+    };
+    let scene = AccelScene::new(
+        vec![Blas::build(floor, BlasKind::Static)],
+        vec![Instance::new(0, Affine3A::IDENTITY, InstanceMask::ALL, 0)],
+    );
+    let mut found = Vec::new();
+    scene.sphere_contacts(
+        Vec3A::new(0.2, 0.2, 0.1),
+        0.3,
+        InstanceMask::ALL,
+        &mut found,
+    );
+    // The triangle under the centre, straight below; its neighbour by the diagonal edge.
+    assert_eq!(found.len(), 2, "{found:?}");
+    let nearest = found
+        .iter()
+        .min_by(|a, b| a.distance.total_cmp(&b.distance))
+        .unwrap();
+    assert!((nearest.normal - Vec3A::Y).length() < 1e-5, "{nearest:?}");
+    assert!((nearest.distance - 0.2).abs() < 1e-6);
+    found.clear();
+    scene.sphere_contacts(
+        Vec3A::new(0.0, 0.31, 0.0),
+        0.3,
+        InstanceMask::ALL,
+        &mut found,
+    );
+    assert!(found.is_empty(), "out of reach");
+}

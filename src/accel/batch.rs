@@ -59,16 +59,7 @@ impl StaticBatch {
         direction: Vec3A,
     ) -> ((u32, u32), Vec2) {
         let (triangle, barycentrics) = self.blas.resolve(pending, origin, direction);
-        // The last member starting at or before `triangle` (the first starts at 0).
-        let member = self
-            .first_triangles
-            .partition_point(|&first| first <= triangle)
-            - 1;
-        let source = (
-            self.members[member].0,
-            triangle - self.first_triangles[member],
-        );
-        (source, barycentrics)
+        (self.member_of(triangle), barycentrics)
     }
 
     /// True while every member is still as it was batched.
@@ -85,6 +76,24 @@ impl StaticBatch {
 }
 
 impl StaticBatch {
+    /// The member instance and its own triangle behind batch triangle `triangle`.
+    pub(super) fn member_of(&self, triangle: u32) -> (u32, u32) {
+        // The last member starting at or before `triangle` (the first starts at 0).
+        let member = self
+            .first_triangles
+            .partition_point(|&first| first <= triangle)
+            - 1;
+        (
+            self.members[member].0,
+            triangle - self.first_triangles[member],
+        )
+    }
+
+    /// The instance mask every member shares.
+    pub(super) fn mask(&self) -> super::InstanceMask {
+        self.instance.mask
+    }
+
     /// Points each member at its index in a new instance list (by `user_id`); a member
     /// missing from it gets an index no list has, so the batch dissolves.
     pub(super) fn renumber(&mut self, index_of: &std::collections::HashMap<u64, u32>) {

@@ -139,12 +139,6 @@ pub struct Blas {
 
 impl Blas {
     pub fn build(geometry: MeshGeometry, kind: BlasKind) -> Blas {
-        let triangles: Vec<RtTriangle> = (0..geometry.triangles.len())
-            .map(|t| {
-                let [a, b, c] = geometry.triangle_vertices(t);
-                RtTriangle::new(a, b, c)
-            })
-            .collect();
         let params = match kind {
             // Static meshes are built once per level load and traced every frame: obvhs's
             // slow preset (PLOC search distance high, 20% of nodes reinserted; Meister &
@@ -161,6 +155,22 @@ impl Blas {
                 ..BvhBuildParams::medium_build()
             },
         };
+        Self::build_with(geometry, kind, params)
+    }
+
+    /// A static BLAS built with obvhs's fast preset: for the few queries a fixed step asks
+    /// (the simulation's copy of the level), where build time matters more than ray speed.
+    pub fn build_for_queries(geometry: MeshGeometry) -> Blas {
+        Self::build_with(geometry, BlasKind::Static, BvhBuildParams::fast_build())
+    }
+
+    fn build_with(geometry: MeshGeometry, kind: BlasKind, params: BvhBuildParams) -> Blas {
+        let triangles: Vec<RtTriangle> = (0..geometry.triangles.len())
+            .map(|t| {
+                let [a, b, c] = geometry.triangle_vertices(t);
+                RtTriangle::new(a, b, c)
+            })
+            .collect();
         let mut bvh = if triangles.is_empty() {
             Bvh2::default()
         } else {

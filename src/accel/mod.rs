@@ -12,7 +12,8 @@
 //!    ray at a time or, for rays that travel together, `intersect_coherent` /
 //!    `occluded_coherent` in packets of 64 (`packet`), or, for many shadow rays at once,
 //!    `occluded_stream` in interleaved single-ray walks (`stream`), with the very same
-//!    results.
+//!    results; and, for the simulation's character controller, `sphere_contacts`
+//!    (`overlap`): every triangle within reach of a sphere.
 //!
 //! Rays are traced TLAS -> instance (ray moved into object space, direction not
 //! renormalised, so t is the same in both spaces) or static batch (world space) -> BLAS (its
@@ -25,6 +26,7 @@
 
 mod batch;
 mod blas;
+pub mod overlap;
 pub mod packet;
 mod stream;
 mod tlas;
@@ -32,6 +34,7 @@ pub mod wide;
 
 pub use batch::MAX_BATCH_TRIANGLES;
 pub use blas::{Blas, BlasKind, MeshGeometry, REBUILD_RATIO, RefitOutcome, Traversal};
+pub use overlap::Contact;
 pub use packet::{PACKET, RayPacket};
 pub use tlas::{AccelScene, Instance, Mobility};
 pub use wide::{Kernels, WideBvh, WideTlas};

@@ -260,6 +260,28 @@ impl AccelScene {
         super::batch::unbatched_candidates(&self.blases, &self.instances, &self.batched) > 0
     }
 
+    /// Calls `visit` for every instance and static batch whose world box the TLAS finds
+    /// overlapping `query` (for box queries: `overlap`).
+    pub(super) fn visit_boxes<'a>(
+        &'a self,
+        query: &Aabb,
+        mut visit: impl FnMut(super::overlap::Entry<'a>),
+    ) {
+        self.tlas.aabb_traverse(*query, |tlas, node| {
+            let node = &tlas.nodes[node as usize];
+            let first = node.first_index as usize;
+            for &code in &tlas.primitive_indices[first..first + node.prim_count as usize] {
+                if code & BATCH == 0 {
+                    visit(super::overlap::Entry::Instance(code));
+                } else {
+                    let batch = &self.batches[(code & !BATCH) as usize];
+                    visit(super::overlap::Entry::Batch(&batch.blas, batch));
+                }
+            }
+            true
+        });
+    }
+
     /// Adds an instance; call `rebuild_tlas` before the next query. Returns its index.
     pub fn push_instance(&mut self, instance: Instance) -> u32 {
         debug_assert!((instance.blas as usize) < self.blases.len());

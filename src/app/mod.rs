@@ -8,9 +8,11 @@
 //!    frame buffer at the internal render resolution, the HUD is drawn over it, and pixels
 //!    scales it to the window.
 //!
-//! Keys: W A S D fly, Space / C up and down, mouse looks once captured (click), Esc pauses
-//! (and releases the mouse), Q quits, F11 toggles fullscreen, V toggles vsync, F3 the profiler overlay, F4 cycles the
-//! film's filters (temporal+spatial, temporal, raw).
+//! Keys: W A S D walk, Shift sprints, Space jumps, C or Ctrl crouches, N toggles noclip
+//! (fly through walls: Space and C rise and sink), mouse looks once captured (click), Esc
+//! pauses (and releases the mouse), Q quits, F11 toggles fullscreen, V toggles vsync, F3
+//! the profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw). A
+//! level without a player start is flown through with the same keys.
 
 mod hud;
 pub mod resolution;
@@ -133,6 +135,9 @@ const BINDINGS: &[(KeyCode, Binding)] = &[
     (KeyCode::KeyD, Binding::Game(Action::MoveRight)),
     (KeyCode::Space, Binding::Game(Action::MoveUp)),
     (KeyCode::KeyC, Binding::Game(Action::MoveDown)),
+    (KeyCode::ControlLeft, Binding::Game(Action::MoveDown)),
+    (KeyCode::ShiftLeft, Binding::Game(Action::Sprint)),
+    (KeyCode::KeyN, Binding::Game(Action::Noclip)),
     (KeyCode::Escape, Binding::Pause),
     (KeyCode::KeyQ, Binding::Quit),
     (KeyCode::F11, Binding::Fullscreen),
@@ -209,6 +214,10 @@ fn frame_settings(options: &PlayOptions) -> RenderSettings {
 fn play_engine(scene: &Scene, options: &PlayOptions) -> Engine {
     let mut engine = Engine::new(scene, frame_settings(options));
     engine.film.filter.mode = options.filter;
+    // A playable level is seen through the player's eyes; a showcase scene from its camera.
+    if scene.level.playable {
+        crate::game::spawn_player(&mut engine.world);
+    }
     engine
 }
 
@@ -313,6 +322,7 @@ impl App {
                 let mut input = self.engine.world.resource_mut::<Input>();
                 if pressed && !self.paused {
                     input.held.insert(action);
+                    input.pressed.insert(action);
                 } else {
                     input.held.remove(&action);
                 }

@@ -35,6 +35,7 @@
 pub mod deform;
 mod lights;
 mod materials;
+pub mod step_world;
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -45,9 +46,9 @@ use rayon::prelude::*;
 
 use crate::accel::{AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry, Mobility};
 use crate::game::{
-    AnimationSource, Animator, AssetInstance, AssetLight, DeformerSource, GlobalTransform,
-    LevelInfo, MeshNode, Patrol, PlayerStart, PreviousGlobalTransform, PunctualLight,
-    SimulationClock, SwitchedOff, ViewCamera, interpolate,
+    ActiveCamera, AnimationSource, Animator, AssetInstance, AssetLight, DeformerSource,
+    GlobalTransform, LevelInfo, MeshNode, Patrol, PlayerStart, PreviousGlobalTransform,
+    PunctualLight, SimulationClock, SwitchedOff, ViewCamera, interpolate,
 };
 use crate::profile::{Stage, StageTimes, since};
 use crate::render::light::LightSet;
@@ -240,6 +241,15 @@ type MeshData<'a> = (
     &'a PreviousGlobalTransform,
 );
 
+/// Cameras as extract reads them: name, placement, lens, and whether it is the active one.
+type ViewData<'a> = (
+    Option<&'a Name>,
+    &'a GlobalTransform,
+    &'a PreviousGlobalTransform,
+    &'a ViewCamera,
+    Has<ActiveCamera>,
+);
+
 /// A light component changed (added or edited).
 type LightChanged = Or<(Changed<PunctualLight>, Changed<AssetLight>)>;
 
@@ -304,12 +314,7 @@ pub fn extract_scene(
         &GlobalTransform,
         &PreviousGlobalTransform,
     )>,
-    views: Query<(
-        Option<&Name>,
-        &GlobalTransform,
-        &PreviousGlobalTransform,
-        &ViewCamera,
-    )>,
+    views: Query<ViewData>,
     level: Option<Res<LevelInfo>>,
     clock: Res<SimulationClock>,
     mut state: ResMut<RenderState>,
@@ -382,7 +387,12 @@ pub fn extract_scene(
         }
     }
     state.scene.sky = level.map_or(Vec3::ZERO, |l| l.environment.sky);
-    if let Some((name, global, previous, view)) = views.iter().next() {
+    // The active view, else the first there is.
+    let view = views
+        .iter()
+        .find(|(.., active)| *active)
+        .or_else(|| views.iter().next());
+    if let Some((name, global, previous, view, _)) = view {
         let placement = CameraPlacement {
             name: name.map_or_else(String::new, |n| n.as_str().to_owned()),
             yfov: view.yfov,

@@ -1,8 +1,10 @@
 //! Game schedule, first fixed step: input as the game sees it, and the fly camera.
 //!
 //! The window shell translates devices into this resource through its key-binding table;
-//! the game never sees winit. Held actions move the view at a fixed speed per step;
-//! mouse look accumulated between steps is applied by the next step.
+//! the game never sees winit. Held actions move the view at a fixed speed per step; mouse
+//! look accumulated between steps is applied by the next step; actions pressed since the
+//! last step (`Input::pressed`: a jump, the noclip toggle) are taken once. With a player in
+//! the world the player moves (`player`), and the fly camera only serves levels without one.
 
 use std::collections::HashSet;
 
@@ -18,8 +20,14 @@ pub enum Action {
     MoveBack,
     MoveLeft,
     MoveRight,
+    /// Jump; rise when flying.
     MoveUp,
+    /// Crouch while held; sink when flying.
     MoveDown,
+    /// Run (loud) while held.
+    Sprint,
+    /// Switch the player's collision off and on (fly through walls, for debugging).
+    Noclip,
 }
 
 #[derive(Resource, Default, Debug)]
@@ -28,6 +36,8 @@ pub struct Input {
     pub held: HashSet<Action>,
     /// Mouse look since the last fixed step, in radians: (yaw right, pitch up).
     pub look: Vec2,
+    /// Actions pressed since the last fixed step (taken once by the step that reads them).
+    pub pressed: HashSet<Action>,
 }
 
 /// Flying speed of the free camera, metres per second.
@@ -35,11 +45,16 @@ pub const FLY_SPEED: f32 = 3.0;
 
 /// Moves and turns the view from `Input` (one fixed step). Yaw turns about the world's up,
 /// pitch about the view's right and is kept within 89 degrees of the horizon.
-pub fn fly_camera(mut input: ResMut<Input>, mut views: Query<&mut Transform, With<ViewCamera>>) {
-    if input.held.is_empty() && input.look == Vec2::ZERO {
+pub fn fly_camera(
+    mut input: ResMut<Input>,
+    mut views: Query<&mut Transform, With<ViewCamera>>,
+    players: Query<(), With<super::Player>>,
+) {
+    if !players.is_empty() || (input.held.is_empty() && input.look == Vec2::ZERO) {
         return; // leave the transform untouched: nothing moved, accumulation goes on
     }
     let look = std::mem::take(&mut input.look);
+    input.pressed.clear();
     let step = FLY_SPEED / SIMULATION_HZ as f32;
     for mut transform in &mut views {
         let (yaw, pitch, _) = transform.rotation.to_euler(glam::EulerRot::YXZ);
@@ -57,6 +72,7 @@ pub fn fly_camera(mut input: ResMut<Input>, mut views: Query<&mut Transform, Wit
                 Action::MoveLeft => -right,
                 Action::MoveUp => Vec3::Y,
                 Action::MoveDown => Vec3::NEG_Y,
+                Action::Sprint | Action::Noclip => Vec3::ZERO,
             };
         }
         transform.translation += motion.normalize_or_zero() * step;

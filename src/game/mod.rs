@@ -11,8 +11,10 @@
 //!
 //! One fixed step (`fixed_step_schedules`, in `Stage::FIXED_STEP` order):
 //! 1. `Stage::Input`: `remember_transforms` (where things were, for interpolated
-//!    rendering), then `fly_camera`;
-//! 2. `Stage::Gameplay`: `patrol` movers (the player, shards and wardens join here);
+//!    rendering), then `fly_camera` (levels played without a player);
+//! 2. `Stage::Gameplay`: the player's body (`move_player`: look, walk, jump, crouch,
+//!    collide with the level through `WorldGeometry`), then `patrol` movers (shards and
+//!    wardens join here);
 //! 3. `Stage::Animation`: `advance_animations`, then `apply_animations` (glTF clips into
 //!    node transforms and morph weights; deformer clocks);
 //! 4. `Stage::Transforms`: `propagate_transforms`.
@@ -24,8 +26,10 @@ pub mod animation;
 pub mod input;
 pub mod level_io;
 pub mod patrol;
+pub mod player;
 pub mod spawn;
 pub mod transform;
+pub mod world_query;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -39,11 +43,13 @@ pub use animation::{
 pub use input::{Action, Input, fly_camera};
 pub use level_io::level_from_world;
 pub use patrol::{Patrol, patrol};
+pub use player::{ActiveCamera, Player, PlayerEye, move_player, spawn_player};
 pub use spawn::{Assets, LevelInfo, spawn, spawn_entity, spawn_level};
 pub use transform::{
     GlobalTransform, PreviousGlobalTransform, Transform, interpolate, propagate_transforms,
     remember_transforms,
 };
+pub use world_query::{WorldGeometry, WorldQuery};
 
 use crate::profile::Stage;
 use crate::scene::level::{AnimationDef, DeformerDef, LightDef, MaterialOverride, PlayerSpawn};
@@ -163,7 +169,7 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                     schedule.add_systems((remember_transforms, fly_camera).chain());
                 }
                 Stage::Gameplay => {
-                    schedule.add_systems(patrol);
+                    schedule.add_systems((move_player, patrol).chain());
                 }
                 Stage::Animation => {
                     schedule.add_systems((advance_animations, apply_animations).chain());

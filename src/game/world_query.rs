@@ -1,0 +1,58 @@
+//! How the simulation asks the world questions: the surfaces a body touches, what a ray
+//! meets. The game defines the questions (`WorldQuery`) and holds the answerer as a
+//! resource (`WorldGeometry`); the frame driver's extract step implements them over the
+//! level's geometry as of the current fixed step (never the render's interpolated
+//! transforms), so play, headless replays and any frame rate agree, and tests answer them
+//! with a fake world.
+
+use bevy_ecs::prelude::*;
+use glam::Vec3;
+
+/// A surface point within reach of a query sphere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Contact {
+    /// The closest point of the surface to the sphere's centre.
+    pub point: Vec3,
+    /// Unit direction from `point` to the centre: the way out.
+    pub normal: Vec3,
+    /// Distance from the centre to `point` (less than the radius).
+    pub distance: f32,
+}
+
+/// The questions the simulation asks of the level's geometry.
+pub trait WorldQuery: Send + Sync + 'static {
+    /// Every surface closer than `radius` to `center`, appended to `out`.
+    fn sphere_contacts(&self, center: Vec3, radius: f32, out: &mut Vec<Contact>);
+
+    /// The distance along the unit `direction` from `origin` to the first surface, if one
+    /// is nearer than `max_distance`.
+    fn raycast(&self, origin: Vec3, direction: Vec3, max_distance: f32) -> Option<f32>;
+
+    /// The answerer as `Any`, so the code that keeps it current can reach its own type.
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
+}
+
+/// The level's geometry as the simulation sees it.
+#[derive(Resource)]
+pub struct WorldGeometry(pub Box<dyn WorldQuery>);
+
+/// A world with nothing in it (a level before its geometry is extracted).
+pub struct EmptyWorld;
+
+impl WorldQuery for EmptyWorld {
+    fn sphere_contacts(&self, _: Vec3, _: f32, _: &mut Vec<Contact>) {}
+
+    fn raycast(&self, _: Vec3, _: Vec3, _: f32) -> Option<f32> {
+        None
+    }
+
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
+    }
+}
+
+impl Default for WorldGeometry {
+    fn default() -> Self {
+        WorldGeometry(Box::new(EmptyWorld))
+    }
+}

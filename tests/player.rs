@@ -1,0 +1,184 @@
+//! The player's body in the real level: it stands on the floor, walls stop it and it slides
+//! along them, it steps up a kerb but not a wall, it jumps half a metre, a long fall never
+//! passes through the floor, noclip flies through walls, and the same inputs give the same
+//! walk at any frame rate.
+
+mod common;
+
+use bevy_ecs::prelude::*;
+use glam::Vec3;
+use gloam::frame::Engine;
+use gloam::game::{Action, Input, Player, Transform, spawn, spawn_player};
+use gloam::render::RenderSettings;
+use gloam::scene::Scene;
+use gloam::scene::level::{EntityDef, InstanceDef};
+
+const STEP: f64 = 1.0 / 60.0;
+
+/// first-light with the player at its start (feet at (0, 0, 5), facing -Z).
+fn level() -> (Engine, Entity) {
+    let scene = Scene::load(&common::repo().join("levels").join("first-light.ron")).unwrap();
+    let mut engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
+    let player = spawn_player(&mut engine.world).expect("first-light has a player start");
+    (engine, player)
+}
+
+fn feet(engine: &Engine, player: Entity) -> Vec3 {
+    engine.world.get::<Transform>(player).unwrap().translation
+}
+
+fn state(engine: &Engine, player: Entity) -> Player {
+    engine.world.get::<Player>(player).unwrap().clone()
+}
+
+/// Runs `seconds` of fixed steps (no rendering) with `held` held.
+fn hold(engine: &mut Engine, held: &[Action], seconds: f64) {
+    engine.world.resource_mut::<Input>().held = held.iter().copied().collect();
+    for _ in 0..(seconds / STEP).round() as usize {
+        engine.simulate(STEP);
+    }
+    engine.world.resource_mut::<Input>().held.clear();
+}
+
+/// A 2 x 2 m block `height` tall whose near edge is at z = 4.5, ahead of the start.
+fn block(engine: &mut Engine, height: f32) {
+    let mut def = EntityDef::named(format!("block {height}"));
+    def.transform.translation = Vec3::new(0.0, 0.0, 3.5);
+    def.transform.scale = Vec3::new(2.0, height, 2.0);
+    def.instance = Some(InstanceDef {
+        asset: "../assets/kit/crate.glb".into(),
+        material_overrides: Default::default(),
+    });
+    spawn(&mut engine.world, &def).unwrap();
+}
+
+#[test]
+fn the_player_stands_on_the_floor_and_a_wall_stops_it() {
+    let (mut engine, player) = level();
+    hold(&mut engine, &[], 1.0);
+    let standing = feet(&engine, player);
+    assert!(standing.y.abs() < 0.01, "stands on the floor: {standing}");
+    assert!(state(&engine, player).grounded);
+    // Backwards (+Z) into the south wall, whose inner face is at z = 6.0.
+    hold(&mut engine, &[Action::MoveBack], 3.0);
+    let stopped = feet(&engine, player);
+    assert!(
+        (stopped.z - 5.7).abs() < 0.02,
+        "the capsule (radius 0.3) stops at the wall: {stopped}"
+    );
+    assert!(stopped.y.abs() < 0.01, "{stopped}");
+    // Back and to the right: it slides along the wall.
+    hold(&mut engine, &[Action::MoveBack, Action::MoveRight], 1.0);
+    let slid = feet(&engine, player);
+    assert!(
+        slid.x > stopped.x + 0.5,
+        "slides along the wall: {stopped} -> {slid}"
+    );
+    assert!(slid.z < 5.71, "{slid}");
+}
+
+#[test]
+fn it_steps_up_a_kerb_but_not_onto_a_crate() {
+    let (mut engine, player) = level();
+    block(&mut engine, 0.25);
+    hold(&mut engine, &[], 0.5);
+    hold(&mut engine, &[Action::MoveForward], 1.5);
+    let on_kerb = feet(&engine, player);
+    assert!(on_kerb.z < 4.0, "walked on: {on_kerb}");
+    assert!(
+        (on_kerb.y - 0.25).abs() < 0.02,
+        "stepped up onto the kerb: {on_kerb}"
+    );
+
+    let (mut engine, player) = level();
+    block(&mut engine, 0.5);
+    hold(&mut engine, &[], 0.5);
+    hold(&mut engine, &[Action::MoveForward], 1.5);
+    let blocked = feet(&engine, player);
+    assert!(
+        blocked.y.abs() < 0.01,
+        "a 0.5 m crate is no step: {blocked}"
+    );
+    assert!(
+        (blocked.z - 4.8).abs() < 0.05,
+        "stopped at its edge: {blocked}"
+    );
+}
+
+#[test]
+fn a_jump_rises_half_a_metre_and_lands() {
+    let (mut engine, player) = level();
+    hold(&mut engine, &[], 0.5);
+    engine
+        .world
+        .resource_mut::<Input>()
+        .pressed
+        .insert(Action::MoveUp);
+    let mut highest: f32 = 0.0;
+    for _ in 0..90 {
+        engine.simulate(STEP);
+        highest = highest.max(feet(&engine, player).y);
+    }
+    assert!((highest - 0.5).abs() < 0.05, "apex {highest}");
+    assert!(feet(&engine, player).y.abs() < 0.01);
+    assert!(state(&engine, player).grounded);
+}
+
+#[test]
+fn a_long_fall_never_passes_through_the_floor() {
+    let (mut engine, player) = level();
+    engine
+        .world
+        .get_mut::<Transform>(player)
+        .unwrap()
+        .translation = Vec3::new(1.0, 40.0, 1.0);
+    hold(&mut engine, &[], 5.0);
+    let landed = feet(&engine, player);
+    assert!(landed.y.abs() < 0.01, "landed on the floor: {landed}");
+}
+
+#[test]
+fn crouching_lowers_the_body_and_noclip_passes_walls() {
+    let (mut engine, player) = level();
+    hold(&mut engine, &[Action::MoveDown], 1.0);
+    let crouched = state(&engine, player);
+    assert!(
+        crouched.crouched && (crouched.eye - 1.0).abs() < 0.01,
+        "{crouched:?}"
+    );
+    hold(&mut engine, &[], 1.0);
+    assert!(!state(&engine, player).crouched, "stands again");
+
+    engine
+        .world
+        .resource_mut::<Input>()
+        .pressed
+        .insert(Action::Noclip);
+    hold(&mut engine, &[Action::MoveBack], 1.5);
+    assert!(feet(&engine, player).z > 6.5, "flew through the south wall");
+}
+
+#[test]
+fn the_same_inputs_walk_the_same_way_at_any_frame_rate() {
+    let script = [
+        (&[Action::MoveForward][..], 0.5),
+        (
+            &[Action::MoveForward, Action::MoveLeft, Action::Sprint][..],
+            1.0,
+        ),
+        (&[Action::MoveBack, Action::MoveDown][..], 0.5),
+    ];
+    let mut ends = Vec::new();
+    for frame in [STEP, 2.0 * STEP, 0.5 * STEP] {
+        let (mut engine, player) = level();
+        for (held, seconds) in script {
+            engine.world.resource_mut::<Input>().held = held.iter().copied().collect();
+            let frames = (seconds / frame).round() as usize;
+            for _ in 0..frames {
+                engine.advance(frame);
+            }
+        }
+        ends.push(feet(&engine, player));
+    }
+    assert!(ends.windows(2).all(|w| w[0] == w[1]), "{ends:?}");
+}
