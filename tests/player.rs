@@ -178,7 +178,89 @@ fn the_same_inputs_walk_the_same_way_at_any_frame_rate() {
                 engine.advance(frame);
             }
         }
-        ends.push(feet(&engine, player));
+        ends.push((feet(&engine, player), gem(&engine, player)));
     }
     assert!(ends.windows(2).all(|w| w[0] == w[1]), "{ends:?}");
+}
+
+fn gem(engine: &Engine, player: Entity) -> f32 {
+    engine
+        .world
+        .get::<gloam::game::Exposure>(player)
+        .unwrap()
+        .gem
+}
+
+#[test]
+fn the_light_gem_rises_in_a_lamp_pool_and_falls_in_the_dark() {
+    let (mut engine, player) = level();
+    // The south-west corner, far from the lamps: dark (the night sky, little else).
+    engine
+        .world
+        .get_mut::<Transform>(player)
+        .unwrap()
+        .translation = Vec3::new(-5.0, 0.0, 5.0);
+    hold(&mut engine, &[], 1.0);
+    let dark = gem(&engine, player);
+    assert!(dark < 0.15, "the dark corner: {dark}");
+    // Under the hanging lamp.
+    engine
+        .world
+        .get_mut::<Transform>(player)
+        .unwrap()
+        .translation = Vec3::ZERO;
+    let mut last = dark;
+    let mut steps = Vec::new();
+    for _ in 0..60 {
+        engine.simulate(STEP);
+        let now = gem(&engine, player);
+        steps.push(now - last);
+        last = now;
+    }
+    assert!(last > 0.85, "the lamp's pool: {last}");
+    // Smoothed: no step jumps more than a sixth of the way (time constant 0.1 s).
+    assert!(steps.iter().all(|&d| (0.0..0.16).contains(&d)), "{steps:?}");
+    // The lamp doused: mostly dark again (the other lamp and the shards still reach).
+    let lamp = {
+        let mut named = engine.world.query::<(Entity, &Name)>();
+        named
+            .iter(&engine.world)
+            .find(|(_, n)| n.as_str() == "hanging lamp")
+            .unwrap()
+            .0
+    };
+    engine
+        .world
+        .entity_mut(lamp)
+        .insert(gloam::game::SwitchedOff);
+    hold(&mut engine, &[], 1.0);
+    let doused = gem(&engine, player);
+    assert!(doused < 0.4, "the lamp off: {doused}");
+}
+
+#[test]
+fn a_shadow_the_player_can_see_hides_them() {
+    let (mut engine, player) = level();
+    engine
+        .world
+        .get_mut::<Transform>(player)
+        .unwrap()
+        .translation = Vec3::ZERO;
+    hold(&mut engine, &[], 1.0);
+    let lit = gem(&engine, player);
+    // A board hung between the lamp (2.7 m up) and the player.
+    let mut board = EntityDef::named("board");
+    board.transform.translation = Vec3::new(0.0, 2.2, 0.0);
+    board.transform.scale = Vec3::new(2.0, 0.05, 2.0);
+    board.instance = Some(InstanceDef {
+        asset: "../assets/kit/crate.glb".into(),
+        material_overrides: Default::default(),
+    });
+    spawn(&mut engine.world, &board).unwrap();
+    hold(&mut engine, &[], 1.0);
+    let shaded = gem(&engine, player);
+    assert!(
+        shaded < lit - 0.3,
+        "the board's shadow hides the player: {lit} -> {shaded}"
+    );
 }

@@ -414,15 +414,31 @@ impl App {
             },
             if self.vsync { "" } else { " novsync" }
         );
+        // The light gem (the player's exposure), and its exact value with the overlay.
+        let gem = self
+            .engine
+            .world
+            .query::<&crate::game::Exposure>()
+            .iter(&self.engine.world)
+            .next()
+            .map(|exposure| exposure.gem);
         hud::draw_text(frame, width, height, 2, 2, &status);
+        if let Some(gem) = gem
+            && self.overlay
+        {
+            hud::draw_text(frame, width, height, 2, 22, &format!("light gem {gem:.3}"));
+        }
         if self.paused {
-            hud::draw_text(frame, width, height, 2, 22, "PAUSED  Esc resume  Q quit");
+            hud::draw_text(frame, width, height, 2, 42, "PAUSED  Esc resume  Q quit");
         }
         if self.overlay {
             let frames = &self.log.profile.frames;
             let recent = &frames[frames.len().saturating_sub(overlay::HISTORY)..];
             let deform = self.engine.deform_stats();
             overlay::draw(frame, width, height, recent, deform.refits, deform.rebuilds);
+        }
+        if let Some(gem) = gem {
+            hud::draw_gem(frame, width, height, gem);
         }
         if let Err(error) = pixels.render() {
             return self.fail(event_loop, anyhow!("presenting the frame: {error}"));

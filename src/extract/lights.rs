@@ -15,7 +15,7 @@ use crate::scene::model::{Light as LightDef, LightKind};
 /// An emissive triangle's front normal and area. The front side is the one the winding faces
 /// in object space; a mirroring transform flips the world-space winding, so the normal is
 /// flipped back.
-fn emitter_frame(vertices: &[Vec3A; 3], mirrored: bool) -> (Vec3A, f32) {
+pub(super) fn emitter_frame(vertices: &[Vec3A; 3], mirrored: bool) -> (Vec3A, f32) {
     let cross = (vertices[1] - vertices[0]).cross(vertices[2] - vertices[0]);
     let area = cross.length() * 0.5;
     if area <= 0.0 {
@@ -131,43 +131,54 @@ pub fn light_set(render: &RenderScene, punctual: &[(LightDef, Affine3A)]) -> Lig
         }
     }
     for (light, world_from_light) in punctual {
-        let (position, direction) = placement(world_from_light);
-        let intensity: Vec3 = light.color * light.intensity;
-        let (light, power) = match light.kind {
-            LightKind::Point => (
-                Light::Point {
-                    position,
-                    intensity,
-                },
-                4.0 * std::f32::consts::PI * luminance(intensity),
-            ),
-            LightKind::Spot {
-                inner_cone_angle,
-                outer_cone_angle,
-            } => {
-                let (cos_inner, cos_outer) = (inner_cone_angle.cos(), outer_cone_angle.cos());
-                let solid_angle = std::f32::consts::TAU * (1.0 - 0.5 * (cos_inner + cos_outer));
-                (
-                    Light::Spot {
-                        position,
-                        direction,
-                        intensity,
-                        cos_inner,
-                        cos_outer,
-                    },
-                    solid_angle * luminance(intensity),
-                )
-            }
-            LightKind::Directional => (
-                Light::Directional {
-                    direction,
-                    irradiance: intensity,
-                },
-                std::f32::consts::PI * scene_radius * scene_radius * luminance(intensity),
-            ),
-        };
+        let (light, power) = punctual_light(light, world_from_light, scene_radius);
         weights.push(power);
         lights.push(light);
     }
     LightSet::new(lights, &weights, keys)
+}
+
+/// A punctual light placed by `world_from_light`, as the renderer's `Light`, with its
+/// estimated power (directional lights: over a disc of `scene_radius`).
+pub fn punctual_light(
+    light: &LightDef,
+    world_from_light: &Affine3A,
+    scene_radius: f32,
+) -> (Light, f32) {
+    let (position, direction) = placement(world_from_light);
+    let intensity: Vec3 = light.color * light.intensity;
+    let (light, power) = match light.kind {
+        LightKind::Point => (
+            Light::Point {
+                position,
+                intensity,
+            },
+            4.0 * std::f32::consts::PI * luminance(intensity),
+        ),
+        LightKind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => {
+            let (cos_inner, cos_outer) = (inner_cone_angle.cos(), outer_cone_angle.cos());
+            let solid_angle = std::f32::consts::TAU * (1.0 - 0.5 * (cos_inner + cos_outer));
+            (
+                Light::Spot {
+                    position,
+                    direction,
+                    intensity,
+                    cos_inner,
+                    cos_outer,
+                },
+                solid_angle * luminance(intensity),
+            )
+        }
+        LightKind::Directional => (
+            Light::Directional {
+                direction,
+                irradiance: intensity,
+            },
+            std::f32::consts::PI * scene_radius * scene_radius * luminance(intensity),
+        ),
+    };
+    (light, power)
 }

@@ -9,19 +9,32 @@
 //! again; moved ones move their instance; the TLAS is rebuilt when anything changed.
 //! Each asset mesh gets one BLAS of its own, built once with the fast preset. Meshes that
 //! deform (wardens, banners) are left out: the game knows its wardens' bodies itself.
+//!
+//! The lights are gathered every step as the renderer defines them (`render::light::
+//! Light`, made by the same `extract::lights` code): the lit punctual lights in content
+//! order, then the emissive triangles of the instances (their material's emission, with
+//! the entity's overrides; none when switched off), and the level's sky.
+//! `light_arriving` measures each with shadow rays through this copy of the level: a
+//! punctual light along one ray, an emissive triangle at four fixed points, the sky along
+//! eight fixed cosine-weighted directions above.
 
 use std::collections::HashMap;
 use std::sync::Arc;
 
 use bevy_ecs::prelude::*;
-use glam::{Affine3A, Vec3, Vec3A};
+use glam::{Affine3A, Vec2, Vec3, Vec3A};
 
 use super::{instance_user_id, is_drawable, mesh_geometry};
 use crate::accel::{AccelScene, Blas, Instance, InstanceMask, Opaque, Ray};
 use crate::game::world_query::{Contact, WorldGeometry, WorldQuery};
-use crate::game::{GlobalTransform, MeshNode};
+use crate::game::{
+    AssetInstance, AssetLight, GlobalTransform, LevelInfo, MeshNode, PunctualLight, SwitchedOff,
+};
 use crate::profile::{Stage, StageTimes, since};
+use crate::render::light::Light;
 use crate::scene::AssetKey;
+use crate::scene::model::Light as LightDef;
+use crate::scene::model::luminance;
 
 /// The simulation's copy of the level's rigid geometry.
 pub struct StepWorld {
@@ -32,6 +45,16 @@ pub struct StepWorld {
     instance_of: HashMap<Entity, u32>,
     /// Scratch for contacts in accel's terms.
     found: std::sync::Mutex<Vec<crate::accel::Contact>>,
+    /// Every light as of this step: punctual lights, then emissive triangles.
+    lights: Vec<Light>,
+    /// Emitted radiance by `Light::Triangle::material` (an index into this table), and
+    /// whether that material emits from both sides.
+    emission: Vec<Vec3>,
+    emission_sides: Vec<bool>,
+    /// Per emitting instance, its emissive triangles (triangle, index into `emission`).
+    emitters: Vec<(u32, Vec<(u32, u32)>)>,
+    /// Radiance of the sky.
+    sky: Vec3,
 }
 
 impl Default for StepWorld {
@@ -41,6 +64,11 @@ impl Default for StepWorld {
             meshes: HashMap::new(),
             instance_of: HashMap::new(),
             found: std::sync::Mutex::new(Vec::new()),
+            lights: Vec::new(),
+            emission: Vec::new(),
+            emission_sides: Vec::new(),
+            emitters: Vec::new(),
+            sky: Vec3::ZERO,
         }
     }
 }
@@ -77,9 +105,89 @@ impl WorldQuery for StepWorld {
             .map(|hit| hit.t)
     }
 
+    fn light_arriving(&self, point: Vec3) -> Vec3 {
+        let point = Vec3A::from(point);
+        let emission = |material: u32, _| self.emission[material as usize];
+        let mut total = Vec3::ZERO;
+        for (index, light) in self.lights.iter().enumerate() {
+            let samples: &[Vec2] = match light {
+                Light::Triangle { .. } => &TRIANGLE_POINTS,
+                _ => &[Vec2::ZERO],
+            };
+            for &u in samples {
+                let Some(sample) = light.sample(index as u32, 1.0, point, u, emission) else {
+                    continue;
+                };
+                let arriving = sample.radiance / (sample.pdf * samples.len() as f32);
+                if luminance(arriving) < REACH {
+                    continue;
+                }
+                let ray = match light {
+                    Light::Directional { .. } => Ray::new(point, sample.wi),
+                    _ => {
+                        let mut ray = Ray::new(point, sample.point - point);
+                        ray.t_max = 1.0 - 1e-4;
+                        ray
+                    }
+                };
+                if !self.accel.occluded(&ray, InstanceMask::ALL, &Opaque) {
+                    total += arriving;
+                }
+            }
+        }
+        if self.sky != Vec3::ZERO {
+            let open = SKY_DIRECTIONS
+                .iter()
+                .filter(|&&direction| {
+                    let ray = Ray::new(point, Vec3A::from(direction));
+                    !self.accel.occluded(&ray, InstanceMask::ALL, &Opaque)
+                })
+                .count();
+            // A uniform sky gives pi L on an open upward surface; each cosine-weighted
+            // direction carries an equal share of it.
+            total += self.sky * (std::f32::consts::PI * open as f32 / SKY_DIRECTIONS.len() as f32);
+        }
+        total
+    }
+
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
         self
     }
+}
+
+/// Below this luminance a light's share is not worth a shadow ray (W/m^2; the light gem's
+/// half point is 1).
+const REACH: f32 = 1e-4;
+
+/// The fixed points an emissive triangle is measured at (square samples mapped onto it).
+const TRIANGLE_POINTS: [Vec2; 4] = [
+    Vec2::new(0.25, 0.25),
+    Vec2::new(0.75, 0.25),
+    Vec2::new(0.25, 0.75),
+    Vec2::new(0.75, 0.75),
+];
+
+/// Eight directions above the horizon carrying equal shares of a uniform sky's light on
+/// an upward surface (`sky_directions`).
+const SKY_DIRECTIONS: [Vec3; 8] = sky_directions();
+
+/// Directions at the centres of eight equal-cosine-weight cells: two rings of four,
+/// at sin^2(theta) = 1/4 and 3/4 (theta 30 and 60 degrees), the rings turned 45 degrees.
+const fn sky_directions() -> [Vec3; 8] {
+    // sin and cos of 30 and 60 degrees; the azimuths' sines and cosines.
+    const S30: f32 = 0.5;
+    const C30: f32 = 0.866_025_4;
+    const H: f32 = std::f32::consts::FRAC_1_SQRT_2;
+    [
+        Vec3::new(S30, C30, 0.0),
+        Vec3::new(0.0, C30, S30),
+        Vec3::new(-S30, C30, 0.0),
+        Vec3::new(0.0, C30, -S30),
+        Vec3::new(C30 * H, S30, C30 * H),
+        Vec3::new(-C30 * H, S30, C30 * H),
+        Vec3::new(-C30 * H, S30, -C30 * H),
+        Vec3::new(C30 * H, S30, -C30 * H),
+    ]
 }
 
 /// The schedule the frame driver runs at the start of every fixed step.
@@ -89,15 +197,51 @@ pub fn step_world_schedule() -> Schedule {
     schedule
 }
 
+/// Roots as the step world reads them: their name, materials and switch.
+type RootData<'a> = (&'a Name, Option<&'a AssetInstance>, Has<SwitchedOff>);
+
+/// An entity's materials or switch changed.
+type Rematerialed = Or<(Changed<AssetInstance>, Changed<SwitchedOff>)>;
+
+/// Mesh nodes moved since the last step.
+type MovedMeshes<'a> = (Entity, &'a GlobalTransform);
+type MovedFilter = (With<MeshNode>, Changed<GlobalTransform>);
+
+/// A lit punctual light: its content key (root name, asset node), the light and where.
+type PlacedLight<'a> = ((&'a str, Option<usize>), LightDef, Affine3A);
+
+/// What, since the last step, calls for assembling the instances anew.
+#[derive(bevy_ecs::system::SystemParam)]
+pub struct StepStructure<'w, 's> {
+    added: Query<'w, 's, (), Added<MeshNode>>,
+    removed: RemovedComponents<'w, 's, MeshNode>,
+    rematerialed: Query<'w, 's, (), Rematerialed>,
+    unswitched: RemovedComponents<'w, 's, SwitchedOff>,
+}
+
+impl StepStructure<'_, '_> {
+    fn changed(&mut self) -> bool {
+        let changed = !self.added.is_empty()
+            || !self.rematerialed.is_empty()
+            || self.removed.read().next().is_some()
+            || self.unswitched.read().next().is_some();
+        self.removed.clear();
+        self.unswitched.clear();
+        changed
+    }
+}
+
 /// Brings the `StepWorld` in `WorldGeometry` up to the world as it stands (see the module
 /// doc). A `WorldGeometry` holding another answerer (a test's fake world) is left alone.
-#[allow(clippy::type_complexity)]
+#[allow(clippy::too_many_arguments)]
 pub fn update_step_world(
-    added: Query<(), Added<MeshNode>>,
-    mut removed: RemovedComponents<MeshNode>,
-    moved: Query<(Entity, &GlobalTransform), (With<MeshNode>, Changed<GlobalTransform>)>,
+    mut structure: StepStructure,
+    moved: Query<MovedMeshes, MovedFilter>,
     meshes: Query<(Entity, &MeshNode, &GlobalTransform)>,
-    names: Query<&Name>,
+    roots: Query<RootData>,
+    punctual: Query<(&Name, &PunctualLight, &GlobalTransform, Has<SwitchedOff>)>,
+    asset_lights: Query<(&AssetLight, &GlobalTransform)>,
+    level: Option<Res<LevelInfo>>,
     mut geometry: ResMut<WorldGeometry>,
     mut times: ResMut<StageTimes>,
 ) {
@@ -105,10 +249,8 @@ pub fn update_step_world(
     let Some(world) = geometry.0.as_any_mut().downcast_mut::<StepWorld>() else {
         return;
     };
-    let structure = !added.is_empty() || removed.read().next().is_some();
-    removed.clear();
-    if structure {
-        assemble(world, &meshes, &names);
+    if structure.changed() {
+        assemble(world, &meshes, &roots);
     } else if !moved.is_empty() {
         let mut changed = false;
         for (entity, global) in &moved {
@@ -123,6 +265,60 @@ pub fn update_step_world(
             world.accel.rebuild_tlas();
         }
     }
+    // The lights as of this step, in content order: punctual, then emitters.
+    let mut placed: Vec<PlacedLight> = Vec::new();
+    for (name, light, global, switched) in &punctual {
+        if !switched {
+            placed.push((
+                (name.as_str(), None),
+                light.0.to_light(name.as_str()),
+                global.0,
+            ));
+        }
+    }
+    for (light, global) in &asset_lights {
+        if let Ok((name, _, switched)) = roots.get(light.root)
+            && !switched
+        {
+            placed.push((
+                (name.as_str(), Some(light.node)),
+                light.light.clone(),
+                global.0,
+            ));
+        }
+    }
+    placed.sort_by(|a, b| a.0.cmp(&b.0));
+    let bounds = world.accel.bounds();
+    let radius = (bounds.max - bounds.min).length() * 0.5;
+    world.lights.clear();
+    for (_, light, transform) in &placed {
+        world
+            .lights
+            .push(super::lights::punctual_light(light, transform, radius).0);
+    }
+    for (instance, triangles) in &world.emitters {
+        let instance = &world.accel.instances()[*instance as usize];
+        let to_world = instance.world_from_object();
+        let mirrored = to_world.matrix3.determinant() < 0.0;
+        let geometry = &world.accel.blases[instance.blas as usize].geometry;
+        for &(triangle, material) in triangles {
+            let vertices = geometry
+                .triangle_vertices(triangle as usize)
+                .map(|v| to_world.transform_point3a(v));
+            let (normal, area) = super::lights::emitter_frame(&vertices, mirrored);
+            if area > 0.0 {
+                world.lights.push(Light::Triangle {
+                    vertices,
+                    uvs: [Vec2::ZERO; 3],
+                    normal,
+                    area,
+                    material,
+                    double_sided: world.emission_sides[material as usize],
+                });
+            }
+        }
+    }
+    world.sky = level.map_or(Vec3::ZERO, |l| l.environment.sky);
     times.add(Stage::Gameplay, since(start));
 }
 
@@ -134,13 +330,13 @@ type StepEntry<'a> = ((&'a str, usize, u64), Entity, &'a MeshNode, Affine3A);
 fn assemble(
     world: &mut StepWorld,
     meshes: &Query<(Entity, &MeshNode, &GlobalTransform)>,
-    names: &Query<&Name>,
+    roots: &Query<RootData>,
 ) {
     let mut entries: Vec<StepEntry> = meshes
         .iter()
         .filter(|(_, node, global)| !node.deforms && is_drawable(&global.0))
         .filter_map(|(entity, node, global)| {
-            let name = names.get(node.root).ok()?;
+            let (name, ..) = roots.get(node.root).ok()?;
             Some((
                 (name.as_str(), node.node, node.root.to_bits()),
                 entity,
@@ -152,7 +348,43 @@ fn assemble(
     entries.sort_by(|a, b| a.0.cmp(&b.0));
     let mut instances = Vec::with_capacity(entries.len());
     world.instance_of.clear();
+    world.emitters.clear();
+    world.emission.clear();
+    world.emission_sides.clear();
     for (_, entity, node, transform) in entries {
+        // Its emissive triangles, by the materials as the entity has them.
+        if let Ok((_, asset_instance, switched)) = roots.get(node.root)
+            && !switched
+        {
+            let first = world.emission.len() as u32;
+            for material in &node.asset.materials {
+                let resolved =
+                    match asset_instance.and_then(|i| i.material_overrides.get(&material.name)) {
+                        Some(change) => change.apply(material),
+                        None => material.clone(),
+                    };
+                world.emission.push(resolved.emissive);
+                world.emission_sides.push(resolved.double_sided);
+            }
+            let mut triangles = Vec::new();
+            let mut triangle = 0u32;
+            for primitive in &node.asset.meshes[node.mesh].primitives {
+                let count = primitive.indices.len() as u32;
+                if let Some(material) = primitive.material
+                    && world.emission[(first + material as u32) as usize] != Vec3::ZERO
+                {
+                    triangles
+                        .extend((triangle..triangle + count).map(|t| (t, first + material as u32)));
+                }
+                triangle += count;
+            }
+            if triangles.is_empty() {
+                world.emission.truncate(first as usize);
+                world.emission_sides.truncate(first as usize);
+            } else {
+                world.emitters.push((instances.len() as u32, triangles));
+            }
+        }
         let key = (AssetKey(Arc::clone(&node.asset)), node.mesh);
         let blas = match world.meshes.get(&key) {
             Some(&blas) => blas,

@@ -100,10 +100,7 @@ pub struct TemporalFilter {
     next: Vec<LastPixel>,
 }
 
-/// Rec.709 luminance.
-pub fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
-}
+pub use crate::scene::model::luminance;
 
 impl TemporalFilter {
     pub fn new(settings: TemporalSettings) -> TemporalFilter {

@@ -13,8 +13,8 @@
 //! 1. `Stage::Input`: `remember_transforms` (where things were, for interpolated
 //!    rendering), then `fly_camera` (levels played without a player);
 //! 2. `Stage::Gameplay`: the player's body (`move_player`: look, walk, jump, crouch,
-//!    collide with the level through `WorldGeometry`), then `patrol` movers (shards and
-//!    wardens join here);
+//!    collide with the level through `WorldGeometry`), its light gem (`measure_exposure`),
+//!    then `patrol` movers (shards and wardens join here);
 //! 3. `Stage::Animation`: `advance_animations`, then `apply_animations` (glTF clips into
 //!    node transforms and morph weights; deformer clocks);
 //! 4. `Stage::Transforms`: `propagate_transforms`.
@@ -23,6 +23,7 @@
 //! resource and leaves drawing to the frame driver (`crate::frame`).
 
 pub mod animation;
+pub mod exposure;
 pub mod input;
 pub mod level_io;
 pub mod patrol;
@@ -40,6 +41,7 @@ use glam::{Mat4, Vec3};
 pub use animation::{
     AnimationLibrary, Animator, Deformer, MorphWeights, advance_animations, apply_animations,
 };
+pub use exposure::{Exposure, measure_exposure};
 pub use input::{Action, Input, fly_camera};
 pub use level_io::level_from_world;
 pub use patrol::{Patrol, patrol};
@@ -169,7 +171,7 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                     schedule.add_systems((remember_transforms, fly_camera).chain());
                 }
                 Stage::Gameplay => {
-                    schedule.add_systems((move_player, patrol).chain());
+                    schedule.add_systems((move_player, measure_exposure, patrol).chain());
                 }
                 Stage::Animation => {
                     schedule.add_systems((advance_animations, apply_animations).chain());

@@ -134,6 +134,7 @@ pub fn spawn_player(world: &mut World) -> Option<Entity> {
                 eye_height: start.eye_height,
                 eye: start.eye_height,
             },
+            super::Exposure::default(),
             body,
             GlobalTransform(body.affine()),
             PreviousGlobalTransform(body.affine()),

@@ -1,5 +1,5 @@
 //! How the simulation asks the world questions: the surfaces a body touches, what a ray
-//! meets. The game defines the questions (`WorldQuery`) and holds the answerer as a
+//! meets, how much light reaches a point. The game defines the questions (`WorldQuery`) and holds the answerer as a
 //! resource (`WorldGeometry`); the frame driver's extract step implements them over the
 //! level's geometry as of the current fixed step (never the render's interpolated
 //! transforms), so play, headless replays and any frame rate agree, and tests answer them
@@ -28,6 +28,11 @@ pub trait WorldQuery: Send + Sync + 'static {
     /// is nearer than `max_distance`.
     fn raycast(&self, origin: Vec3, direction: Vec3, max_distance: f32) -> Option<f32>;
 
+    /// The light arriving at `point` from every light within reach (linear RGB: irradiance
+    /// from each direction summed, as a small sphere there would receive it), each light's
+    /// share found with a shadow ray, with the renderer's own light definitions.
+    fn light_arriving(&self, point: Vec3) -> Vec3;
+
     /// The answerer as `Any`, so the code that keeps it current can reach its own type.
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
 }
@@ -44,6 +49,10 @@ impl WorldQuery for EmptyWorld {
 
     fn raycast(&self, _: Vec3, _: Vec3, _: f32) -> Option<f32> {
         None
+    }
+
+    fn light_arriving(&self, _: Vec3) -> Vec3 {
+        Vec3::ZERO
     }
 
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any {

@@ -41,6 +41,107 @@ pub enum Light {
     Directional { direction: Vec3A, irradiance: Vec3 },
 }
 
+impl Light {
+    /// Light `index` (of its set, picked with probability `pick`) as seen from `point`:
+    /// a direction towards it, the point it comes from and what arrives, with the pdf of
+    /// having sampled it (`pick` times the solid-angle pdf of point `u` on an area light;
+    /// `pick` for a delta light). None when nothing arrives. `LightSet::sample` draws
+    /// lights this way, and the game's exposure measures them with the same definitions
+    /// (`pick` 1, fixed `u`).
+    pub fn sample(
+        &self,
+        index: u32,
+        pick: f32,
+        point: Vec3A,
+        u: Vec2,
+        emission: impl Fn(u32, Vec2) -> Vec3,
+    ) -> Option<LightSample> {
+        match self {
+            Light::Triangle {
+                vertices,
+                uvs,
+                normal,
+                area,
+                material,
+                double_sided,
+            } => {
+                let b = uniform_triangle(u);
+                let on_light =
+                    vertices[0] * (1.0 - b.x - b.y) + vertices[1] * b.x + vertices[2] * b.y;
+                let offset = on_light - point;
+                let distance2 = offset.length_squared();
+                if distance2 <= 0.0 {
+                    return None;
+                }
+                let wi = offset / distance2.sqrt();
+                let cos_light = -normal.dot(wi);
+                if cos_light <= 0.0 && !double_sided {
+                    return None; // the back of a one-sided emitter
+                }
+                let uv = uvs[0] * (1.0 - b.x - b.y) + uvs[1] * b.x + uvs[2] * b.y;
+                let pdf = pick * distance2 / (cos_light.abs() * area);
+                (pdf.is_finite() && pdf > 0.0).then(|| LightSample {
+                    wi,
+                    point: on_light,
+                    radiance: emission(*material, uv),
+                    pdf,
+                    is_delta: false,
+                    light: index,
+                })
+            }
+            Light::Point {
+                position,
+                intensity,
+            } => {
+                let offset = *position - point;
+                let distance2 = offset.length_squared().max(f32::MIN_POSITIVE);
+                Some(LightSample {
+                    wi: offset / distance2.sqrt(),
+                    point: *position,
+                    radiance: *intensity / distance2,
+                    pdf: pick,
+                    is_delta: true,
+                    light: index,
+                })
+            }
+            Light::Spot {
+                position,
+                direction,
+                intensity,
+                cos_inner,
+                cos_outer,
+            } => {
+                let offset = *position - point;
+                let distance2 = offset.length_squared().max(f32::MIN_POSITIVE);
+                let wi = offset / distance2.sqrt();
+                // KHR_lights_punctual's recommended falloff: a squared linear ramp in cos.
+                let scale = 1.0 / (cos_inner - cos_outer).max(1e-3);
+                let ramp = ((direction.dot(-wi) - cos_outer) * scale).clamp(0.0, 1.0);
+                let attenuation = ramp * ramp;
+                (attenuation > 0.0).then(|| LightSample {
+                    wi,
+                    point: *position,
+                    radiance: *intensity * (attenuation / distance2),
+                    pdf: pick,
+                    is_delta: true,
+                    light: index,
+                })
+            }
+            Light::Directional {
+                direction,
+                irradiance,
+            } => Some(LightSample {
+                wi: -*direction,
+                point: point - *direction * 1e7,
+                radiance: *irradiance,
+                pdf: pick,
+                is_delta: true,
+                light: index,
+            }),
+        }
+    }
+}
+
 /// A sampled light direction as seen from a shading point.
 #[derive(Clone, Copy, Debug)]
 pub struct LightSample {
@@ -193,89 +294,7 @@ impl LightSet {
             return None;
         }
         let (index, pick) = self.table.sample(u_pick);
-        match &self.lights[index as usize] {
-            Light::Triangle {
-                vertices,
-                uvs,
-                normal,
-                area,
-                material,
-                double_sided,
-            } => {
-                let b = uniform_triangle(u);
-                let on_light =
-                    vertices[0] * (1.0 - b.x - b.y) + vertices[1] * b.x + vertices[2] * b.y;
-                let offset = on_light - point;
-                let distance2 = offset.length_squared();
-                if distance2 <= 0.0 {
-                    return None;
-                }
-                let wi = offset / distance2.sqrt();
-                let cos_light = -normal.dot(wi);
-                if cos_light <= 0.0 && !double_sided {
-                    return None; // the back of a one-sided emitter
-                }
-                let uv = uvs[0] * (1.0 - b.x - b.y) + uvs[1] * b.x + uvs[2] * b.y;
-                let pdf = pick * distance2 / (cos_light.abs() * area);
-                (pdf.is_finite() && pdf > 0.0).then(|| LightSample {
-                    wi,
-                    point: on_light,
-                    radiance: emission(*material, uv),
-                    pdf,
-                    is_delta: false,
-                    light: index,
-                })
-            }
-            Light::Point {
-                position,
-                intensity,
-            } => {
-                let offset = *position - point;
-                let distance2 = offset.length_squared().max(f32::MIN_POSITIVE);
-                Some(LightSample {
-                    wi: offset / distance2.sqrt(),
-                    point: *position,
-                    radiance: *intensity / distance2,
-                    pdf: pick,
-                    is_delta: true,
-                    light: index,
-                })
-            }
-            Light::Spot {
-                position,
-                direction,
-                intensity,
-                cos_inner,
-                cos_outer,
-            } => {
-                let offset = *position - point;
-                let distance2 = offset.length_squared().max(f32::MIN_POSITIVE);
-                let wi = offset / distance2.sqrt();
-                // KHR_lights_punctual's recommended falloff: a squared linear ramp in cos.
-                let scale = 1.0 / (cos_inner - cos_outer).max(1e-3);
-                let ramp = ((direction.dot(-wi) - cos_outer) * scale).clamp(0.0, 1.0);
-                let attenuation = ramp * ramp;
-                (attenuation > 0.0).then(|| LightSample {
-                    wi,
-                    point: *position,
-                    radiance: *intensity * (attenuation / distance2),
-                    pdf: pick,
-                    is_delta: true,
-                    light: index,
-                })
-            }
-            Light::Directional {
-                direction,
-                irradiance,
-            } => Some(LightSample {
-                wi: -*direction,
-                point: point - *direction * 1e7,
-                radiance: *irradiance,
-                pdf: pick,
-                is_delta: true,
-                light: index,
-            }),
-        }
+        self.lights[index as usize].sample(index, pick, point, u, emission)
     }
 
     /// The solid-angle pdf with which `sample` would have produced the direction from
@@ -294,10 +313,7 @@ impl LightSet {
     }
 }
 
-/// Luminance of linear Rec.709 RGB (ITU-R BT.709 weights).
-pub fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
-}
+pub use crate::scene::model::luminance;
 
 #[cfg(test)]
 mod tests {

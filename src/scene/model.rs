@@ -9,6 +9,12 @@ use std::path::PathBuf;
 
 use glam::{Affine2, Mat4, Quat, Vec2, Vec3, Vec4};
 
+/// Luminance of linear Rec.709 RGB (ITU-R BT.709 weights): the one definition every
+/// module uses (light power, the film's filters, the game's light gem).
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
 /// One glTF file, imported.
 #[derive(Clone, Debug, Default)]
 pub struct Asset {
