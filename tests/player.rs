@@ -264,3 +264,54 @@ fn a_shadow_the_player_can_see_hides_them() {
         "the board's shadow hides the player: {lit} -> {shaded}"
     );
 }
+
+#[test]
+fn taking_every_shard_and_reaching_the_exit_wins() {
+    use gloam::game::{Outcome, Progress, Shard};
+    let (mut engine, player) = level();
+    engine.advance(STEP);
+    let shards = |engine: &mut Engine| {
+        engine
+            .world
+            .query_filtered::<(), With<Shard>>()
+            .iter(&engine.world)
+            .count()
+    };
+    assert_eq!(shards(&mut engine), 2);
+    let emitters = engine.render_scene().lights.lights.len();
+    // The exit does nothing while shards are left.
+    hold(&mut engine, &[], 0.2);
+    assert_eq!(
+        engine.world.resource::<Progress>().outcome,
+        Outcome::Running
+    );
+    for (x, z) in [(0.0, -4.2), (-4.5, -4.5)] {
+        engine
+            .world
+            .get_mut::<Transform>(player)
+            .unwrap()
+            .translation = Vec3::new(x, 0.0, z);
+        hold(&mut engine, &[], 0.1);
+    }
+    assert_eq!(shards(&mut engine), 0, "both shards taken");
+    assert_eq!(engine.world.resource::<Progress>().shards_taken, 2);
+    engine.advance(STEP);
+    assert!(
+        engine.render_scene().lights.lights.len() < emitters,
+        "their glow went with them"
+    );
+    // Back to the way out.
+    engine
+        .world
+        .get_mut::<Transform>(player)
+        .unwrap()
+        .translation = Vec3::new(0.0, 0.0, 5.5);
+    hold(&mut engine, &[], 0.1);
+    let progress = engine.world.resource::<Progress>().clone();
+    assert_eq!(progress.outcome, Outcome::Won);
+    // Over: the body no longer takes input, and the clock has stopped.
+    let at = feet(&engine, player);
+    hold(&mut engine, &[Action::MoveForward], 0.5);
+    assert_eq!(feet(&engine, player), at);
+    assert_eq!(engine.world.resource::<Progress>().steps, progress.steps);
+}

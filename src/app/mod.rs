@@ -440,6 +440,40 @@ impl App {
         if let Some(gem) = gem {
             hud::draw_gem(frame, width, height, gem);
         }
+        // The goal: shards so far, and the end screen once the attempt is over.
+        if let Some(progress) = self.engine.world.get_resource::<crate::game::Progress>() {
+            let progress = progress.clone();
+            let left = self
+                .engine
+                .world
+                .query_filtered::<(), bevy_ecs::query::With<crate::game::Shard>>()
+                .iter(&self.engine.world)
+                .count() as u32;
+            let total = progress.shards_taken + left;
+            if total > 0 {
+                let line = format!("shards {}/{total}", progress.shards_taken);
+                hud::draw_text(frame, width, height, 2, height.saturating_sub(18), &line);
+            }
+            if progress.outcome == crate::game::Outcome::Won {
+                let seconds = progress.seconds();
+                let lines = [
+                    "You got out.".to_string(),
+                    format!(
+                        "time {}:{:04.1}  shards {}/{total}  seen {} times",
+                        (seconds / 60.0) as u32,
+                        seconds % 60.0,
+                        progress.shards_taken,
+                        progress.times_seen
+                    ),
+                    "Q quits".to_string(),
+                ];
+                for (row, line) in lines.iter().enumerate() {
+                    let x = (width / 2).saturating_sub(line.len() as u32 * 4);
+                    let y = height / 2 - 30 + row as u32 * 20;
+                    hud::draw_text(frame, width, height, x, y, line);
+                }
+            }
+        }
         if let Err(error) = pixels.render() {
             return self.fail(event_loop, anyhow!("presenting the frame: {error}"));
         }

@@ -8,10 +8,12 @@ use bevy_ecs::prelude::*;
 use glam::{EulerRot, Quat, Vec3};
 
 use super::{
-    AnimationSource, AssetInstance, AuthoredRotation, DeformerSource, LevelCamera, LevelEntity,
-    LevelInfo, PlayerStart, PunctualLight, Transform, ViewCamera,
+    AnimationSource, AssetInstance, AuthoredRotation, DeformerSource, Exit, LevelCamera,
+    LevelEntity, LevelInfo, PlayerStart, PunctualLight, Shard, Transform, ViewCamera,
 };
-use crate::scene::level::{CameraDef, EntityDef, InstanceDef, LEVEL_VERSION, Level, TransformDef};
+use crate::scene::level::{
+    CameraDef, EntityDef, ExitDef, InstanceDef, LEVEL_VERSION, Level, ShardDef, TransformDef,
+};
 
 /// The level the world holds now.
 pub fn level_from_world(world: &mut World) -> Level {
@@ -27,6 +29,7 @@ pub fn level_from_world(world: &mut World) -> Level {
         Option<&PlayerStart>,
         Option<&AnimationSource>,
         Option<&DeformerSource>,
+        (Option<&Shard>, Option<&Exit>),
     )>();
     let mut entities: Vec<(LevelEntity, EntityDef)> = query
         .iter(world)
@@ -42,6 +45,7 @@ pub fn level_from_world(world: &mut World) -> Level {
                 spawn,
                 animation,
                 deformer,
+                (shard, exit),
             )| {
                 let def = EntityDef {
                     name: name.as_str().to_owned(),
@@ -62,6 +66,8 @@ pub fn level_from_world(world: &mut World) -> Level {
                     player_spawn: spawn.map(|s| s.0.clone()),
                     animation: animation.map(|a| a.0.clone()),
                     deformer: deformer.map(|d| d.0.clone()),
+                    shard: shard.map(|s| ShardDef { radius: s.radius }),
+                    exit: exit.map(|e| ExitDef { radius: e.radius }),
                 };
                 (*order, def)
             },

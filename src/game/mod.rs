@@ -14,7 +14,7 @@
 //!    rendering), then `fly_camera` (levels played without a player);
 //! 2. `Stage::Gameplay`: the player's body (`move_player`: look, walk, jump, crouch,
 //!    collide with the level through `WorldGeometry`), its light gem (`measure_exposure`),
-//!    then `patrol` movers (shards and wardens join here);
+//!    the goal (`collect_shards`, `reach_exit`), then `patrol` movers;
 //! 3. `Stage::Animation`: `advance_animations`, then `apply_animations` (glTF clips into
 //!    node transforms and morph weights; deformer clocks);
 //! 4. `Stage::Transforms`: `propagate_transforms`.
@@ -24,6 +24,7 @@
 
 pub mod animation;
 pub mod exposure;
+pub mod goal;
 pub mod input;
 pub mod level_io;
 pub mod patrol;
@@ -42,6 +43,7 @@ pub use animation::{
     AnimationLibrary, Animator, Deformer, MorphWeights, advance_animations, apply_animations,
 };
 pub use exposure::{Exposure, measure_exposure};
+pub use goal::{Exit, Outcome, Progress, Shard, collect_shards, reach_exit};
 pub use input::{Action, Input, fly_camera};
 pub use level_io::level_from_world;
 pub use patrol::{Patrol, patrol};
@@ -171,7 +173,16 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                     schedule.add_systems((remember_transforms, fly_camera).chain());
                 }
                 Stage::Gameplay => {
-                    schedule.add_systems((move_player, measure_exposure, patrol).chain());
+                    schedule.add_systems(
+                        (
+                            move_player,
+                            measure_exposure,
+                            collect_shards,
+                            reach_exit,
+                            patrol,
+                        )
+                            .chain(),
+                    );
                 }
                 Stage::Animation => {
                     schedule.add_systems((advance_animations, apply_animations).chain());

@@ -166,10 +166,15 @@ pub fn move_player(
     mut bodies: Query<(&mut Player, &mut Transform, &Children), Without<PlayerEye>>,
     mut eyes: Query<&mut Transform, With<PlayerEye>>,
     mut contacts: Local<Vec<Contact>>,
+    progress: Option<Res<super::Progress>>,
 ) {
     let dt = 1.0 / SIMULATION_HZ as f32;
     let look = std::mem::take(&mut input.look);
     let pressed = std::mem::take(&mut input.pressed);
+    // Once the attempt is over, the body stands still.
+    if progress.is_some_and(|p| p.outcome != super::Outcome::Running) {
+        return;
+    }
     let empty = super::world_query::EmptyWorld;
     let world: &dyn WorldQuery = geometry.as_ref().map_or(&empty, |g| g.0.as_ref());
     for (mut player, mut transform, children) in &mut bodies {

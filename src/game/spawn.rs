@@ -72,6 +72,7 @@ pub fn spawn_level(world: &mut World, scene: &Scene) {
     world.init_resource::<Input>();
     world.init_resource::<SimulationClock>();
     world.init_resource::<AnimationLibrary>();
+    world.insert_resource(super::Progress::default());
 
     let mut view = None;
     for (index, def) in scene.level.entities.iter().enumerate() {
@@ -216,6 +217,16 @@ pub fn spawn_entity(
     }
     if let Some(animation) = &def.animation {
         root.insert(AnimationSource(animation.clone()));
+    }
+    if let Some(shard) = &def.shard {
+        root.insert(super::Shard {
+            radius: shard.radius,
+        });
+    }
+    if let Some(exit) = &def.exit {
+        root.insert(super::Exit {
+            radius: exit.radius,
+        });
     }
     let root = root.id();
     let (Some(asset), Some(instance)) = (asset, &def.instance) else {

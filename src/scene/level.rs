@@ -82,6 +82,37 @@ pub struct EntityDef {
     /// Deform every mesh of the instance procedurally, every frame.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub deformer: Option<DeformerDef>,
+    /// A shard the player collects (taking it removes the entity, its glow with it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<ShardDef>,
+    /// The way out: reached with every shard taken, the level is won.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exit: Option<ExitDef>,
+}
+
+/// A collectable shard at the entity's position.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShardDef {
+    /// Taken when the player's body comes this close (metres, from the entity's origin to
+    /// the body's axis, above the feet and below the head).
+    #[serde(
+        default = "default_pickup_radius",
+        skip_serializing_if = "is_default_pickup_radius"
+    )]
+    pub radius: f32,
+}
+
+/// The level's exit at the entity's position.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExitDef {
+    /// Reached when the player's feet come this close on the ground plane (metres).
+    #[serde(
+        default = "default_exit_radius",
+        skip_serializing_if = "is_default_exit_radius"
+    )]
+    pub radius: f32,
 }
 
 impl EntityDef {
@@ -96,6 +127,8 @@ impl EntityDef {
             player_spawn: None,
             animation: None,
             deformer: None,
+            shard: None,
+            exit: None,
         }
     }
 }
@@ -341,6 +374,18 @@ fn default_znear() -> f32 {
 }
 fn default_eye_height() -> f32 {
     1.6
+}
+fn default_pickup_radius() -> f32 {
+    0.6
+}
+fn is_default_pickup_radius(value: &f32) -> bool {
+    *value == default_pickup_radius()
+}
+fn default_exit_radius() -> f32 {
+    1.0
+}
+fn is_default_exit_radius(value: &f32) -> bool {
+    *value == default_exit_radius()
 }
 
 fn ron_options() -> ron::Options {
@@ -597,6 +642,20 @@ pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
                 report(
                     at.key("camera").key("znear"),
                     format!("znear must be positive (found {})", camera.znear),
+                );
+            }
+        }
+
+        for (field, radius) in [
+            ("shard", entity.shard.as_ref().map(|s| s.radius)),
+            ("exit", entity.exit.as_ref().map(|e| e.radius)),
+        ] {
+            if let Some(radius) = radius
+                && !(radius.is_finite() && radius > 0.0)
+            {
+                report(
+                    at.key(field).key("radius"),
+                    format!("{field} radius must be positive (found {radius})"),
                 );
             }
         }

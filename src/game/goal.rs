@@ -1,0 +1,112 @@
+//! Game schedule, fixed step "gameplay": the level's goal. The player collects its shards
+//! (`collect_shards`: a shard is taken when the body comes within its radius, and the
+//! entity goes, its glow with it) and then reaches the exit (`reach_exit`): the level is
+//! won. `Progress` keeps the count, the clock and the outcome; once the attempt is over
+//! the player's body stops taking input (`move_player` reads it).
+
+use bevy_ecs::prelude::*;
+use glam::Vec2;
+
+use super::player::tuning::STANDING_HEIGHT;
+use super::{Player, Transform};
+
+/// A shard the player collects (the level's `shard`).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Shard {
+    pub radius: f32,
+}
+
+/// The way out (the level's `exit`).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Exit {
+    pub radius: f32,
+}
+
+/// How an attempt ended, or that it has not.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Outcome {
+    #[default]
+    Running,
+    Won,
+    Caught,
+    Quit,
+}
+
+impl Outcome {
+    /// As the replay JSON writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Outcome::Running => "running",
+            Outcome::Won => "won",
+            Outcome::Caught => "caught",
+            Outcome::Quit => "quit",
+        }
+    }
+}
+
+/// The attempt so far.
+#[derive(Resource, Clone, Debug, Default, PartialEq)]
+pub struct Progress {
+    pub shards_taken: u32,
+    /// Fixed steps since the attempt began (the clock: steps / 60 s).
+    pub steps: u64,
+    /// How many times a warden saw the player (the end screen's count).
+    pub times_seen: u32,
+    pub outcome: Outcome,
+}
+
+impl Progress {
+    pub fn seconds(&self) -> f64 {
+        self.steps as f64 / super::SIMULATION_HZ
+    }
+}
+
+/// Fixed step: the clock, and shards the player's body reaches are taken.
+pub fn collect_shards(
+    mut commands: Commands,
+    mut progress: ResMut<Progress>,
+    players: Query<&Transform, With<Player>>,
+    shards: Query<(Entity, &Shard, &Transform)>,
+) {
+    if progress.outcome != Outcome::Running {
+        return;
+    }
+    let Some(player) = players.iter().next() else {
+        return;
+    };
+    progress.steps += 1;
+    let feet = player.translation;
+    for (entity, shard, placed) in &shards {
+        let at = placed.translation;
+        let across = Vec2::new(at.x - feet.x, at.z - feet.z).length();
+        let within_height = at.y >= feet.y - 0.5 && at.y <= feet.y + STANDING_HEIGHT;
+        if across <= shard.radius && within_height {
+            commands.entity(entity).despawn();
+            progress.shards_taken += 1;
+        }
+    }
+}
+
+/// Fixed step: with every shard taken, the exit wins the level.
+pub fn reach_exit(
+    mut progress: ResMut<Progress>,
+    players: Query<&Transform, With<Player>>,
+    shards: Query<(), With<Shard>>,
+    exits: Query<(&Exit, &Transform)>,
+) {
+    if progress.outcome != Outcome::Running || !shards.is_empty() {
+        return;
+    }
+    let Some(player) = players.iter().next() else {
+        return;
+    };
+    let feet = player.translation;
+    let reached = exits.iter().any(|(exit, placed)| {
+        let at = placed.translation;
+        Vec2::new(at.x - feet.x, at.z - feet.z).length() <= exit.radius
+            && (at.y - feet.y).abs() < STANDING_HEIGHT
+    });
+    if reached || exits.is_empty() {
+        progress.outcome = Outcome::Won;
+    }
+}
