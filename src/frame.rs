@@ -23,6 +23,7 @@ use bevy_ecs::prelude::*;
 use crate::extract::step_world::{StepWorld, step_world_schedule};
 use crate::extract::{DeformStats, RenderState, extract_schedule};
 use crate::film::Accumulation;
+use crate::game::replay::StepInput;
 use crate::game::{
     Animator, Deformer, GlobalTransform, LevelEntity, MeshNode, PreviousGlobalTransform,
     SIMULATION_HZ, SimulationClock, Transform, ViewCamera, WorldGeometry, fixed_step_schedules,
@@ -49,6 +50,8 @@ pub struct Engine {
     owed: f64,
     /// Fixed steps run so far.
     pub steps: u64,
+    /// While recording, each fixed step's input, as the step found it.
+    pub recording: Option<Vec<StepInput>>,
 }
 
 impl Engine {
@@ -71,6 +74,7 @@ impl Engine {
             film: Accumulation::new(settings),
             owed: 0.0,
             steps: 0,
+            recording: None,
         };
         engine.settle();
         let mut views = engine.world.query_filtered::<(), With<ViewCamera>>();
@@ -191,24 +195,34 @@ impl Engine {
         self.owed += seconds.max(0.0);
         let step = 1.0 / SIMULATION_HZ;
         while self.owed >= step {
-            profiling::scope!("fixed step");
-            // The geometry the step's queries see: the world as the last step left it.
-            self.step_world.run(&mut self.world);
-            for (stage, schedule) in &mut self.fixed_step {
-                let start = std::time::Instant::now();
-                profiling::scope!(stage.name());
-                schedule.run(&mut self.world);
-                self.world
-                    .resource_mut::<StageTimes>()
-                    .add(*stage, since(start));
-            }
+            self.step();
             self.owed -= step;
-            self.steps += 1;
         }
         self.world.resource_mut::<SimulationClock>().alpha = (self.owed / step) as f32;
         self.extract.run(&mut self.world);
         let state = self.world.resource::<RenderState>();
         self.film.scene_changed(&state.changes);
+    }
+
+    /// One fixed step of the simulation and nothing else (no extract, no frame): the
+    /// geometry its queries see brought up to date, then its stages in order. Replays run
+    /// the simulation this way.
+    pub fn step(&mut self) {
+        profiling::scope!("fixed step");
+        if let Some(recording) = &mut self.recording {
+            recording.push(StepInput::of(self.world.resource::<crate::game::Input>()));
+        }
+        // The geometry the step's queries see: the world as the last step left it.
+        self.step_world.run(&mut self.world);
+        for (stage, schedule) in &mut self.fixed_step {
+            let start = std::time::Instant::now();
+            profiling::scope!(stage.name());
+            schedule.run(&mut self.world);
+            self.world
+                .resource_mut::<StageTimes>()
+                .add(*stage, since(start));
+        }
+        self.steps += 1;
     }
 
     /// The camera the next frame renders from, at `width` x `height`.

@@ -65,6 +65,9 @@ fn bad_flags_are_one_line_and_exit_1() {
             "--out",
             "x.glb",
         ],
+        &["play", "--replay", "tests/recordings/first-light-won.json"],
+        &["play", "levels/first-light.ron", "--json", "x.json"],
+        &["play", "--headless", "--replay", "no-such-replay.json"],
     ] {
         let output = gloam(args);
         assert_eq!(output.status.code(), Some(1), "{args:?}");
@@ -327,4 +330,30 @@ fn generate_assets_reproduces_the_committed_assets() {
             "{relative} differs from the committed asset"
         );
     }
+}
+
+#[test]
+fn a_replay_runs_headless_and_writes_its_report() {
+    let dir = common::scratch_dir("cli-replay");
+    let out = dir.join("report.json");
+    let output = gloam(&[
+        "play",
+        "--headless",
+        "--replay",
+        "tests/recordings/first-light-won.json",
+        "--json",
+        out.to_str().unwrap(),
+        "--threads",
+        "1",
+    ]);
+    assert!(output.status.success(), "{}", text(&output.stderr));
+    assert!(
+        text(&output.stdout).contains("won after"),
+        "{}",
+        text(&output.stdout)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert_eq!(report["outcome"], "won");
+    assert_eq!(report["state_hash"].as_str().unwrap().len(), 16);
 }

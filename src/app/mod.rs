@@ -15,6 +15,7 @@
 //! level without a player start is flown through with the same keys.
 
 mod hud;
+pub mod replay;
 pub mod resolution;
 
 use std::path::PathBuf;
@@ -61,6 +62,8 @@ pub struct PlayOptions {
     pub filter: FilterMode,
     /// Adapt the internal resolution to hold this frame time (None: fixed).
     pub target_ms: Option<f64>,
+    /// Record every step's input of the attempt to this file.
+    pub record: Option<PathBuf>,
 }
 
 /// Per-frame stage times, for the table printed when a `--frames` run ends.
@@ -176,9 +179,13 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
     })?;
     let log = StageLog::new(&options);
     let overlay = options.profiler;
+    let mut engine = play_engine(&scene, &options);
+    if options.record.is_some() {
+        engine.recording = Some(Vec::new());
+    }
     let mut app = App {
         resolution: options.target_ms.map(ResolutionController::new),
-        engine: play_engine(&scene, &options),
+        engine,
         options,
         title,
         window: None,
@@ -298,6 +305,18 @@ impl App {
         event_loop.exit();
     }
 
+    /// Writes the recording, if one is being made, ended as `ended`; says where.
+    fn finish_recording(&mut self, ended: crate::game::replay::Ended) {
+        let (Some(out), Some(steps)) = (&self.options.record, self.engine.recording.take()) else {
+            return;
+        };
+        let count = steps.len();
+        match replay::write_recording(out, &self.options.level, steps, ended) {
+            Ok(()) => println!("wrote {} ({count} steps, ended {ended:?})", out.display()),
+            Err(error) => eprintln!("gloam: {error:#}"),
+        }
+    }
+
     fn set_capture(&mut self, capture: bool) {
         let Some(window) = &self.window else { return };
         if capture {
@@ -332,7 +351,10 @@ impl App {
                 self.engine.world.resource_mut::<Input>().held.clear();
                 self.set_capture(false);
             }
-            Binding::Quit if pressed => event_loop.exit(),
+            Binding::Quit if pressed => {
+                self.finish_recording(crate::game::replay::Ended::Quit);
+                event_loop.exit();
+            }
             Binding::Fullscreen if pressed => {
                 if let Some(window) = &self.window {
                     let fullscreen = window
@@ -376,6 +398,21 @@ impl App {
                 elapsed.as_secs_f64() * 1e3,
             );
             self.engine.advance(elapsed.as_secs_f64());
+            // A recording holds one attempt: it ends when the attempt does.
+            let outcome = self
+                .engine
+                .world
+                .get_resource::<crate::game::Progress>()
+                .map(|p| p.outcome);
+            match outcome {
+                Some(crate::game::Outcome::Won) => {
+                    self.finish_recording(crate::game::replay::Ended::Won)
+                }
+                Some(crate::game::Outcome::Caught) => {
+                    self.finish_recording(crate::game::replay::Ended::Caught)
+                }
+                _ => {}
+            }
             self.rendered += 1;
             self.frame_ms.push(elapsed.as_secs_f32() * 1e3);
             if self.frame_ms.len() > 60 {
@@ -533,7 +570,10 @@ impl ApplicationHandler for App {
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
         match event {
-            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::CloseRequested => {
+                self.finish_recording(crate::game::replay::Ended::Quit);
+                event_loop.exit();
+            }
             WindowEvent::Resized(size) => {
                 if let Some(pixels) = &mut self.pixels
                     && size.width > 0

@@ -58,6 +58,19 @@ pub enum Command {
         /// The frame time the adaptive resolution holds, in milliseconds.
         #[arg(long, default_value_t = 33.3)]
         target_ms: f64,
+        /// Record every step's input of this attempt to FILE (JSON), written when it is
+        /// won, caught or quit.
+        #[arg(long, value_name = "FILE")]
+        record: Option<PathBuf>,
+        /// With --headless: replay a recording (it names its level) without rendering.
+        #[arg(long, value_name = "FILE")]
+        replay: Option<PathBuf>,
+        /// With --replay: write the per-step report here (JSON).
+        #[arg(long, value_name = "FILE")]
+        json: Option<PathBuf>,
+        /// With --replay: worker threads (the result is the same on any count).
+        #[arg(long)]
+        threads: Option<usize>,
     },
     /// Validate a level (.ron) or glTF file: prints `file:line:column: message` per problem,
     /// exit 1 when there are any; otherwise a summary and the load time.
@@ -160,6 +173,10 @@ pub fn main() -> ExitCode {
         filter: FilterArg::Full,
         fixed_resolution: false,
         target_ms: 33.3,
+        record: None,
+        replay: None,
+        json: None,
+        threads: None,
     });
     match run(command) {
         Ok(code) => code,
@@ -188,7 +205,20 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             filter,
             fixed_resolution,
             target_ms,
+            record,
+            replay,
+            json,
+            threads,
         } => {
+            if let Some(replay) = replay {
+                if !headless {
+                    anyhow::bail!("--replay runs without a window: add --headless");
+                }
+                return replay_command(&replay, json.as_deref(), threads);
+            }
+            if json.is_some() || threads.is_some() {
+                anyhow::bail!("--json and --threads go with --headless --replay FILE");
+            }
             if width == 0 || height == 0 {
                 anyhow::bail!("--width and --height must be at least 1");
             }
@@ -206,6 +236,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 profiler,
                 filter: filter.mode(),
                 target_ms: (!fixed_resolution).then_some(target_ms),
+                record,
             })?;
             Ok(ExitCode::SUCCESS)
         }
@@ -262,6 +293,33 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
     }
+}
+
+/// `gloam play --headless --replay FILE [--json OUT] [--threads N]`: the outcome and state
+/// hash on stdout, the per-step report in OUT.
+fn replay_command(
+    path: &Path,
+    json: Option<&Path>,
+    threads: Option<usize>,
+) -> anyhow::Result<ExitCode> {
+    let threads = threads.unwrap_or_else(crate::bench::default_threads);
+    if threads == 0 {
+        anyhow::bail!("--threads must be at least 1");
+    }
+    let report = crate::app::replay::replay(path, threads)?;
+    println!(
+        "{}: {} after {} steps, state hash {}",
+        path.display(),
+        report["outcome"].as_str().unwrap_or("?"),
+        report["steps"].as_array().map_or(0, Vec::len),
+        report["state_hash"].as_str().unwrap_or("?")
+    );
+    if let Some(out) = json {
+        let text = serde_json::to_string_pretty(&report).context("encoding the report")?;
+        crate::scene::files::write_atomically(out, text.as_bytes())?;
+        println!("wrote {}", out.display());
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 /// `gloam check`: every problem on its own line, or a one-line summary.

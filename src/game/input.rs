@@ -30,6 +30,25 @@ pub enum Action {
     Noclip,
 }
 
+impl Action {
+    /// Every action, in a fixed order (recordings store them as bits in this order).
+    pub const ALL: [Action; 8] = [
+        Action::MoveForward,
+        Action::MoveBack,
+        Action::MoveLeft,
+        Action::MoveRight,
+        Action::MoveUp,
+        Action::MoveDown,
+        Action::Sprint,
+        Action::Noclip,
+    ];
+
+    /// This action's bit in a recording's bit sets.
+    pub fn bit(self) -> u16 {
+        1 << Action::ALL.iter().position(|&a| a == self).unwrap_or(0)
+    }
+}
+
 #[derive(Resource, Default, Debug)]
 pub struct Input {
     /// Actions whose key is down.

@@ -29,6 +29,7 @@ pub mod input;
 pub mod level_io;
 pub mod patrol;
 pub mod player;
+pub mod replay;
 pub mod spawn;
 pub mod transform;
 pub mod world_query;
