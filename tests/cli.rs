@@ -356,4 +356,36 @@ fn a_replay_runs_headless_and_writes_its_report() {
         serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     assert_eq!(report["outcome"], "won");
     assert_eq!(report["state_hash"].as_str().unwrap().len(), 16);
+    // And bench profiles the same play-through.
+    let output = gloam(&[
+        "bench",
+        "--replay",
+        "tests/recordings/first-light-won.json",
+        "--frames",
+        "4",
+        "--warmup",
+        "1",
+        "--width",
+        "16",
+        "--height",
+        "16",
+    ]);
+    assert!(output.status.success(), "{}", text(&output.stderr));
+    assert!(
+        text(&output.stdout).contains("4 frames of"),
+        "{}",
+        text(&output.stdout)
+    );
+    let output = gloam(&[
+        "bench",
+        "levels/cornell.ron",
+        "--replay",
+        "tests/recordings/first-light-won.json",
+    ]);
+    assert_eq!(output.status.code(), Some(1));
+    assert!(
+        text(&output.stderr).contains("was recorded on"),
+        "{}",
+        text(&output.stderr)
+    );
 }

@@ -162,7 +162,7 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         && std::env::var_os("WAYLAND_DISPLAY").is_none()
     {
         return Err(anyhow!(
-            "no display to open a window on (DISPLAY and WAYLAND_DISPLAY are unset); `gloam render` and `gloam raybench` work without one"
+            "no display to open a window on (DISPLAY and WAYLAND_DISPLAY are unset); `gloam play --headless` (and `--replay FILE`), `gloam render` and `gloam bench` work without one"
         ));
     }
     let scene = Scene::load(&options.level)?;
@@ -175,7 +175,7 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         }
     );
     let event_loop = EventLoop::new().map_err(|error| {
-        anyhow!("cannot open a window ({error}); `gloam render` and `gloam raybench` work without a display")
+        anyhow!("cannot open a window ({error}); `gloam play --headless`, `gloam render` and `gloam bench` work without a display")
     })?;
     let log = StageLog::new(&options);
     let overlay = options.profiler;

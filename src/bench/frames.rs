@@ -5,7 +5,9 @@
 //! the level's camera), advances exactly one 60 Hz simulation step (so every run does the
 //! same work: same poses, same rays), and records the stage times the schedules measured.
 //! Warm-up frames are run first and dropped. The `profile` module prints the table and
-//! writes the JSON, CSV, Chrome trace and PNG chart. With `--churn-instances` and
+//! writes the JSON, CSV, Chrome trace and PNG chart. With `--replay`, the frames are a real
+//! play-through instead: the player fed one recorded step's input a frame. With
+//! `--churn-instances` and
 //! `--churn-lights`, every other frame spawns things into the world and the next despawns
 //! them, and extract + accel is reported per kind of frame.
 
@@ -17,7 +19,8 @@ use bevy_ecs::prelude::{Entity, With};
 use glam::{Quat, Vec3};
 
 use crate::frame::Engine;
-use crate::game::{AssetInstance, LevelEntity, Transform, ViewCamera, spawn};
+use crate::game::replay::Recording;
+use crate::game::{AssetInstance, Input, LevelEntity, Transform, ViewCamera, spawn, spawn_player};
 use crate::profile::{Profile, Stage};
 use crate::render::RenderSettings;
 use crate::scene::level::{EntityDef, InstanceDef, LightDef};
@@ -64,6 +67,11 @@ pub struct Options {
     /// ... and this many point lights with them.
     #[arg(long, default_value_t = 0)]
     pub churn_lights: u32,
+    /// Profile a real play-through: the player at the recording's level start, fed one
+    /// recorded step's input a frame, seen through its eyes (the measured frames end
+    /// with the inputs). The recording names its level; LEVEL, if given, must be it.
+    #[arg(long, value_name = "FILE")]
+    pub replay: Option<PathBuf>,
 }
 
 /// What a measured frame did to the world (`--churn-*`).
@@ -112,16 +120,37 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     if threads == 0 {
         anyhow::bail!("--threads must be at least 1");
     }
-    let level = options
-        .level
-        .clone()
-        .unwrap_or_else(crate::scene::files::default_level);
+    let (recording, level) = match &options.replay {
+        Some(path) => {
+            let (recording, level) = crate::app::replay::read_recording(path)?;
+            if let Some(named) = &options.level {
+                let same = std::fs::canonicalize(named).ok() == std::fs::canonicalize(&level).ok();
+                if !same {
+                    anyhow::bail!(
+                        "{} was recorded on '{}', not '{}'",
+                        path.display(),
+                        level.display(),
+                        named.display()
+                    );
+                }
+            }
+            (Some(recording), level)
+        }
+        None => (
+            None,
+            options
+                .level
+                .clone()
+                .unwrap_or_else(crate::scene::files::default_level),
+        ),
+    };
     let scene = Scene::load(&level)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .context("starting the worker threads")?;
-    let (profile, churn) = pool.install(|| measure(&scene, &level, threads, options))?;
+    let (profile, churn) =
+        pool.install(|| measure(&scene, &level, recording.as_ref(), threads, options))?;
     print!("{}", profile.table());
     // Extract + accel (extract, blas_refit, tlas_build) per kind of frame.
     let world_ms = |frame: &crate::profile::FrameSample| {
@@ -183,6 +212,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
 fn measure(
     scene: &Scene,
     level: &std::path::Path,
+    recording: Option<&Recording>,
     threads: usize,
     options: &Options,
 ) -> anyhow::Result<(Profile, Vec<(Churn, f64)>)> {
@@ -191,10 +221,17 @@ fn measure(
         RenderSettings::real_time(options.width, options.height),
     );
     engine.film.filter.mode = options.filter.mode();
-    let mut views = engine
-        .world
-        .query_filtered::<(Entity, &Transform), With<ViewCamera>>();
-    let view = views.iter(&engine.world).next().map(|(e, t)| (e, *t));
+    // A replay is seen through the player's eyes; otherwise the view takes its path.
+    let view = if recording.is_some() {
+        spawn_player(&mut engine.world)
+            .with_context(|| format!("{}: the level has no player start", level.display()))?;
+        None
+    } else {
+        let mut views = engine
+            .world
+            .query_filtered::<(Entity, &Transform), With<ViewCamera>>();
+        views.iter(&engine.world).next().map(|(e, t)| (e, *t))
+    };
     let churn_asset = if options.churn_instances > 0 {
         let mut instances = engine.world.query::<(&LevelEntity, &AssetInstance)>();
         let mut found: Vec<(usize, String)> = instances
@@ -223,6 +260,12 @@ fn measure(
     let mut spawned: Vec<Entity> = Vec::new();
     let step = 1.0 / crate::game::SIMULATION_HZ;
     for frame in 0..options.warmup + options.frames {
+        if let Some(recording) = recording {
+            let Some(input) = recording.steps.get(frame as usize) else {
+                break; // the play-through ends here
+            };
+            input.apply(&mut engine.world.resource_mut::<Input>());
+        }
         if let Some((entity, start)) = view {
             let placed = camera_path(&start, frame as f64 * step);
             if let Some(mut transform) = engine.world.get_mut::<Transform>(entity) {
