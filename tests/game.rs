@@ -28,11 +28,23 @@ fn level(name: &str) -> Scene {
     Scene::load(&common::repo().join("levels").join(name)).unwrap()
 }
 
-/// Stops every clip (first-light's wardens walk), so only what a test moves changes.
+/// Stops every clip and every warden's beat (first-light's wardens walk), so only what a
+/// test moves changes.
 fn pause_animation(engine: &mut Engine) {
     let mut animators = engine.world.query::<&mut gloam::game::Animator>();
     for mut animator in animators.iter_mut(&mut engine.world) {
         animator.speed = 0.0;
+    }
+    let mut wardens = engine
+        .world
+        .query_filtered::<bevy_ecs::prelude::Entity, bevy_ecs::prelude::With<gloam::game::Warden>>(
+        );
+    let wardens: Vec<_> = wardens.iter(&engine.world).collect();
+    for warden in wardens {
+        engine
+            .world
+            .entity_mut(warden)
+            .remove::<gloam::game::Warden>();
     }
 }
 

@@ -315,3 +315,60 @@ fn taking_every_shard_and_reaching_the_exit_wins() {
     assert_eq!(feet(&engine, player), at);
     assert_eq!(engine.world.resource::<Progress>().steps, progress.steps);
 }
+
+#[test]
+fn wardens_walk_their_routes_carrying_their_lamps() {
+    use gloam::game::{Warden, WardenLampLight};
+    let (mut engine, _) = level();
+    let warden_1 = {
+        let mut named = engine.world.query::<(Entity, &Name, &Warden)>();
+        named
+            .iter(&engine.world)
+            .find(|(_, n, _)| n.as_str() == "warden 1")
+            .unwrap()
+            .0
+    };
+    let start = feet(&engine, warden_1);
+    hold(&mut engine, &[], 1.0);
+    let walked = feet(&engine, warden_1);
+    // 1.2 m/s towards (-4, 0, -3.2).
+    assert!(
+        (walked.x - (start.x - 1.2)).abs() < 0.02,
+        "{start} -> {walked}"
+    );
+    assert!((walked.z - start.z).abs() < 1e-4);
+    // Facing where it walks (-X is a yaw of +90 degrees), turned at most 180 degrees a second.
+    let warden = engine.world.get::<Warden>(warden_1).unwrap().clone();
+    assert!(
+        (warden.yaw - 90f32.to_radians()).abs() < 0.05,
+        "{}",
+        warden.yaw
+    );
+    // Round the route: at (-4) it turns back to (-1).
+    hold(&mut engine, &[], 3.0);
+    assert_eq!(engine.world.get::<Warden>(warden_1).unwrap().next, 1);
+    // Its lamp moves with it, in the renderer's light set too.
+    engine.advance(STEP);
+    let lamp = {
+        let mut lamps = engine
+            .world
+            .query_filtered::<(&gloam::game::GlobalTransform, &ChildOf), With<WardenLampLight>>();
+        lamps
+            .iter(&engine.world)
+            .find(|(_, parent)| parent.parent() == warden_1)
+            .unwrap()
+            .0
+            .0
+            .translation
+    };
+    let body = feet(&engine, warden_1);
+    assert!(
+        (Vec3::from(lamp) - body).length() < 1.5,
+        "{lamp:?} near {body}"
+    );
+    let shown = engine.render_scene().lights.lights.iter().any(|light| {
+        matches!(light, gloam::render::light::Light::Spot { position, .. }
+            if (*position - lamp).length() < 0.1)
+    });
+    assert!(shown, "the lamp is a light the renderer draws");
+}

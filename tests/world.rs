@@ -55,11 +55,21 @@ fn named(engine: &mut Engine, name: &str) -> Entity {
         .unwrap_or_else(|| panic!("no entity {name:?}"))
 }
 
-/// Stops every clip, so frames change only what a test changes.
+/// Stops every clip and every warden's beat, so frames change only what a test changes.
 fn pause_animation(engine: &mut Engine) {
     let mut animators = engine.world.query::<&mut gloam::game::Animator>();
     for mut animator in animators.iter_mut(&mut engine.world) {
         animator.speed = 0.0;
+    }
+    let mut wardens = engine
+        .world
+        .query_filtered::<Entity, With<gloam::game::Warden>>();
+    let wardens: Vec<_> = wardens.iter(&engine.world).collect();
+    for warden in wardens {
+        engine
+            .world
+            .entity_mut(warden)
+            .remove::<gloam::game::Warden>();
     }
 }
 

@@ -21,7 +21,9 @@ use serde_json::{Value, json};
 
 use crate::frame::Engine;
 use crate::game::replay::{Ended, Fnv64, RECORDING_VERSION, Recording, StepInput, level_hash};
-use crate::game::{Exposure, Input, Outcome, Player, Progress, Shard, Transform, spawn_player};
+use crate::game::{
+    Exposure, Input, Outcome, Player, Progress, Shard, Transform, Warden, spawn_player,
+};
 use crate::render::RenderSettings;
 use crate::scene::files::write_atomically;
 use crate::scene::world::Scene;
@@ -149,6 +151,27 @@ fn simulate(engine: &mut Engine, recording: &Recording) -> Value {
             .iter(&engine.world)
             .count() as u32;
         let outcome = engine.world.resource::<Progress>().outcome;
+        let mut wardens: Vec<(String, &'static str, f32, glam::Vec3)> = engine
+            .world
+            .query::<(&bevy_ecs::name::Name, &Warden, &Transform)>()
+            .iter(&engine.world)
+            .map(|(name, warden, placed)| {
+                (
+                    name.as_str().to_owned(),
+                    warden.state.name(),
+                    warden.suspicion,
+                    placed.translation,
+                )
+            })
+            .collect();
+        wardens.sort_by(|a, b| a.0.cmp(&b.0));
+        for (name, state, suspicion, at) in &wardens {
+            hash.write(name.as_bytes());
+            hash.write(state.as_bytes());
+            for value in [*suspicion, at.x, at.y, at.z] {
+                hash.write(&value.to_bits().to_le_bytes());
+            }
+        }
         for value in [feet.x, feet.y, feet.z, gem] {
             hash.write(&value.to_bits().to_le_bytes());
         }
@@ -159,7 +182,12 @@ fn simulate(engine: &mut Engine, recording: &Recording) -> Value {
             "player": [feet.x, feet.y, feet.z],
             "exposure": gem,
             "shards_left": shards_left,
-            "wardens": [],
+            "wardens": wardens
+                .iter()
+                .map(|(name, state, suspicion, _)| {
+                    json!({"name": name, "state": state, "suspicion": suspicion})
+                })
+                .collect::<Vec<_>>(),
         }));
         if outcome != Outcome::Running {
             break;

@@ -9,7 +9,7 @@ use glam::{EulerRot, Quat, Vec3};
 
 use super::{
     AnimationSource, AssetInstance, AuthoredRotation, DeformerSource, Exit, LevelCamera,
-    LevelEntity, LevelInfo, PlayerStart, PunctualLight, Shard, Transform, ViewCamera,
+    LevelEntity, LevelInfo, PlayerStart, PunctualLight, Shard, Transform, ViewCamera, Warden,
 };
 use crate::scene::level::{
     CameraDef, EntityDef, ExitDef, InstanceDef, LEVEL_VERSION, Level, ShardDef, TransformDef,
@@ -29,7 +29,7 @@ pub fn level_from_world(world: &mut World) -> Level {
         Option<&PlayerStart>,
         Option<&AnimationSource>,
         Option<&DeformerSource>,
-        (Option<&Shard>, Option<&Exit>),
+        (Option<&Shard>, Option<&Exit>, Option<&Warden>),
     )>();
     let mut entities: Vec<(LevelEntity, EntityDef)> = query
         .iter(world)
@@ -45,7 +45,7 @@ pub fn level_from_world(world: &mut World) -> Level {
                 spawn,
                 animation,
                 deformer,
-                (shard, exit),
+                (shard, exit, warden),
             )| {
                 let def = EntityDef {
                     name: name.as_str().to_owned(),
@@ -68,6 +68,7 @@ pub fn level_from_world(world: &mut World) -> Level {
                     deformer: deformer.map(|d| d.0.clone()),
                     shard: shard.map(|s| ShardDef { radius: s.radius }),
                     exit: exit.map(|e| ExitDef { radius: e.radius }),
+                    warden: warden.map(|w| w.def.clone()),
                 };
                 (*order, def)
             },

@@ -14,7 +14,8 @@
 //!    rendering), then `fly_camera` (levels played without a player);
 //! 2. `Stage::Gameplay`: the player's body (`move_player`: look, walk, jump, crouch,
 //!    collide with the level through `WorldGeometry`), its light gem (`measure_exposure`),
-//!    the goal (`collect_shards`, `reach_exit`), then `patrol` movers;
+//!    the goal (`collect_shards`, `reach_exit`), the wardens' beats (`walk_wardens`), then
+//!    `patrol` movers;
 //! 3. `Stage::Animation`: `advance_animations`, then `apply_animations` (glTF clips into
 //!    node transforms and morph weights; deformer clocks);
 //! 4. `Stage::Transforms`: `propagate_transforms`.
@@ -32,6 +33,7 @@ pub mod player;
 pub mod replay;
 pub mod spawn;
 pub mod transform;
+pub mod warden;
 pub mod world_query;
 
 use std::collections::BTreeMap;
@@ -54,6 +56,7 @@ pub use transform::{
     GlobalTransform, PreviousGlobalTransform, Transform, interpolate, propagate_transforms,
     remember_transforms,
 };
+pub use warden::{Warden, WardenLampLight, WardenState, walk_wardens};
 pub use world_query::{WorldGeometry, WorldQuery};
 
 use crate::profile::Stage;
@@ -180,6 +183,7 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                             measure_exposure,
                             collect_shards,
                             reach_exit,
+                            walk_wardens,
                             patrol,
                         )
                             .chain(),

@@ -229,6 +229,22 @@ pub fn spawn_entity(
         });
     }
     let root = root.id();
+    if let Some(warden) = &def.warden {
+        // The warden, and its lamp as a child light that moves with it.
+        let (yaw, _, _) = transform.rotation.to_euler(glam::EulerRot::YXZ);
+        let (parts, light, lamp) = super::warden::warden_parts(warden, yaw);
+        world.entity_mut(root).insert(parts);
+        let world_lamp = placed * lamp.affine();
+        world.spawn((
+            Name::new(format!("{} lamp", def.name)),
+            super::WardenLampLight,
+            light,
+            lamp,
+            GlobalTransform(world_lamp),
+            PreviousGlobalTransform(world_lamp),
+            ChildOf(root),
+        ));
+    }
     let (Some(asset), Some(instance)) = (asset, &def.instance) else {
         return Spawned {
             root,

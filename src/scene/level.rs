@@ -88,6 +88,72 @@ pub struct EntityDef {
     /// The way out: reached with every shard taken, the level is won.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub exit: Option<ExitDef>,
+    /// A warden: walks its route, carrying a lamp.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warden: Option<WardenDef>,
+}
+
+/// A warden's beat and the lamp it carries.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WardenDef {
+    /// Where its feet go, in order, round and round (world positions; it starts at the
+    /// entity's position and walks to the first).
+    pub route: Vec<Vec3>,
+    /// Walking speed in m/s.
+    #[serde(
+        default = "default_warden_speed",
+        skip_serializing_if = "is_default_warden_speed"
+    )]
+    pub speed: f32,
+    /// The lamp it carries: a spot light ahead of it, tilted down.
+    #[serde(default, skip_serializing_if = "WardenLamp::is_default")]
+    pub lamp: WardenLamp,
+}
+
+/// A warden's lamp, relative to the warden: `height` above its feet, `reach` ahead, tilted
+/// `tilt_degrees` below the horizon.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WardenLamp {
+    pub color: Vec3,
+    /// Radiant intensity in W/sr.
+    pub intensity: f32,
+    pub inner_cone_degrees: f32,
+    pub outer_cone_degrees: f32,
+    pub height: f32,
+    pub reach: f32,
+    pub tilt_degrees: f32,
+}
+
+impl Default for WardenLamp {
+    fn default() -> Self {
+        WardenLamp {
+            color: Vec3::new(1.0, 0.8, 0.55),
+            intensity: 60.0,
+            inner_cone_degrees: 20.0,
+            outer_cone_degrees: 35.0,
+            height: 1.3,
+            reach: 0.35,
+            tilt_degrees: 25.0,
+        }
+    }
+}
+
+impl WardenLamp {
+    fn is_default(&self) -> bool {
+        *self == WardenLamp::default()
+    }
+
+    /// The lamp as a level light.
+    pub fn light(&self) -> LightDef {
+        LightDef::Spot {
+            color: self.color,
+            intensity: self.intensity,
+            inner_cone_degrees: self.inner_cone_degrees,
+            outer_cone_degrees: self.outer_cone_degrees,
+        }
+    }
 }
 
 /// A collectable shard at the entity's position.
@@ -129,6 +195,7 @@ impl EntityDef {
             deformer: None,
             shard: None,
             exit: None,
+            warden: None,
         }
     }
 }
@@ -374,6 +441,12 @@ fn default_znear() -> f32 {
 }
 fn default_eye_height() -> f32 {
     1.6
+}
+fn default_warden_speed() -> f32 {
+    1.2
+}
+fn is_default_warden_speed(value: &f32) -> bool {
+    *value == default_warden_speed()
 }
 fn default_pickup_radius() -> f32 {
     0.6
@@ -657,6 +730,68 @@ pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
                     at.key(field).key("radius"),
                     format!("{field} radius must be positive (found {radius})"),
                 );
+            }
+        }
+
+        if let Some(warden) = &entity.warden {
+            let warden_at = at.key("warden");
+            if warden.route.is_empty() {
+                report(
+                    warden_at.key("route"),
+                    "a warden's route needs at least one point".into(),
+                );
+            }
+            for (point_index, point) in warden.route.iter().enumerate() {
+                check_finite3(
+                    &mut report,
+                    warden_at.key("route").index(point_index),
+                    *point,
+                    "route point",
+                );
+            }
+            if !(warden.speed.is_finite() && warden.speed > 0.0) {
+                report(
+                    warden_at.key("speed"),
+                    format!("speed must be positive (found {})", warden.speed),
+                );
+            }
+            let lamp = &warden.lamp;
+            check_colour(
+                &mut report,
+                warden_at.key("lamp").key("color"),
+                lamp.color,
+                "lamp colour",
+                None,
+            );
+            if !(lamp.intensity.is_finite() && lamp.intensity >= 0.0) {
+                report(
+                    warden_at.key("lamp").key("intensity"),
+                    format!(
+                        "lamp intensity must be finite and not negative (found {})",
+                        lamp.intensity
+                    ),
+                );
+            }
+            let (inner, outer) = (lamp.inner_cone_degrees, lamp.outer_cone_degrees);
+            if !(0.0 <= inner && inner < outer && outer <= 90.0) {
+                report(
+                    warden_at.key("lamp").key("outer_cone_degrees"),
+                    format!(
+                        "lamp cone angles need 0 <= inner < outer <= 90 degrees (found {inner} and {outer})"
+                    ),
+                );
+            }
+            for (name, value) in [
+                ("height", lamp.height),
+                ("reach", lamp.reach),
+                ("tilt_degrees", lamp.tilt_degrees),
+            ] {
+                if !value.is_finite() {
+                    report(
+                        warden_at.key("lamp").key(name),
+                        format!("lamp {name} must be finite (found {value})"),
+                    );
+                }
             }
         }
 
