@@ -28,26 +28,6 @@ fn level(name: &str) -> Scene {
     Scene::load(&common::repo().join("levels").join(name)).unwrap()
 }
 
-/// Stops every clip and every warden's beat (first-light's wardens walk), so only what a
-/// test moves changes.
-fn pause_animation(engine: &mut Engine) {
-    let mut animators = engine.world.query::<&mut gloam::game::Animator>();
-    for mut animator in animators.iter_mut(&mut engine.world) {
-        animator.speed = 0.0;
-    }
-    let mut wardens = engine
-        .world
-        .query_filtered::<bevy_ecs::prelude::Entity, bevy_ecs::prelude::With<gloam::game::Warden>>(
-        );
-    let wardens: Vec<_> = wardens.iter(&engine.world).collect();
-    for warden in wardens {
-        engine
-            .world
-            .entity_mut(warden)
-            .remove::<gloam::game::Warden>();
-    }
-}
-
 /// The level entity (index in the level file) whose asset an accel instance draws.
 fn level_entity_of(engine: &Engine, user_id: u64) -> Option<usize> {
     let node = engine.world.get::<MeshNode>(instance_entity(user_id)?)?;
@@ -130,7 +110,7 @@ fn still_frames_accumulate_into_the_multi_sample_image() {
 fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
     let scene = level("first-light.ron");
     let mut engine = Engine::new(&scene, settings(1));
-    pause_animation(&mut engine);
+    common::pause_animation(&mut engine);
     engine.advance(0.0);
     engine.advance(0.0);
     assert_eq!(engine.film.frames, 2);

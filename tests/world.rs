@@ -55,24 +55,6 @@ fn named(engine: &mut Engine, name: &str) -> Entity {
         .unwrap_or_else(|| panic!("no entity {name:?}"))
 }
 
-/// Stops every clip and every warden's beat, so frames change only what a test changes.
-fn pause_animation(engine: &mut Engine) {
-    let mut animators = engine.world.query::<&mut gloam::game::Animator>();
-    for mut animator in animators.iter_mut(&mut engine.world) {
-        animator.speed = 0.0;
-    }
-    let mut wardens = engine
-        .world
-        .query_filtered::<Entity, With<gloam::game::Warden>>();
-    let wardens: Vec<_> = wardens.iter(&engine.world).collect();
-    for warden in wardens {
-        engine
-            .world
-            .entity_mut(warden)
-            .remove::<gloam::game::Warden>();
-    }
-}
-
 fn crate_def(name: &str, asset: &str, at: Vec3) -> EntityDef {
     let mut def = EntityDef::named(name);
     def.transform.translation = at;
@@ -225,7 +207,7 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
 fn a_hundred_spawns_despawned_leave_the_image_as_it_was() {
     let scene = Scene::load(&first_light()).unwrap();
     let mut engine = Engine::new(&scene, settings());
-    pause_animation(&mut engine);
+    common::pause_animation(&mut engine);
     engine.advance(1.0 / 60.0);
     let instances = engine.render_scene().accel.instances().len();
     let lights = engine.render_scene().lights.lights.len();
@@ -273,7 +255,7 @@ fn a_hundred_spawns_despawned_leave_the_image_as_it_was() {
 fn lights_and_emitters_switch_off_and_on() {
     let scene = Scene::load(&first_light()).unwrap();
     let mut engine = Engine::new(&scene, settings());
-    pause_animation(&mut engine);
+    common::pause_animation(&mut engine);
     engine.advance(1.0 / 60.0);
     let lights = engine.render_scene().lights.lights.len();
     let before = image(&engine, 2);
@@ -400,7 +382,7 @@ fn a_bad_spawn_is_refused_with_its_place() {
 fn the_light_set_is_rebuilt_only_when_the_lights_change() {
     let scene = Scene::load(&first_light()).unwrap();
     let mut engine = Engine::new(&scene, settings());
-    pause_animation(&mut engine);
+    common::pause_animation(&mut engine);
     engine.advance(1.0 / 60.0);
     let builds = |engine: &Engine| {
         engine

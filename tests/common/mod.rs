@@ -53,3 +53,23 @@ pub fn shipped_levels() -> Vec<PathBuf> {
     levels.sort();
     levels
 }
+
+/// Stops every clip and every warden's beat (first-light's wardens walk), so frames change
+/// only what a test changes.
+pub fn pause_animation(engine: &mut gloam::frame::Engine) {
+    let mut animators = engine.world.query::<&mut gloam::game::Animator>();
+    for mut animator in animators.iter_mut(&mut engine.world) {
+        animator.speed = 0.0;
+    }
+    let mut wardens = engine
+        .world
+        .query_filtered::<bevy_ecs::prelude::Entity, bevy_ecs::prelude::With<gloam::game::Warden>>(
+        );
+    let wardens: Vec<_> = wardens.iter(&engine.world).collect();
+    for warden in wardens {
+        engine
+            .world
+            .entity_mut(warden)
+            .remove::<gloam::game::Warden>();
+    }
+}
