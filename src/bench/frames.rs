@@ -43,7 +43,7 @@ pub struct Options {
     /// Worker threads (default: all cores), for scaling studies.
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Write DESIGN.md's JSON report here.
+    /// Write the JSON report here (its fields: README, `gloam bench`).
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write a row per frame, a column per stage.

@@ -818,7 +818,7 @@ fn uniform(stream: u32, index: u32) -> f32 {
     (x >> 8) as f32 / (1u32 << 24) as f32
 }
 
-/// Primary rays through pixel centres (DESIGN.md's camera), then per primary hit one shadow
+/// Primary rays through pixel centres (`render::Camera`'s pinhole), then per primary hit one shadow
 /// ray to a uniform point on the emitters (chosen by area) and one cosine-weighted bounce.
 fn make_rays(
     accel: &AccelScene,

@@ -4,8 +4,9 @@
 //! once; the frame driver's `StageTimes` (filled by its timers and by the extract systems
 //! that time their own parts) becomes one `FrameSample` per frame, and a `Profile` of them
 //! is what `gloam bench` prints and writes:
-//! - JSON in DESIGN.md's schema (`frames`, `width`, `height`, `stages.<name>.{mean_ms,
-//!   p50_ms, p95_ms, p99_ms, max_ms}`, `frame`, `mrays_per_s`), plus rays per frame;
+//! - JSON, the schema the README gives for `gloam bench` (`frames`, `width`, `height`,
+//!   `stages.<name>.{mean_ms, p50_ms, p95_ms, p99_ms, max_ms}`, `frame`, `mrays_per_s`),
+//!   plus rays per frame;
 //! - CSV, a row per frame and a column per stage;
 //! - a Chrome trace (the JSON "Trace Event Format"), which Perfetto and chrome://tracing
 //!   open: one complete ("X") event per stage per frame, laid end to end;
@@ -319,7 +320,7 @@ impl Profile {
         rays as f64 / seconds.max(1e-9) / 1e6
     }
 
-    /// DESIGN.md's `bench --json` schema, and the rays of each frame.
+    /// The `bench --json` report (README), and the rays of each frame.
     pub fn to_json(&self) -> Value {
         let stages: serde_json::Map<String, Value> = STAGES
             .iter()

@@ -1,6 +1,6 @@
 //! Frame step `render`, first: the camera and its primary rays.
 //!
-//! DESIGN.md's pinhole model: pixel (u, v) from the top-left; ndc = (2u/W - 1, 1 - 2v/H);
+//! The pinhole model: pixel (u, v) from the top-left; ndc = (2u/W - 1, 1 - 2v/H);
 //! camera-space direction (ndc.x tan(yfov/2) W/H, ndc.y tan(yfov/2), -1), rotated into the
 //! world. An optional thin lens (Kolb et al. 1995 / pbrt's `PerspectiveCamera`) blurs what
 //! is off the focus distance.

@@ -1,6 +1,6 @@
 //! Frame step `render`: materials and textures as the integrator reads them.
 //!
-//! glTF metallic-roughness per DESIGN.md: the base colour is the albedo; metallic 0 and
+//! glTF metallic-roughness, as the project's conventions read it: the base colour is the albedo; metallic 0 and
 //! transmission 0 is Lambertian; metallic 1 is a conductor (perfect mirror at roughness 0,
 //! GGX otherwise, alpha = roughness^2); transmission 1 is a smooth dielectric with the
 //! material's ior. In-between values are a mixture of those lobes; one lobe is chosen per

@@ -13,7 +13,7 @@
 //!   sample per pixel spreads its error as blue noise over the screen (Georgiev & Fajardo
 //!   2016, "Blue-noise dithered sampling") and successive frames decorrelate.
 //!
-//! Determinism (DESIGN.md): every value derives from (seed, frame, pixel, sample index,
+//! Determinism (the project's rule): every value derives from (seed, frame, pixel, sample index,
 //! dimension) alone, so images are identical on any thread count.
 
 use glam::Vec2;

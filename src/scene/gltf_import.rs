@@ -3,7 +3,7 @@
 //! Load time, before the frame loop. Owns: reading buffers and images, bounds-checked
 //! accessor decoding (every component type, normalized integers, sparse accessors, byte
 //! strides), triangle-list conversion, flat normals where a file has none, materials with
-//! the extensions of DESIGN.md, cameras, KHR_lights_punctual, skins, morph targets and
+//! the extensions the README lists, cameras, KHR_lights_punctual, skins, morph targets and
 //! animations (parsed here, evaluated by the animation step).
 //!
 //! Every failure is a `Diagnostic` naming the file, a line:column in its JSON (the GLB's
