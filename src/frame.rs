@@ -52,6 +52,9 @@ pub struct Engine {
     pub steps: u64,
     /// While recording, each fixed step's input, as the step found it.
     pub recording: Option<Vec<StepInput>>,
+    /// While watching a recording, the inputs still to play, one per fixed step (they
+    /// replace what devices give; once they run out the player stands still).
+    pub playback: Option<std::collections::VecDeque<StepInput>>,
 }
 
 impl Engine {
@@ -75,8 +78,17 @@ impl Engine {
             owed: 0.0,
             steps: 0,
             recording: None,
+            playback: None,
         };
         engine.settle();
+        // Where wardens can walk: the level's geometry as the first step will see it.
+        engine.step_world.run(&mut engine.world);
+        let geometry = &engine.world.resource::<WorldGeometry>().0;
+        let grid = match geometry.bounds() {
+            Some(bounds) => crate::game::NavGrid::build(geometry.as_ref(), bounds),
+            None => crate::game::NavGrid::default(),
+        };
+        engine.world.insert_resource(grid);
         let mut views = engine.world.query_filtered::<(), With<ViewCamera>>();
         if views.iter(&engine.world).next().is_none() {
             // A skinned file's rest vertices may lie anywhere: frame the posed scene.
@@ -209,6 +221,10 @@ impl Engine {
     /// the simulation this way.
     pub fn step(&mut self) {
         profiling::scope!("fixed step");
+        if let Some(playback) = &mut self.playback {
+            let input = playback.pop_front().unwrap_or_default();
+            input.apply(&mut self.world.resource_mut::<crate::game::Input>());
+        }
         if let Some(recording) = &mut self.recording {
             recording.push(StepInput::of(self.world.resource::<crate::game::Input>()));
         }

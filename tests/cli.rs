@@ -65,7 +65,13 @@ fn bad_flags_are_one_line_and_exit_1() {
             "--out",
             "x.glb",
         ],
-        &["play", "--replay", "tests/recordings/first-light-won.json"],
+        &[
+            "play",
+            "--replay",
+            "tests/recordings/first-light-won.json",
+            "--record",
+            "x.json",
+        ],
         &["play", "levels/first-light.ron", "--json", "x.json"],
         &["play", "--headless", "--replay", "no-such-replay.json"],
     ] {

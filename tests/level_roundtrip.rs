@@ -95,7 +95,7 @@ fn first_light_is_a_complete_playable_level() {
     let (feet, eye_height) = scene.player_spawn().expect("spawn");
     assert_eq!(eye_height, 1.6);
     assert!(feet.is_finite());
-    assert_eq!(scene.punctual_lights().len(), 2);
+    assert_eq!(scene.punctual_lights().len(), 5);
     // Every kit piece is used, and the crate override took effect.
     let names: Vec<_> = scene
         .assets
@@ -118,7 +118,7 @@ fn first_light_is_a_complete_playable_level() {
         .level
         .entities
         .iter()
-        .position(|e| e.name == "crate 3")
+        .position(|e| e.name == "crate cellar 3")
         .unwrap();
     let asset = &scene.assets[scene.entity_assets[dark_crate].unwrap()];
     let wood = asset.material_by_name("wood");

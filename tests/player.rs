@@ -15,11 +15,23 @@ use gloam::scene::level::{EntityDef, InstanceDef};
 
 const STEP: f64 = 1.0 / 60.0;
 
-/// first-light with the player at its start (feet at (0, 0, 5), facing -Z).
+/// Where first-light's player starts (facing -Z), in its south-west room.
+const START: Vec3 = Vec3::new(-10.0, 0.0, 6.5);
+
+/// first-light with the player at its start and its wardens off their beats (standing
+/// where they start, seeing nothing), so only the body does what a test does.
 fn level() -> (Engine, Entity) {
+    let (mut engine, player) = level_with_wardens();
+    common::pause_animation(&mut engine);
+    (engine, player)
+}
+
+/// first-light as it plays, with the player at its start.
+fn level_with_wardens() -> (Engine, Entity) {
     let scene = Scene::load(&common::repo().join("levels").join("first-light.ron")).unwrap();
     let mut engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
     let player = spawn_player(&mut engine.world).expect("first-light has a player start");
+    assert_eq!(feet(&engine, player), START);
     (engine, player)
 }
 
@@ -40,10 +52,10 @@ fn hold(engine: &mut Engine, held: &[Action], seconds: f64) {
     engine.world.resource_mut::<Input>().held.clear();
 }
 
-/// A 2 x 2 m block `height` tall whose near edge is at z = 4.5, ahead of the start.
+/// A 2 x 2 m block `height` tall whose near edge is 0.5 m ahead of the start.
 fn block(engine: &mut Engine, height: f32) {
     let mut def = EntityDef::named(format!("block {height}"));
-    def.transform.translation = Vec3::new(0.0, 0.0, 3.5);
+    def.transform.translation = START - Vec3::Z * 1.5;
     def.transform.scale = Vec3::new(2.0, height, 2.0);
     def.instance = Some(InstanceDef {
         asset: "../assets/kit/crate.glb".into(),
@@ -59,11 +71,11 @@ fn the_player_stands_on_the_floor_and_a_wall_stops_it() {
     let standing = feet(&engine, player);
     assert!(standing.y.abs() < 0.01, "stands on the floor: {standing}");
     assert!(state(&engine, player).grounded);
-    // Backwards (+Z) into the south wall, whose inner face is at z = 6.0.
+    // Backwards (+Z) into the south wall, whose inner face is at z = 8.0.
     hold(&mut engine, &[Action::MoveBack], 3.0);
     let stopped = feet(&engine, player);
     assert!(
-        (stopped.z - 5.7).abs() < 0.02,
+        (stopped.z - 7.7).abs() < 0.02,
         "the capsule (radius 0.3) stops at the wall: {stopped}"
     );
     assert!(stopped.y.abs() < 0.01, "{stopped}");
@@ -74,7 +86,7 @@ fn the_player_stands_on_the_floor_and_a_wall_stops_it() {
         slid.x > stopped.x + 0.5,
         "slides along the wall: {stopped} -> {slid}"
     );
-    assert!(slid.z < 5.71, "{slid}");
+    assert!(slid.z < 7.71, "{slid}");
 }
 
 #[test]
@@ -84,7 +96,7 @@ fn it_steps_up_a_kerb_but_not_onto_a_crate() {
     hold(&mut engine, &[], 0.5);
     hold(&mut engine, &[Action::MoveForward], 1.5);
     let on_kerb = feet(&engine, player);
-    assert!(on_kerb.z < 4.0, "walked on: {on_kerb}");
+    assert!(on_kerb.z < START.z - 1.0, "walked on: {on_kerb}");
     assert!(
         (on_kerb.y - 0.25).abs() < 0.02,
         "stepped up onto the kerb: {on_kerb}"
@@ -100,7 +112,7 @@ fn it_steps_up_a_kerb_but_not_onto_a_crate() {
         "a 0.5 m crate is no step: {blocked}"
     );
     assert!(
-        (blocked.z - 4.8).abs() < 0.05,
+        (blocked.z - (START.z - 0.2)).abs() < 0.05,
         "stopped at its edge: {blocked}"
     );
 }
@@ -155,7 +167,7 @@ fn crouching_lowers_the_body_and_noclip_passes_walls() {
         .pressed
         .insert(Action::Noclip);
     hold(&mut engine, &[Action::MoveBack], 1.5);
-    assert!(feet(&engine, player).z > 6.5, "flew through the south wall");
+    assert!(feet(&engine, player).z > 8.5, "flew through the south wall");
 }
 
 #[test]
@@ -183,6 +195,9 @@ fn the_same_inputs_walk_the_same_way_at_any_frame_rate() {
     assert!(ends.windows(2).all(|w| w[0] == w[1]), "{ends:?}");
 }
 
+/// Under the hall's north lamp (a spot light 2.9 m up).
+const HALL_LAMP_POOL: Vec3 = Vec3::new(0.0, 0.0, -4.0);
+
 fn gem(engine: &Engine, player: Entity) -> f32 {
     engine
         .world
@@ -194,21 +209,19 @@ fn gem(engine: &Engine, player: Entity) -> f32 {
 #[test]
 fn the_light_gem_rises_in_a_lamp_pool_and_falls_in_the_dark() {
     let (mut engine, player) = level();
-    // The south-west corner, far from the lamps: dark (the night sky, little else).
-    engine
-        .world
-        .get_mut::<Transform>(player)
-        .unwrap()
-        .translation = Vec3::new(-5.0, 0.0, 5.0);
+    // The start, far from the lamps: dark (the night sky, little else), hidden.
     hold(&mut engine, &[], 1.0);
     let dark = gem(&engine, player);
-    assert!(dark < 0.15, "the dark corner: {dark}");
-    // Under the hanging lamp.
+    assert!(
+        dark < gloam::game::exposure::curve::HIDDEN,
+        "the start: {dark}"
+    );
+    // Under the hall's north lamp.
     engine
         .world
         .get_mut::<Transform>(player)
         .unwrap()
-        .translation = Vec3::ZERO;
+        .translation = HALL_LAMP_POOL;
     let mut last = dark;
     let mut steps = Vec::new();
     for _ in 0..60 {
@@ -220,12 +233,12 @@ fn the_light_gem_rises_in_a_lamp_pool_and_falls_in_the_dark() {
     assert!(last > 0.85, "the lamp's pool: {last}");
     // Smoothed: no step jumps more than a sixth of the way (time constant 0.1 s).
     assert!(steps.iter().all(|&d| (0.0..0.16).contains(&d)), "{steps:?}");
-    // The lamp doused: mostly dark again (the other lamp and the shards still reach).
+    // The lamp doused: mostly dark again (the other lamps and the shards still reach).
     let lamp = {
         let mut named = engine.world.query::<(Entity, &Name)>();
         named
             .iter(&engine.world)
-            .find(|(_, n)| n.as_str() == "hanging lamp")
+            .find(|(_, n)| n.as_str() == "hall lamp north")
             .unwrap()
             .0
     };
@@ -245,12 +258,12 @@ fn a_shadow_the_player_can_see_hides_them() {
         .world
         .get_mut::<Transform>(player)
         .unwrap()
-        .translation = Vec3::ZERO;
+        .translation = HALL_LAMP_POOL;
     hold(&mut engine, &[], 1.0);
     let lit = gem(&engine, player);
-    // A board hung between the lamp (2.7 m up) and the player.
+    // A board hung between the lamp (2.9 m up) and the player.
     let mut board = EntityDef::named("board");
-    board.transform.translation = Vec3::new(0.0, 2.2, 0.0);
+    board.transform.translation = HALL_LAMP_POOL + Vec3::Y * 2.4;
     board.transform.scale = Vec3::new(2.0, 0.05, 2.0);
     board.instance = Some(InstanceDef {
         asset: "../assets/kit/crate.glb".into(),
@@ -277,7 +290,7 @@ fn taking_every_shard_and_reaching_the_exit_wins() {
             .iter(&engine.world)
             .count()
     };
-    assert_eq!(shards(&mut engine), 2);
+    assert_eq!(shards(&mut engine), 3);
     let emitters = engine.render_scene().lights.lights.len();
     // The exit does nothing while shards are left.
     hold(&mut engine, &[], 0.2);
@@ -285,7 +298,7 @@ fn taking_every_shard_and_reaching_the_exit_wins() {
         engine.world.resource::<Progress>().outcome,
         Outcome::Running
     );
-    for (x, z) in [(0.0, -4.2), (-4.5, -4.5)] {
+    for (x, z) in [(-10.8, -6.8), (0.0, -7.3), (11.0, 7.0)] {
         engine
             .world
             .get_mut::<Transform>(player)
@@ -293,8 +306,8 @@ fn taking_every_shard_and_reaching_the_exit_wins() {
             .translation = Vec3::new(x, 0.0, z);
         hold(&mut engine, &[], 0.1);
     }
-    assert_eq!(shards(&mut engine), 0, "both shards taken");
-    assert_eq!(engine.world.resource::<Progress>().shards_taken, 2);
+    assert_eq!(shards(&mut engine), 0, "every shard taken");
+    assert_eq!(engine.world.resource::<Progress>().shards_taken, 3);
     engine.advance(STEP);
     assert!(
         engine.render_scene().lights.lights.len() < emitters,
@@ -305,7 +318,7 @@ fn taking_every_shard_and_reaching_the_exit_wins() {
         .world
         .get_mut::<Transform>(player)
         .unwrap()
-        .translation = Vec3::new(0.0, 0.0, 5.5);
+        .translation = Vec3::new(10.0, 0.0, -7.3);
     hold(&mut engine, &[], 0.1);
     let progress = engine.world.resource::<Progress>().clone();
     assert_eq!(progress.outcome, Outcome::Won);
@@ -319,7 +332,7 @@ fn taking_every_shard_and_reaching_the_exit_wins() {
 #[test]
 fn wardens_walk_their_routes_carrying_their_lamps() {
     use gloam::game::{Warden, WardenLampLight};
-    let (mut engine, _) = level();
+    let (mut engine, _) = level_with_wardens();
     let warden_1 = {
         let mut named = engine.world.query::<(Entity, &Name, &Warden)>();
         named
@@ -331,21 +344,18 @@ fn wardens_walk_their_routes_carrying_their_lamps() {
     let start = feet(&engine, warden_1);
     hold(&mut engine, &[], 1.0);
     let walked = feet(&engine, warden_1);
-    // 1.2 m/s towards (-4, 0, -3.2).
+    // 1.2 m/s towards (0, 0, 5.2), south.
     assert!(
-        (walked.x - (start.x - 1.2)).abs() < 0.02,
+        (walked.z - (start.z + 1.2)).abs() < 0.02,
         "{start} -> {walked}"
     );
-    assert!((walked.z - start.z).abs() < 1e-4);
-    // Facing where it walks (-X is a yaw of +90 degrees), turned at most 180 degrees a second.
+    assert!((walked.x - start.x).abs() < 1e-4);
+    // Facing where it walks (+Z is a yaw of 0), from north turned at most 180 degrees a
+    // second.
     let warden = engine.world.get::<Warden>(warden_1).unwrap().clone();
-    assert!(
-        (warden.yaw - 90f32.to_radians()).abs() < 0.05,
-        "{}",
-        warden.yaw
-    );
-    // Round the route: at (-4) it turns back to (-1).
-    hold(&mut engine, &[], 3.0);
+    assert!(warden.yaw.abs() < 0.05, "{}", warden.yaw);
+    // Round the route: at (0, 0, 5.2), 11.2 m on, it turns back north.
+    hold(&mut engine, &[], 9.0);
     assert_eq!(engine.world.get::<Warden>(warden_1).unwrap().next, 1);
     // Its lamp moves with it, in the renderer's light set too.
     engine.advance(STEP);

@@ -94,8 +94,8 @@ fn dark_wood() -> MaterialOverride {
 /// hand (its entities in another order), render bit-identically on 1 and 2 threads.
 #[test]
 fn a_level_edited_into_another_renders_as_that_level_loaded() {
-    // B on disk: first-light without "crate 2" and "warden lamp", with "pillar 3" moved,
-    // "crate 3" re-materialed (and glowing), the hanging lamp recoloured, and a new crate
+    // B on disk: first-light without "crate hall 2" and "cellar lamp", with "pillar 3" moved,
+    // "crate cellar 3" re-materialed (and glowing), the hall's north lamp recoloured, and a new crate
     // and a blue spot lamp, written first in the file.
     let a_path = first_light();
     let a_scene = Scene::load(&a_path).unwrap();
@@ -110,13 +110,13 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
         }
         match entity.name.as_str() {
             "pillar 3" => entity.transform.translation = Vec3::new(-2.5, 0.0, 2.5),
-            "crate 3" => {
+            "crate cellar 3" => {
                 let instance = entity.instance.as_mut().unwrap();
                 instance
                     .material_overrides
                     .insert("wood".to_owned(), dark_wood());
             }
-            "hanging lamp" => {
+            "hall lamp north" => {
                 entity.light = Some(LightDef::Point {
                     color: Vec3::new(1.0, 0.5, 0.3),
                     intensity: 45.0,
@@ -127,7 +127,7 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
     }
     b_level
         .entities
-        .retain(|e| e.name != "crate 2" && e.name != "warden lamp");
+        .retain(|e| e.name != "crate hall 2" && e.name != "cellar lamp");
     let crate_file = kit.join("crate.glb").display().to_string();
     b_level.entities.insert(0, blue_lamp());
     b_level.entities.insert(
@@ -141,9 +141,9 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
 
     // A, edited in the ECS.
     let mut edited = Engine::new(&a_scene, settings());
-    let crate_2 = named(&mut edited, "crate 2");
+    let crate_2 = named(&mut edited, "crate hall 2");
     edited.world.despawn(crate_2);
-    let warden_lamp = named(&mut edited, "warden lamp");
+    let warden_lamp = named(&mut edited, "cellar lamp");
     edited.world.despawn(warden_lamp);
     let pillar = named(&mut edited, "pillar 3");
     edited
@@ -151,14 +151,14 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
         .get_mut::<Transform>(pillar)
         .unwrap()
         .translation = Vec3::new(-2.5, 0.0, 2.5);
-    let crate_3 = named(&mut edited, "crate 3");
+    let crate_3 = named(&mut edited, "crate cellar 3");
     edited
         .world
         .get_mut::<AssetInstance>(crate_3)
         .unwrap()
         .material_overrides
         .insert("wood".to_owned(), dark_wood());
-    let hanging = named(&mut edited, "hanging lamp");
+    let hanging = named(&mut edited, "hall lamp north");
     edited.world.get_mut::<PunctualLight>(hanging).unwrap().0 = LightDef::Point {
         color: Vec3::new(1.0, 0.5, 0.3),
         intensity: 45.0,
@@ -259,19 +259,35 @@ fn lights_and_emitters_switch_off_and_on() {
     engine.advance(1.0 / 60.0);
     let lights = engine.render_scene().lights.lights.len();
     let before = image(&engine, 2);
-    let lamp = named(&mut engine, "hanging lamp");
+    // Every lamp of the level (the wardens' lamps stay lit).
+    let lamps: Vec<Entity> = engine
+        .world
+        .query_filtered::<Entity, (With<PunctualLight>, With<gloam::game::LevelEntity>)>()
+        .iter(&engine.world)
+        .collect();
+    assert_eq!(lamps.len(), 5);
     let shard = named(&mut engine, "shard 1");
-    engine.world.entity_mut(lamp).insert(SwitchedOff);
+    for &lamp in &lamps {
+        engine.world.entity_mut(lamp).insert(SwitchedOff);
+    }
     engine.advance(1.0 / 60.0);
-    assert_eq!(engine.render_scene().lights.lights.len(), lights - 1);
+    assert_eq!(
+        engine.render_scene().lights.lights.len(),
+        lights - lamps.len()
+    );
     engine.world.entity_mut(shard).insert(SwitchedOff);
     engine.advance(1.0 / 60.0);
     let dark = engine.render_scene().lights.lights.len();
-    assert!(dark < lights - 1, "the shard's emitters left the light set");
+    assert!(
+        dark < lights - lamps.len(),
+        "the shard's emitters left the light set"
+    );
     let darker = image(&engine, 2);
     let mean = |film: &Film| film.mean().element_sum();
     assert!(mean(&darker) < mean(&before) * 0.9);
-    engine.world.entity_mut(lamp).remove::<SwitchedOff>();
+    for &lamp in &lamps {
+        engine.world.entity_mut(lamp).remove::<SwitchedOff>();
+    }
     engine.world.entity_mut(shard).remove::<SwitchedOff>();
     engine.advance(1.0 / 60.0);
     assert_eq!(engine.render_scene().lights.lights.len(), lights);
@@ -283,7 +299,7 @@ fn lights_and_emitters_switch_off_and_on() {
 fn a_moving_light_follows_its_entity() {
     let scene = Scene::load(&first_light()).unwrap();
     let mut engine = Engine::new(&scene, settings());
-    let lamp = named(&mut engine, "warden lamp");
+    let lamp = named(&mut engine, "cellar lamp");
     engine.world.get_mut::<Transform>(lamp).unwrap().translation = Vec3::new(1.0, 2.0, 1.0);
     engine.advance(1.0 / 60.0);
     engine.advance(1.0 / 60.0);
@@ -317,12 +333,12 @@ fn the_world_writes_back_as_its_level() {
     let pillar = named(&mut engine, "pillar 2");
     let turned = Quat::from_rotation_y(0.3) * Quat::from_rotation_x(-0.2);
     engine.world.get_mut::<Transform>(pillar).unwrap().rotation = turned;
-    let crate_1 = named(&mut engine, "crate 1");
+    let crate_1 = named(&mut engine, "crate hall 1");
     engine.world.despawn(crate_1);
     spawn(&mut engine.world, &blue_lamp()).unwrap();
     let level = level_from_world(&mut engine.world);
     assert_eq!(level.entities.last().unwrap().name, "blue lamp");
-    assert!(level.entities.iter().all(|e| e.name != "crate 1"));
+    assert!(level.entities.iter().all(|e| e.name != "crate hall 1"));
     let dir = common::scratch_dir("write-back");
     let path = dir.join("edited.ron");
     // Saved beside the original's folder layout: asset paths stay relative.
@@ -408,7 +424,7 @@ fn the_light_set_is_rebuilt_only_when_the_lights_change() {
         .unwrap()
         .translation
         .y += 0.5;
-    let lamp = named(&mut engine, "hanging lamp");
+    let lamp = named(&mut engine, "hall lamp north");
     engine
         .world
         .get_mut::<Transform>(lamp)

@@ -4,9 +4,8 @@
 
 pub use crate::profile::chart::draw_text;
 
-/// Steps the light gem is shown in: few enough to read at a glance (Splinter Cell's meter
-/// has 3-5; the exact value is on the F3 overlay).
-pub const GEM_STEPS: usize = 5;
+use crate::game::WardenState;
+use crate::game::exposure::curve::{GEM_STEPS, gem_cells};
 
 /// The light gem, bottom centre: `GEM_STEPS` cells lit up to `value` (0..1), dim grey to
 /// warm white as they fill, in a dark frame.
@@ -19,7 +18,7 @@ pub fn draw_gem(frame: &mut [u8], width: u32, height: u32, value: f32) {
     }
     let left = (width - total) / 2;
     let top = height - cell - 3 * gap;
-    let lit = (value.clamp(0.0, 1.0) * GEM_STEPS as f32).round() as usize;
+    let lit = gem_cells(value);
     let mut fill = |x0: u32, y0: u32, w: u32, h: u32, rgb: [u8; 3]| {
         for y in y0..(y0 + h).min(height) {
             for x in x0..(x0 + w).min(width) {
@@ -48,6 +47,54 @@ pub fn draw_gem(frame: &mut [u8], width: u32, height: u32, value: f32) {
             [40, 40, 46]
         };
         fill(x, top, cell, cell, rgb);
+    }
+}
+
+/// How far above a warden's feet its state mark floats (metres), and the farthest a
+/// mark is drawn from.
+pub const MARK_HEIGHT: f32 = 2.15;
+pub const MARK_RANGE: f32 = 30.0;
+
+/// A warden's state mark at film point `at`: `?` while suspicious or searching, `!` when
+/// alert, `X` when it caught the player, over a bar filled to its suspicion (yellow, red
+/// when alert). A patrolling warden with no suspicion shows nothing.
+pub fn draw_warden_mark(
+    frame: &mut [u8],
+    width: u32,
+    height: u32,
+    at: (f32, f32),
+    state: WardenState,
+    suspicion: f32,
+) {
+    let glyph = match state {
+        WardenState::Patrol if suspicion <= 0.0 => return,
+        WardenState::Patrol => "",
+        WardenState::Suspicious | WardenState::Searching => "?",
+        WardenState::Alert => "!",
+        WardenState::Caught => "X",
+    };
+    let (x, y) = (at.0.round() as i64, at.1.round() as i64);
+    let bar = 24i64;
+    let (left, top) = (x - bar / 2, y);
+    let colour = if matches!(state, WardenState::Alert | WardenState::Caught) {
+        [230, 50, 40]
+    } else {
+        [235, 200, 60]
+    };
+    let filled = (suspicion.clamp(0.0, 1.0) * bar as f32).round() as i64;
+    for row in top..top + 4 {
+        for column in left - 1..left + bar + 1 {
+            if row < 0 || column < 0 || row >= height as i64 || column >= width as i64 {
+                continue;
+            }
+            let i = ((row as u32 * width + column as u32) * 4) as usize;
+            let inside = column >= left && column < left + filled && row > top && row < top + 3;
+            let rgb = if inside { colour } else { [20, 20, 24] };
+            frame[i..i + 3].copy_from_slice(&rgb);
+        }
+    }
+    if !glyph.is_empty() && x >= 4 && y >= 20 {
+        draw_text(frame, width, height, x as u32 - 4, y as u32 - 18, glyph);
     }
 }
 

@@ -64,6 +64,9 @@ pub struct PlayOptions {
     pub target_ms: Option<f64>,
     /// Record every step's input of the attempt to this file.
     pub record: Option<PathBuf>,
+    /// Watch this recording's inputs play instead of taking the keyboard's (its level is
+    /// `level`); the attempt is not restarted when it ends.
+    pub watch: Option<crate::game::replay::Recording>,
 }
 
 /// Per-frame stage times, for the table printed when a `--frames` run ends.
@@ -183,9 +186,14 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
     if options.record.is_some() {
         engine.recording = Some(Vec::new());
     }
+    if let Some(recording) = &options.watch {
+        engine.playback = Some(recording.steps.iter().copied().collect());
+    }
     let mut app = App {
         resolution: options.target_ms.map(ResolutionController::new),
         engine,
+        scene,
+        caught: None,
         options,
         title,
         window: None,
@@ -275,8 +283,21 @@ fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The name of the warden that caught the player.
+fn caught_by(world: &mut bevy_ecs::world::World) -> String {
+    let mut wardens = world.query::<(&crate::game::Warden, &bevy_ecs::name::Name)>();
+    wardens
+        .iter(world)
+        .find(|(warden, _)| warden.state == crate::game::WardenState::Caught)
+        .map_or_else(|| "a warden".to_string(), |(_, name)| name.to_string())
+}
+
 struct App {
     engine: Engine,
+    /// The level as loaded: a caught player starts it again from here.
+    scene: Scene,
+    /// When the player was last caught, and by whom (shown over the new attempt).
+    caught: Option<(Instant, String)>,
     /// Adaptive internal resolution (None: fixed).
     resolution: Option<ResolutionController>,
     options: PlayOptions,
@@ -317,6 +338,18 @@ impl App {
         }
     }
 
+    /// Caught: the level starts again at once, and says who caught the player.
+    fn restart_caught(&mut self) {
+        let by = caught_by(&mut self.engine.world);
+        let internal = (
+            self.engine.film.settings.width,
+            self.engine.film.settings.height,
+        );
+        self.engine = play_engine(&self.scene, &self.options);
+        self.engine.film.set_resolution(internal.0, internal.1);
+        self.caught = Some((Instant::now(), by));
+    }
+
     fn set_capture(&mut self, capture: bool) {
         let Some(window) = &self.window else { return };
         if capture {
@@ -337,6 +370,8 @@ impl App {
         };
         let pressed = state == ElementState::Pressed;
         match binding {
+            // A recording being watched plays its own input.
+            Binding::Game(_) if self.options.watch.is_some() => {}
             Binding::Game(action) => {
                 let mut input = self.engine.world.resource_mut::<Input>();
                 if pressed && !self.paused {
@@ -408,8 +443,9 @@ impl App {
                 Some(crate::game::Outcome::Won) => {
                     self.finish_recording(crate::game::replay::Ended::Won)
                 }
-                Some(crate::game::Outcome::Caught) => {
-                    self.finish_recording(crate::game::replay::Ended::Caught)
+                Some(crate::game::Outcome::Caught) if self.options.watch.is_none() => {
+                    self.finish_recording(crate::game::replay::Ended::Caught);
+                    self.restart_caught();
                 }
                 _ => {}
             }
@@ -477,6 +513,33 @@ impl App {
         if let Some(gem) = gem {
             hud::draw_gem(frame, width, height, gem);
         }
+        // Each warden's state above its head: what it knows, the player knows.
+        let projection = self.engine.view_camera(width, height).projection();
+        let mut wardens = self
+            .engine
+            .world
+            .query::<(&crate::game::Warden, &crate::game::GlobalTransform)>();
+        for (warden, placed) in wardens.iter(&self.engine.world) {
+            let head = placed.0.translation + glam::Vec3A::Y * hud::MARK_HEIGHT;
+            let seen = projection.project_lanes(head);
+            if seen.in_front && seen.distance < hud::MARK_RANGE {
+                hud::draw_warden_mark(
+                    frame,
+                    width,
+                    height,
+                    (seen.x, seen.y),
+                    warden.state,
+                    warden.suspicion,
+                );
+            }
+        }
+        if let Some((at, by)) = &self.caught {
+            if at.elapsed().as_secs_f32() < 3.0 {
+                let line = format!("Caught by {by}. The level starts again.");
+                let x = (width / 2).saturating_sub(line.len() as u32 * 4);
+                hud::draw_text(frame, width, height, x, height / 3, &line);
+            }
+        }
         // The goal: shards so far, and the end screen once the attempt is over.
         if let Some(progress) = self.engine.world.get_resource::<crate::game::Progress>() {
             let progress = progress.clone();
@@ -490,6 +553,12 @@ impl App {
             if total > 0 {
                 let line = format!("shards {}/{total}", progress.shards_taken);
                 hud::draw_text(frame, width, height, 2, height.saturating_sub(18), &line);
+            }
+            if progress.outcome == crate::game::Outcome::Caught {
+                // Only a watched recording shows this: in play the level has restarted.
+                let line = format!("Caught by {}.  Q quits", caught_by(&mut self.engine.world));
+                let x = (width / 2).saturating_sub(line.len() as u32 * 4);
+                hud::draw_text(frame, width, height, x, height / 3, &line);
             }
             if progress.outcome == crate::game::Outcome::Won {
                 let seconds = progress.seconds();

@@ -62,7 +62,8 @@ pub enum Command {
         /// won, caught or quit.
         #[arg(long, value_name = "FILE")]
         record: Option<PathBuf>,
-        /// With --headless: replay a recording (it names its level) without rendering.
+        /// Watch a recording play in the window (it names its level), or with --headless
+        /// replay it without rendering.
         #[arg(long, value_name = "FILE")]
         replay: Option<PathBuf>,
         /// With --replay: write the per-step report here (JSON).
@@ -210,11 +211,31 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             json,
             threads,
         } => {
+            let mut watch = None;
+            let mut level = level;
             if let Some(replay) = replay {
-                if !headless {
-                    anyhow::bail!("--replay runs without a window: add --headless");
+                if headless {
+                    return replay_command(&replay, json.as_deref(), threads);
                 }
-                return replay_command(&replay, json.as_deref(), threads);
+                if record.is_some() || json.is_some() || threads.is_some() {
+                    anyhow::bail!(
+                        "watching a recording (--replay without --headless) takes no --record, --json or --threads"
+                    );
+                }
+                let (recording, recorded_level) = crate::app::replay::read_recording(&replay)?;
+                if let Some(given) = &level
+                    && std::fs::canonicalize(given).ok()
+                        != std::fs::canonicalize(&recorded_level).ok()
+                {
+                    anyhow::bail!(
+                        "{}: recorded on '{}', not '{}'",
+                        replay.display(),
+                        recorded_level.display(),
+                        given.display()
+                    );
+                }
+                level = Some(recorded_level);
+                watch = Some(recording);
             }
             if json.is_some() || threads.is_some() {
                 anyhow::bail!("--json and --threads go with --headless --replay FILE");
@@ -237,6 +258,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 filter: filter.mode(),
                 target_ms: (!fixed_resolution).then_some(target_ms),
                 record,
+                watch,
             })?;
             Ok(ExitCode::SUCCESS)
         }

@@ -26,7 +26,7 @@ use glam::{Affine3A, Vec2, Vec3, Vec3A};
 
 use super::{instance_user_id, is_drawable, mesh_geometry};
 use crate::accel::{AccelScene, Blas, Instance, InstanceMask, Opaque, Ray};
-use crate::game::world_query::{Contact, WorldGeometry, WorldQuery};
+use crate::game::world_query::{Contact, RayHit, WorldGeometry, WorldQuery};
 use crate::game::{
     AssetInstance, AssetLight, GlobalTransform, LevelInfo, MeshNode, PunctualLight, SwitchedOff,
 };
@@ -97,12 +97,14 @@ impl WorldQuery for StepWorld {
         }));
     }
 
-    fn raycast(&self, origin: Vec3, direction: Vec3, max_distance: f32) -> Option<f32> {
+    fn raycast(&self, origin: Vec3, direction: Vec3, max_distance: f32) -> Option<RayHit> {
         let mut ray = Ray::new(origin.into(), direction.into());
         ray.t_max = max_distance;
-        self.accel
-            .intersect(&ray, InstanceMask::ALL, &Opaque)
-            .map(|hit| hit.t)
+        let hit = self.accel.intersect(&ray, InstanceMask::ALL, &Opaque)?;
+        Some(RayHit {
+            distance: hit.t,
+            normal: self.accel.surface(&hit).geometric_normal.into(),
+        })
     }
 
     fn light_arriving(&self, point: Vec3) -> Vec3 {
@@ -148,6 +150,11 @@ impl WorldQuery for StepWorld {
             total += self.sky * (std::f32::consts::PI * open as f32 / SKY_DIRECTIONS.len() as f32);
         }
         total
+    }
+
+    fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let bounds = self.accel.bounds();
+        (bounds.min.x <= bounds.max.x).then(|| (bounds.min.into(), bounds.max.into()))
     }
 
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any {

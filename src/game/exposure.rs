@@ -28,6 +28,17 @@ pub mod curve {
     pub const E_HALF: f32 = 1.0;
     /// Time constant of the gem's smoothing, in seconds.
     pub const SMOOTHING: f32 = 0.1;
+    /// Steps the HUD shows the gem in: few enough to read at a glance (Splinter Cell's
+    /// meter has 3-5; the exact value is on the F3 overlay).
+    pub const GEM_STEPS: usize = 5;
+    /// Below this the gem lights no step: the player is hidden, and no warden sees them
+    /// (`sight::lit`).
+    pub const HIDDEN: f32 = 0.5 / GEM_STEPS as f32;
+
+    /// How many of the HUD's `GEM_STEPS` a gem of `value` lights (the nearest step).
+    pub fn gem_cells(value: f32) -> usize {
+        (value.clamp(0.0, 1.0) * GEM_STEPS as f32).round() as usize
+    }
 
     /// A body point's visibility, 0..1, from the light arriving there.
     pub fn point_value(light: f32) -> f32 {

@@ -14,10 +14,12 @@
 //!    rendering), then `fly_camera` (levels played without a player);
 //! 2. `Stage::Gameplay`: the player's body (`move_player`: look, walk, jump, crouch,
 //!    collide with the level through `WorldGeometry`), its light gem (`measure_exposure`),
-//!    the goal (`collect_shards`, `reach_exit`), the wardens' beats (`walk_wardens`), then
-//!    `patrol` movers;
-//! 3. `Stage::Animation`: `advance_animations`, then `apply_animations` (glTF clips into
-//!    node transforms and morph weights; deformer clocks);
+//!    the goal (`collect_shards`, `reach_exit`), the wardens (`watch_for_player`: sight,
+//!    suspicion, state; `walk_wardens`: their feet, on the `nav::NavGrid` built at load),
+//!    then `patrol` movers;
+//! 3. `Stage::Animation`: `animate_wardens` (each warden's clip for its state), then
+//!    `advance_animations` and `apply_animations` (glTF clips into node transforms and
+//!    morph weights; deformer clocks);
 //! 4. `Stage::Transforms`: `propagate_transforms`.
 //!
 //! This module imports none of render, accel, the film, winit or pixels: it sees input as a
@@ -28,9 +30,11 @@ pub mod exposure;
 pub mod goal;
 pub mod input;
 pub mod level_io;
+pub mod nav;
 pub mod patrol;
 pub mod player;
 pub mod replay;
+pub mod sight;
 pub mod spawn;
 pub mod transform;
 pub mod warden;
@@ -49,6 +53,7 @@ pub use exposure::{Exposure, measure_exposure};
 pub use goal::{Exit, Outcome, Progress, Shard, collect_shards, reach_exit};
 pub use input::{Action, Input, fly_camera};
 pub use level_io::level_from_world;
+pub use nav::NavGrid;
 pub use patrol::{Patrol, patrol};
 pub use player::{ActiveCamera, Player, PlayerEye, move_player, spawn_player};
 pub use spawn::{Assets, LevelInfo, spawn, spawn_entity, spawn_level};
@@ -56,7 +61,10 @@ pub use transform::{
     GlobalTransform, PreviousGlobalTransform, Transform, interpolate, propagate_transforms,
     remember_transforms,
 };
-pub use warden::{Warden, WardenLampLight, WardenState, walk_wardens};
+pub use warden::{
+    Warden, WardenClips, WardenLampLight, WardenState, animate_wardens, walk_wardens,
+    watch_for_player,
+};
 pub use world_query::{WorldGeometry, WorldQuery};
 
 use crate::profile::Stage;
@@ -183,6 +191,7 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                             measure_exposure,
                             collect_shards,
                             reach_exit,
+                            watch_for_player,
                             walk_wardens,
                             patrol,
                         )
@@ -190,7 +199,9 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                     );
                 }
                 Stage::Animation => {
-                    schedule.add_systems((advance_animations, apply_animations).chain());
+                    schedule.add_systems(
+                        (animate_wardens, advance_animations, apply_animations).chain(),
+                    );
                 }
                 Stage::Transforms => {
                     schedule.add_systems(propagate_transforms);

@@ -257,20 +257,50 @@ pub fn spawn_entity(
         material_overrides: instance.material_overrides.clone(),
     });
     let nodes = spawn_nodes(world, (root, placed), &asset, def);
-    if let Some(animation) = &def.animation
-        && let Some(clip) = asset.animation_by_name(&animation.clip)
-    {
-        let clip = world
-            .get_resource_or_init::<AnimationLibrary>()
-            .clip(&asset, clip);
-        world.entity_mut(root).insert(Animator {
-            clip,
+    // A warden's model plays the clips its state calls for, whatever the level starts.
+    let warden_clips = def.warden.as_ref().map(|_| {
+        let mut library = world.get_resource_or_init::<AnimationLibrary>();
+        let mut named = |name: &str| {
+            asset
+                .animation_by_name(name)
+                .map(|clip| library.clip(&asset, clip))
+        };
+        super::WardenClips {
+            walk: named("walk"),
+            idle: named("idle"),
+            alert: named("alert"),
+        }
+    });
+    let authored = def
+        .animation
+        .as_ref()
+        .and_then(|animation| Some((animation, asset.animation_by_name(&animation.clip)?)));
+    let animator = match (authored, warden_clips.and_then(|clips| clips.idle)) {
+        (Some((animation, clip)), _) => Some(Animator {
+            clip: world
+                .get_resource_or_init::<AnimationLibrary>()
+                .clip(&asset, clip),
             elapsed: animation.start as f64,
             start: animation.start as f64,
             speed: animation.speed,
             playback: animation.playback,
             nodes: nodes.clone(),
-        });
+        }),
+        (None, Some(idle)) => Some(Animator {
+            clip: idle,
+            elapsed: 0.0,
+            start: 0.0,
+            speed: 1.0,
+            playback: crate::scene::animation::Playback::Loop,
+            nodes: nodes.clone(),
+        }),
+        (None, None) => None,
+    };
+    if let Some(animator) = animator {
+        world.entity_mut(root).insert(animator);
+    }
+    if let Some(clips) = warden_clips {
+        world.entity_mut(root).insert(clips);
     }
     Spawned { root, nodes }
 }

@@ -19,19 +19,34 @@ pub struct Contact {
     pub distance: f32,
 }
 
+/// Where a ray meets a surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayHit {
+    /// Along the ray, from its origin.
+    pub distance: f32,
+    /// The surface's unit normal, on the side its triangle's winding makes the front
+    /// (a floor's points up; the ray may have met its back).
+    pub normal: Vec3,
+}
+
 /// The questions the simulation asks of the level's geometry.
 pub trait WorldQuery: Send + Sync + 'static {
     /// Every surface closer than `radius` to `center`, appended to `out`.
     fn sphere_contacts(&self, center: Vec3, radius: f32, out: &mut Vec<Contact>);
 
-    /// The distance along the unit `direction` from `origin` to the first surface, if one
-    /// is nearer than `max_distance`.
-    fn raycast(&self, origin: Vec3, direction: Vec3, max_distance: f32) -> Option<f32>;
+    /// The first surface along the unit `direction` from `origin`, if one is nearer than
+    /// `max_distance`.
+    fn raycast(&self, origin: Vec3, direction: Vec3, max_distance: f32) -> Option<RayHit>;
 
     /// The light arriving at `point` from every light within reach (linear RGB: irradiance
     /// from each direction summed, as a small sphere there would receive it), each light's
     /// share found with a shadow ray, with the renderer's own light definitions.
     fn light_arriving(&self, point: Vec3) -> Vec3;
+
+    /// The corners (min, max) of a box around all the geometry, if there is any.
+    fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        None
+    }
 
     /// The answerer as `Any`, so the code that keeps it current can reach its own type.
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
@@ -47,7 +62,7 @@ pub struct EmptyWorld;
 impl WorldQuery for EmptyWorld {
     fn sphere_contacts(&self, _: Vec3, _: f32, _: &mut Vec<Contact>) {}
 
-    fn raycast(&self, _: Vec3, _: Vec3, _: f32) -> Option<f32> {
+    fn raycast(&self, _: Vec3, _: Vec3, _: f32) -> Option<RayHit> {
         None
     }
 

@@ -130,12 +130,12 @@ impl Default for WardenLamp {
     fn default() -> Self {
         WardenLamp {
             color: Vec3::new(1.0, 0.8, 0.55),
-            intensity: 60.0,
+            intensity: 40.0,
             inner_cone_degrees: 20.0,
-            outer_cone_degrees: 35.0,
+            outer_cone_degrees: 32.0,
             height: 1.3,
             reach: 0.35,
-            tilt_degrees: 25.0,
+            tilt_degrees: 40.0,
         }
     }
 }
