@@ -382,3 +382,70 @@ fn wardens_walk_their_routes_carrying_their_lamps() {
     });
     assert!(shown, "the lamp is a light the renderer draws");
 }
+
+#[test]
+fn the_body_is_hidden_from_its_own_eyes_but_casts_a_shadow() {
+    use gloam::accel::{InstanceMask, Opaque, Ray};
+    let (mut engine, player) = level();
+    engine
+        .world
+        .get_mut::<Transform>(player)
+        .unwrap()
+        .translation = HALL_LAMP_POOL;
+    hold(&mut engine, &[], 0.5);
+    engine.advance(STEP);
+    // Its meshes are instances for shadow and bounce rays, not camera rays.
+    let mut nodes = engine.world.query::<(Entity, &gloam::game::MeshNode)>();
+    let body_nodes: Vec<Entity> = nodes
+        .iter(&engine.world)
+        .filter(|(_, node)| {
+            engine
+                .world
+                .get::<gloam::game::PlayerBody>(node.root)
+                .is_some()
+        })
+        .map(|(entity, _)| entity)
+        .collect();
+    assert!(
+        !body_nodes.is_empty(),
+        "first-light gives the player a body"
+    );
+    let accel = &engine.render_scene().accel;
+    let masks: Vec<InstanceMask> = accel
+        .instances()
+        .iter()
+        .filter(|i| {
+            body_nodes
+                .iter()
+                .any(|&e| gloam::extract::instance_user_id(e) == i.user_id)
+        })
+        .map(|i| i.mask)
+        .collect();
+    assert_eq!(masks.len(), body_nodes.len());
+    for mask in masks {
+        assert!(!mask.intersects(InstanceMask::CAMERA), "{mask:?}");
+        assert!(mask.intersects(InstanceMask::SHADOW) && mask.intersects(InstanceMask::BOUNCE));
+    }
+    // The floor at its feet is in its shadow from the lamp straight above ...
+    let lamp = glam::Vec3A::new(0.0, 2.9, -4.0);
+    let floor = glam::Vec3A::from(HALL_LAMP_POOL) + glam::Vec3A::new(0.05, 0.01, 0.0);
+    let mut to_lamp = Ray::new(floor, lamp - floor);
+    to_lamp.t_max = 1.0 - 1e-4;
+    assert!(accel.occluded(&to_lamp, InstanceMask::SHADOW, &Opaque));
+    assert!(!accel.occluded(&to_lamp, InstanceMask::CAMERA, &Opaque));
+    // ... and its eye sees past its own head.
+    let eye = glam::Vec3A::from(HALL_LAMP_POOL) + glam::Vec3A::Y * 1.6;
+    let ahead = accel.intersect(
+        &Ray::new(eye, glam::Vec3A::NEG_Z),
+        InstanceMask::CAMERA,
+        &Opaque,
+    );
+    assert!(ahead.is_some_and(|hit| hit.t > 0.5), "{ahead:?}");
+    // A bounce ray coming at it from in front meets it.
+    let towards = accel.intersect(
+        &Ray::new(eye + glam::Vec3A::new(0.0, -0.5, -1.5), glam::Vec3A::Z),
+        InstanceMask::BOUNCE,
+        &Opaque,
+    );
+    assert!(towards.is_some_and(|hit| hit.t < 1.5), "{towards:?}");
+}

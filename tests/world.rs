@@ -102,7 +102,8 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
     let kit = common::repo().join("assets").join("kit");
     let mut b_level = a_scene.level.clone();
     for entity in &mut b_level.entities {
-        if let Some(instance) = &mut entity.instance {
+        let body = entity.player_spawn.as_mut().and_then(|s| s.body.as_mut());
+        for instance in entity.instance.iter_mut().chain(body) {
             instance.asset = kit
                 .join(std::path::Path::new(&instance.asset).file_name().unwrap())
                 .display()
@@ -344,7 +345,8 @@ fn the_world_writes_back_as_its_level() {
     // Saved beside the original's folder layout: asset paths stay relative.
     let mut relocated = level.clone();
     for entity in &mut relocated.entities {
-        if let Some(instance) = &mut entity.instance {
+        let body = entity.player_spawn.as_mut().and_then(|s| s.body.as_mut());
+        for instance in entity.instance.iter_mut().chain(body) {
             instance.asset = common::repo()
                 .join("levels")
                 .join(&instance.asset)
@@ -370,6 +372,11 @@ fn the_world_writes_back_as_its_level() {
     for (entity, original) in resaved.entities.iter_mut().zip(&level.entities) {
         if let (Some(instance), Some(first)) = (&mut entity.instance, &original.instance) {
             instance.asset = first.asset.clone();
+        }
+        let body = entity.player_spawn.as_mut().and_then(|s| s.body.as_mut());
+        let first = original.player_spawn.as_ref().and_then(|s| s.body.as_ref());
+        if let (Some(body), Some(first)) = (body, first) {
+            body.asset = first.asset.clone();
         }
     }
     assert_eq!(resaved, level, "save, load, save gives the same level");

@@ -107,12 +107,14 @@ fn surface_offset(position: Vec3A) -> f32 {
 pub struct InstanceMask(pub u8);
 
 impl InstanceMask {
-    /// Seen by camera and bounce rays.
+    /// Seen by camera rays (a path's first segment).
     pub const CAMERA: InstanceMask = InstanceMask(1);
     /// Blocks shadow rays.
     pub const SHADOW: InstanceMask = InstanceMask(2);
     /// Found by the editor's picking rays.
     pub const PICKABLE: InstanceMask = InstanceMask(4);
+    /// Seen by bounce rays (every segment after the first: reflections, indirect light).
+    pub const BOUNCE: InstanceMask = InstanceMask(8);
     pub const ALL: InstanceMask = InstanceMask(0xff);
 
     pub fn intersects(self, other: InstanceMask) -> bool {

@@ -47,7 +47,7 @@ use rayon::prelude::*;
 use crate::accel::{AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry, Mobility};
 use crate::game::{
     ActiveCamera, AnimationSource, Animator, AssetInstance, AssetLight, DeformerSource,
-    GlobalTransform, LevelInfo, MeshNode, Patrol, PlayerStart, PreviousGlobalTransform,
+    GlobalTransform, LevelInfo, MeshNode, Patrol, PlayerBody, PlayerStart, PreviousGlobalTransform,
     PunctualLight, SimulationClock, SwitchedOff, ViewCamera, interpolate,
 };
 use crate::profile::{Stage, StageTimes, since};
@@ -231,6 +231,7 @@ type RootData<'a> = (
     Has<DeformerSource>,
     Has<PlayerStart>,
     Has<Patrol>,
+    Has<PlayerBody>,
 );
 
 /// Mesh nodes as extract reads them.
@@ -476,10 +477,11 @@ fn assemble_instances(
         mobility: Mobility,
         instance: Option<&'a AssetInstance>,
         dark: bool,
+        mask: InstanceMask,
     }
     let mut entries: Vec<Entry> = Vec::new();
     for (entity, node, global, previous) in meshes {
-        let Ok((name, instance, dark, animator, animation, deformer, spawn, patrol)) =
+        let Ok((name, instance, dark, animator, animation, deformer, spawn, patrol, own_body)) =
             roots.get(node.root)
         else {
             continue;
@@ -501,6 +503,13 @@ fn assemble_instances(
             },
             instance,
             dark,
+            // The player's own body: not in their camera's view (the eye is inside it),
+            // but in the light's way and in reflections.
+            mask: if own_body {
+                InstanceMask::SHADOW | InstanceMask::BOUNCE
+            } else {
+                InstanceMask::ALL
+            },
         });
     }
     entries.sort_by(|a, b| a.key.cmp(&b.key));
@@ -624,7 +633,7 @@ fn assemble_instances(
             Instance::new(
                 blas,
                 entry.transform,
-                InstanceMask::ALL,
+                entry.mask,
                 instance_user_id(entry.entity),
             )
             .with_mobility(entry.mobility),

@@ -56,6 +56,64 @@ pub struct Deformer {
     pub time: f64,
 }
 
+/// The gait clips of a body's model (a warden's, the player's), as `AnimationLibrary`
+/// indices, each if the model has it: `walk`, `idle`, and `alert` (played once when a
+/// warden notices the player).
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BodyClips {
+    pub walk: Option<usize>,
+    pub idle: Option<usize>,
+    pub alert: Option<usize>,
+}
+
+impl BodyClips {
+    /// `asset`'s gait clips, copied into `library`.
+    pub fn of(
+        library: &mut AnimationLibrary,
+        asset: &std::sync::Arc<crate::scene::model::Asset>,
+    ) -> BodyClips {
+        let mut named = |name: &str| {
+            asset
+                .animation_by_name(name)
+                .map(|clip| library.clip(asset, clip))
+        };
+        BodyClips {
+            walk: named("walk"),
+            idle: named("idle"),
+            alert: named("alert"),
+        }
+    }
+
+    /// An animator playing the idle clip over `nodes`, if there is one.
+    pub fn idle_animator(&self, nodes: &[Entity]) -> Option<Animator> {
+        Some(Animator {
+            clip: self.idle?,
+            elapsed: 0.0,
+            start: 0.0,
+            speed: 1.0,
+            playback: crate::scene::animation::Playback::Loop,
+            nodes: nodes.to_vec(),
+        })
+    }
+
+    /// Plays `clip` (restarting it when it is not already playing) at `rate`.
+    pub fn play(
+        animator: &mut Animator,
+        clip: usize,
+        playback: crate::scene::animation::Playback,
+        rate: f32,
+    ) {
+        if animator.clip != clip {
+            animator.clip = clip;
+            animator.elapsed = 0.0;
+            animator.playback = playback;
+        }
+        if animator.speed != rate {
+            animator.speed = rate;
+        }
+    }
+}
+
 /// Every clip an animator in the world may play (copied out of the assets at spawn).
 #[derive(Resource, Default)]
 pub struct AnimationLibrary {

@@ -17,7 +17,8 @@
 //!    the goal (`collect_shards`, `reach_exit`), the wardens (`watch_for_player`: sight,
 //!    suspicion, state; `walk_wardens`: their feet, on the `nav::NavGrid` built at load),
 //!    then `patrol` movers;
-//! 3. `Stage::Animation`: `animate_wardens` (each warden's clip for its state), then
+//! 3. `Stage::Animation`: `animate_wardens` (each warden's clip for its state) and
+//!    `animate_player_body` (the player's own body walks or idles), then
 //!    `advance_animations` and `apply_animations` (glTF clips into node transforms and
 //!    morph weights; deformer clocks);
 //! 4. `Stage::Transforms`: `propagate_transforms`.
@@ -47,7 +48,8 @@ use bevy_ecs::prelude::*;
 use glam::{Mat4, Vec3};
 
 pub use animation::{
-    AnimationLibrary, Animator, Deformer, MorphWeights, advance_animations, apply_animations,
+    AnimationLibrary, Animator, BodyClips, Deformer, MorphWeights, advance_animations,
+    apply_animations,
 };
 pub use exposure::{Exposure, measure_exposure};
 pub use goal::{Exit, Outcome, Progress, Shard, collect_shards, reach_exit};
@@ -55,15 +57,16 @@ pub use input::{Action, Input, fly_camera};
 pub use level_io::level_from_world;
 pub use nav::NavGrid;
 pub use patrol::{Patrol, patrol};
-pub use player::{ActiveCamera, Player, PlayerEye, move_player, spawn_player};
+pub use player::{
+    ActiveCamera, Player, PlayerBody, PlayerEye, animate_player_body, move_player, spawn_player,
+};
 pub use spawn::{Assets, LevelInfo, spawn, spawn_entity, spawn_level};
 pub use transform::{
     GlobalTransform, PreviousGlobalTransform, Transform, interpolate, propagate_transforms,
     remember_transforms,
 };
 pub use warden::{
-    Warden, WardenClips, WardenLampLight, WardenState, animate_wardens, walk_wardens,
-    watch_for_player,
+    Warden, WardenLampLight, WardenState, animate_wardens, walk_wardens, watch_for_player,
 };
 pub use world_query::{WorldGeometry, WorldQuery};
 
@@ -200,7 +203,13 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                 }
                 Stage::Animation => {
                     schedule.add_systems(
-                        (animate_wardens, advance_animations, apply_animations).chain(),
+                        (
+                            animate_wardens,
+                            animate_player_body,
+                            advance_animations,
+                            apply_animations,
+                        )
+                            .chain(),
                     );
                 }
                 Stage::Transforms => {

@@ -155,8 +155,103 @@ pub fn spawn_player(world: &mut World) -> Option<Entity> {
         PreviousGlobalTransform(world_eye),
         ChildOf(player),
     ));
+    if let Some(body) = &start.body {
+        spawn_body(world, player, body);
+    }
     world.init_resource::<WorldGeometry>();
     Some(player)
+}
+
+/// The player's own body: the root of its model, a child of the `Player`. The player's
+/// camera rays pass through it; it casts shadows and shows in reflections (extract gives
+/// its meshes the shadow and bounce masks only).
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PlayerBody;
+
+/// Puts the body's model under `player`, facing where the player looks (the model faces
+/// +Z, the view -Z), playing its idle clip. The level loader has already imported the
+/// asset, so this does not fail for a level that loaded; a body that cannot be had is left
+/// out.
+fn spawn_body(world: &mut World, player: Entity, body: &crate::scene::level::InstanceDef) {
+    let Ok(asset) = world
+        .get_resource_or_init::<super::Assets>()
+        .0
+        .load(&body.asset)
+    else {
+        return;
+    };
+    let mut def = crate::scene::level::EntityDef::named("player body");
+    def.instance = Some(body.clone());
+    // Not a level entity: it belongs to the player, and a saved level does not hold it.
+    let spawned = super::spawn_entity(
+        world,
+        &def,
+        super::LevelEntity(usize::MAX),
+        Some(asset.clone()),
+    );
+    let local = Transform {
+        rotation: Quat::from_rotation_y(std::f32::consts::PI),
+        ..Transform::default()
+    };
+    let placed = world
+        .get::<GlobalTransform>(player)
+        .map_or(local.affine(), |parent| parent.0 * local.affine());
+    let clips = super::BodyClips::of(
+        &mut world.get_resource_or_init::<super::AnimationLibrary>(),
+        &asset,
+    );
+    let mut root = world.entity_mut(spawned.root);
+    root.remove::<super::LevelEntity>().insert((
+        PlayerBody,
+        local,
+        GlobalTransform(placed),
+        PreviousGlobalTransform(placed),
+        ChildOf(player),
+        clips,
+    ));
+    if let Some(animator) = clips.idle_animator(&spawned.nodes) {
+        root.insert(animator);
+    }
+}
+
+/// Fixed step, animation: the player's body walks while the player moves (at the pace of
+/// the movement), idles while they stand, and is squashed to the crouched height.
+pub fn animate_player_body(
+    players: Query<&Player>,
+    mut bodies: Query<
+        (
+            &ChildOf,
+            &mut Transform,
+            &super::BodyClips,
+            Option<&mut super::Animator>,
+        ),
+        With<PlayerBody>,
+    >,
+) {
+    for (parent, mut transform, clips, animator) in &mut bodies {
+        let Ok(player) = players.get(parent.parent()) else {
+            continue;
+        };
+        let squash = player.height() / STANDING_HEIGHT;
+        if transform.scale.y != squash {
+            transform.scale.y = squash;
+        }
+        let Some(mut animator) = animator else {
+            continue;
+        };
+        let speed = Vec3::new(player.velocity.x, 0.0, player.velocity.z).length();
+        let playback = crate::scene::animation::Playback::Loop;
+        match (speed > 0.05, clips.walk, clips.idle) {
+            (true, Some(walk), _) => super::BodyClips::play(
+                &mut animator,
+                walk,
+                playback,
+                (speed / WALK).clamp(0.5, 2.5),
+            ),
+            (false, _, Some(idle)) => super::BodyClips::play(&mut animator, idle, playback, 1.0),
+            _ => {}
+        }
+    }
 }
 
 /// Fixed step: the player looks, walks, jumps, crouches and collides (see the module doc).

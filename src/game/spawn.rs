@@ -17,9 +17,9 @@ use glam::Affine3A;
 
 use super::{
     AnimationLibrary, AnimationSource, Animator, AssetInstance, AssetLight, AuthoredRotation,
-    Deformer, DeformerSource, GlobalTransform, Input, LevelCamera, LevelEntity, MeshNode,
-    MorphWeights, PlayerStart, PreviousGlobalTransform, PunctualLight, SimulationClock, Skin,
-    Transform, ViewCamera,
+    BodyClips, Deformer, DeformerSource, GlobalTransform, Input, LevelCamera, LevelEntity,
+    MeshNode, MorphWeights, PlayerStart, PreviousGlobalTransform, PunctualLight, SimulationClock,
+    Skin, Transform, ViewCamera,
 };
 use crate::scene::level::{EntityDef, Environment};
 use crate::scene::model::{Asset, NodeTransform, Projection};
@@ -259,23 +259,19 @@ pub fn spawn_entity(
     let nodes = spawn_nodes(world, (root, placed), &asset, def);
     // A warden's model plays the clips its state calls for, whatever the level starts.
     let warden_clips = def.warden.as_ref().map(|_| {
-        let mut library = world.get_resource_or_init::<AnimationLibrary>();
-        let mut named = |name: &str| {
-            asset
-                .animation_by_name(name)
-                .map(|clip| library.clip(&asset, clip))
-        };
-        super::WardenClips {
-            walk: named("walk"),
-            idle: named("idle"),
-            alert: named("alert"),
-        }
+        BodyClips::of(
+            &mut world.get_resource_or_init::<AnimationLibrary>(),
+            &asset,
+        )
     });
     let authored = def
         .animation
         .as_ref()
         .and_then(|animation| Some((animation, asset.animation_by_name(&animation.clip)?)));
-    let animator = match (authored, warden_clips.and_then(|clips| clips.idle)) {
+    let animator = match (
+        authored,
+        warden_clips.and_then(|clips| clips.idle_animator(&nodes)),
+    ) {
         (Some((animation, clip)), _) => Some(Animator {
             clip: world
                 .get_resource_or_init::<AnimationLibrary>()
@@ -286,15 +282,7 @@ pub fn spawn_entity(
             playback: animation.playback,
             nodes: nodes.clone(),
         }),
-        (None, Some(idle)) => Some(Animator {
-            clip: idle,
-            elapsed: 0.0,
-            start: 0.0,
-            speed: 1.0,
-            playback: crate::scene::animation::Playback::Loop,
-            nodes: nodes.clone(),
-        }),
-        (None, None) => None,
+        (None, idle) => idle,
     };
     if let Some(animator) = animator {
         world.entity_mut(root).insert(animator);

@@ -25,7 +25,7 @@
 use bevy_ecs::prelude::*;
 use glam::{Quat, Vec3};
 
-use super::animation::{AnimationLibrary, Animator};
+use super::animation::{AnimationLibrary, Animator, BodyClips};
 use super::exposure::{Exposure, body_points};
 use super::goal::{Outcome, Progress};
 use super::nav::NavGrid;
@@ -131,14 +131,6 @@ impl Warden {
 /// A warden's lamp (the child entity carrying its light).
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct WardenLampLight;
-
-/// The clips of a warden's model, as `AnimationLibrary` indices (each if the model has it).
-#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct WardenClips {
-    pub walk: Option<usize>,
-    pub idle: Option<usize>,
-    pub alert: Option<usize>,
-}
 
 /// The lamp's place relative to the warden's feet: `reach` ahead (+Z) at `height`,
 /// shining ahead (a spot light shines down its -Z) and tilted down.
@@ -412,7 +404,7 @@ fn turn_towards(warden: &mut Warden, direction: Vec3) {
 /// while it stands.
 pub fn animate_wardens(
     library: Option<Res<AnimationLibrary>>,
-    mut wardens: Query<(&Warden, &WardenClips, &mut Animator)>,
+    mut wardens: Query<(&Warden, &BodyClips, &mut Animator)>,
 ) {
     let Some(library) = library else { return };
     for (warden, clips, mut animator) in &mut wardens {
@@ -429,14 +421,8 @@ pub fn animate_wardens(
             ),
             None => (clips.idle, Playback::Loop, 1.0),
         };
-        let Some(clip) = clip else { continue };
-        if animator.clip != clip {
-            animator.clip = clip;
-            animator.elapsed = 0.0;
-            animator.playback = playback;
-        }
-        if animator.speed != rate {
-            animator.speed = rate;
+        if let Some(clip) = clip {
+            BodyClips::play(&mut animator, clip, playback, rate);
         }
     }
 }

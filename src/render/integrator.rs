@@ -66,8 +66,14 @@ pub struct NextHit {
 }
 
 /// Both integrators' first step at every vertex: None when the ray leaves the scene.
-pub fn next_hit(scene: &RenderScene, ray: &Ray, alpha: &SceneAlpha) -> Option<NextHit> {
-    let hit = scene.accel.intersect(ray, InstanceMask::CAMERA, alpha)?;
+/// `mask` is `InstanceMask::CAMERA` for a camera ray, `InstanceMask::BOUNCE` after.
+pub fn next_hit(
+    scene: &RenderScene,
+    ray: &Ray,
+    mask: InstanceMask,
+    alpha: &SceneAlpha,
+) -> Option<NextHit> {
+    let hit = scene.accel.intersect(ray, mask, alpha)?;
     Some(surface_at(scene, ray, hit))
 }
 
@@ -322,8 +328,10 @@ pub fn continue_path(
     max_depth: u32,
     counts: &mut RayCounts,
 ) {
+    let mut mask = InstanceMask::CAMERA;
     loop {
-        let found = next_hit(scene, &ray, alpha);
+        let found = next_hit(scene, &ray, mask, alpha);
+        mask = InstanceMask::BOUNCE;
         let outcome = path_vertex(scene, state, found, sampler, max_depth, counts);
         if let Some(shadow) = outcome.shadow {
             shadow.resolve(scene, alpha, state);
@@ -355,7 +363,16 @@ pub fn reference_radiance(
             surface,
             wo_world,
             emitted,
-        }) = next_hit(scene, &ray, &alpha)
+        }) = next_hit(
+            scene,
+            &ray,
+            if depth == 0 {
+                InstanceMask::CAMERA
+            } else {
+                InstanceMask::BOUNCE
+            },
+            &alpha,
+        )
         else {
             radiance += beta * scene.sky;
             break;

@@ -473,7 +473,7 @@ impl Tile<'_> {
                     scratch.shadows.clear();
                     scratch.next_live.clear();
                     for &(index, ray) in &scratch.live {
-                        let found = next_hit(scene, &ray, &alpha);
+                        let found = next_hit(scene, &ray, InstanceMask::BOUNCE, &alpha);
                         let outcome = path_vertex(
                             scene,
                             &mut scratch.paths[index],
@@ -534,7 +534,7 @@ impl Tile<'_> {
                     let mut sampler = self.sampler((x, y), sample);
                     let ray = self.camera_ray((x, y), &mut sampler);
                     if self.want_guides && sample == 0 {
-                        let hit = next_hit(self.scene, &ray, &alpha);
+                        let hit = next_hit(self.scene, &ray, InstanceMask::CAMERA, &alpha);
                         guides.push(GuidePixel::from_hit(self.scene, ray.origin, hit.as_ref()));
                     }
                     let radiance = reference_radiance(

@@ -404,6 +404,11 @@ pub struct PlayerSpawn {
     /// Eye height above the spawn point in metres.
     #[serde(default = "default_eye_height")]
     pub eye_height: f32,
+    /// The player's body (a glTF asset facing +Z with `walk` and `idle` clips, feet at its
+    /// origin): hidden from the player's own camera rays, it casts shadows and shows in
+    /// reflections. None: no body.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body: Option<InstanceDef>,
 }
 
 fn default_speed() -> f32 {

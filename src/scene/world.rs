@@ -148,15 +148,30 @@ impl Scene {
 
         // Distinct asset files, in first-use order.
         let mut files: Vec<PathBuf> = Vec::new();
+        // Where each file is first named (the place its load problems point to).
+        let mut named_at: Vec<Pointer> = Vec::new();
         let mut entity_assets = Vec::with_capacity(level.entities.len());
-        for entity in &level.entities {
-            entity_assets.push(entity.instance.as_ref().map(|instance| {
-                let file = base.join(&instance.asset);
-                files.iter().position(|f| *f == file).unwrap_or_else(|| {
-                    files.push(file);
-                    files.len() - 1
-                })
-            }));
+        let mut use_file = |asset: &str, at: Pointer| {
+            let file = base.join(asset);
+            files.iter().position(|f| *f == file).unwrap_or_else(|| {
+                files.push(file);
+                named_at.push(at);
+                files.len() - 1
+            })
+        };
+        let mut body_assets = Vec::new();
+        for (index, entity) in level.entities.iter().enumerate() {
+            let at = Pointer::root().key("entities").index(index);
+            entity_assets.push(
+                entity
+                    .instance
+                    .as_ref()
+                    .map(|instance| use_file(&instance.asset, at.key("instance").key("asset"))),
+            );
+            if let Some(body) = entity.player_spawn.as_ref().and_then(|s| s.body.as_ref()) {
+                let at = at.key("player_spawn").key("body");
+                body_assets.push((index, use_file(&body.asset, at.key("asset"))));
+            }
         }
         // Assets import independently; rayon spreads them over the cores.
         let imported: Vec<Result<Asset, LoadError>> =
@@ -168,15 +183,7 @@ impl Scene {
             match result {
                 Ok(asset) => assets.push(Arc::new(asset)),
                 Err(error) => {
-                    let user = entity_assets
-                        .iter()
-                        .position(|a| *a == Some(asset_index))
-                        .unwrap_or(0);
-                    let pointer = Pointer::root()
-                        .key("entities")
-                        .index(user)
-                        .key("instance")
-                        .key("asset");
+                    let pointer = named_at[asset_index].clone();
                     let file = &files[asset_index];
                     let message = if file.exists() {
                         format!(
@@ -198,10 +205,24 @@ impl Scene {
         }
 
         // Material overrides must name materials the asset has.
-        for (index, entity) in level.entities.iter().enumerate() {
-            let (Some(instance), Some(asset)) = (&entity.instance, entity_assets[index]) else {
-                continue;
-            };
+        let instances = level
+            .entities
+            .iter()
+            .enumerate()
+            .filter_map(|(index, entity)| {
+                let at = Pointer::root().key("entities").index(index).key("instance");
+                Some((at, entity.instance.as_ref()?, entity_assets[index]?))
+            });
+        let bodies = body_assets.iter().filter_map(|&(index, asset)| {
+            let spawn = level.entities[index].player_spawn.as_ref()?;
+            let at = Pointer::root()
+                .key("entities")
+                .index(index)
+                .key("player_spawn")
+                .key("body");
+            Some((at, spawn.body.as_ref()?, asset))
+        });
+        for (at, instance, asset) in instances.chain(bodies) {
             for name in instance.material_overrides.keys() {
                 if assets[asset].material_by_name(name).is_none() {
                     let known: Vec<&str> = assets[asset]
@@ -209,12 +230,7 @@ impl Scene {
                         .iter()
                         .map(|m| m.name.as_str())
                         .collect();
-                    let pointer = Pointer::root()
-                        .key("entities")
-                        .index(index)
-                        .key("instance")
-                        .key("material_overrides")
-                        .key(name);
+                    let pointer = at.key("material_overrides").key(name);
                     diagnostics.push(Diagnostic::at_pointer(
                         path,
                         &text(),
