@@ -30,7 +30,7 @@ use crate::game::world_query::{Contact, RayHit, WorldGeometry, WorldQuery};
 use crate::game::{
     AssetInstance, AssetLight, GlobalTransform, LevelInfo, MeshNode, PunctualLight, SwitchedOff,
 };
-use crate::profile::{Stage, StageTimes, since};
+use crate::profile::{GameplayPhase, Stage, StageTimes, since};
 use crate::render::light::Light;
 use crate::scene::AssetKey;
 use crate::scene::model::Light as LightDef;
@@ -326,7 +326,9 @@ pub fn update_step_world(
         }
     }
     world.sky = level.map_or(Vec3::ZERO, |l| l.environment.sky);
-    times.add(Stage::Gameplay, since(start));
+    let ms = since(start);
+    times.add(Stage::Gameplay, ms);
+    times.add_gameplay(GameplayPhase::World, ms);
 }
 
 /// A mesh node to instance: its content key (root name, node, root), entity, node and

@@ -18,6 +18,7 @@ use glam::{Quat, Vec3};
 use super::player::tuning::STANDING_HEIGHT;
 use super::world_query::WorldGeometry;
 use super::{Player, SIMULATION_HZ, Transform};
+use crate::profile::{GameplayPhase, StageTimes, since};
 use crate::scene::model::luminance;
 
 /// The one curve from light to visibility, and its smoothing.
@@ -92,8 +93,10 @@ pub fn body_points(feet: Vec3, yaw: f32, height: f32) -> [Vec3; BODY_POINTS.len(
 pub fn measure_exposure(
     geometry: Option<Res<WorldGeometry>>,
     mut players: Query<(&Player, &Transform, &mut Exposure)>,
+    times: Option<ResMut<StageTimes>>,
 ) {
     let Some(geometry) = geometry else { return };
+    let start = std::time::Instant::now();
     let smoothing = 1.0 - (-(1.0 / SIMULATION_HZ as f32) / curve::SMOOTHING).exp();
     for (player, transform, mut exposure) in &mut players {
         let points = body_points(transform.translation, player.yaw, player.height());
@@ -105,5 +108,9 @@ pub fn measure_exposure(
         }
         let target = curve::combine(&exposure.values);
         exposure.gem += (target - exposure.gem) * smoothing;
+    }
+    // For the profiler only: nothing in the simulation reads it.
+    if let Some(mut times) = times {
+        times.add_gameplay(GameplayPhase::Exposure, since(start));
     }
 }

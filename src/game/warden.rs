@@ -33,6 +33,7 @@ use super::player::Player;
 use super::sight::{self, Sighting};
 use super::world_query::WorldGeometry;
 use super::{PunctualLight, SIMULATION_HZ, Transform};
+use crate::profile::{GameplayPhase, StageTimes, since};
 use crate::scene::animation::Playback;
 use crate::scene::level::{WardenDef, WardenLamp};
 
@@ -176,9 +177,13 @@ pub fn watch_for_player(
     progress: Option<ResMut<Progress>>,
     players: Query<(&Player, &Transform, &Exposure)>,
     mut wardens: Query<(&mut Warden, &Transform), Without<Player>>,
+    times: Option<ResMut<StageTimes>>,
 ) {
     let Some(geometry) = geometry else { return };
     let Some(mut progress) = progress else { return };
+    let start = std::time::Instant::now();
+    // For the profiler only: nothing in the simulation reads it.
+    let _timed = Timed(times, start);
     if progress.outcome != Outcome::Running {
         return;
     }
@@ -261,6 +266,18 @@ pub fn watch_for_player(
             if warden.state == WardenState::Patrol {
                 warden.suspicion = 0.0;
             }
+        }
+    }
+}
+
+/// Adds the time since its start to the gameplay stage's `Sight` part when dropped (every
+/// way out of `watch_for_player`).
+struct Timed<'w>(Option<ResMut<'w, StageTimes>>, std::time::Instant);
+
+impl Drop for Timed<'_> {
+    fn drop(&mut self) {
+        if let Some(times) = &mut self.0 {
+            times.add_gameplay(GameplayPhase::Sight, since(self.1));
         }
     }
 }

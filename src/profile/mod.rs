@@ -155,11 +155,18 @@ pub struct StageTimes {
     pub render_phases: [f64; RENDER_PHASES.len()],
     /// The film's wall time split over its steps (`FILM_PHASES`).
     pub film_phases: [f64; FILM_PHASES.len()],
+    /// The gameplay stage's timed parts (`GameplayPhase`; `Rest` is filled in by `sample`).
+    pub gameplay_phases: [f64; GAMEPLAY_PHASES.len()],
     /// Rays the render traced (camera, bounce and shadow).
     pub rays: u64,
 }
 
 impl StageTimes {
+    /// Adds `ms` to a timed part of the gameplay stage (the stage's total is timed apart).
+    pub fn add_gameplay(&mut self, phase: GameplayPhase, ms: f64) {
+        self.gameplay_phases[phase as usize] += ms;
+    }
+
     pub fn add(&mut self, stage: Stage, ms: f64) {
         self.ms[stage.index()] += ms;
     }
@@ -172,10 +179,15 @@ impl StageTimes {
     pub fn sample(&self, present_ms: f64, frame_ms: f64) -> FrameSample {
         let mut stages = self.ms;
         stages[Stage::Present.index()] = present_ms;
+        let mut gameplay_phases = self.gameplay_phases;
+        let timed: f64 = gameplay_phases[..GameplayPhase::Rest as usize].iter().sum();
+        gameplay_phases[GameplayPhase::Rest as usize] =
+            (stages[Stage::Gameplay.index()] - timed).max(0.0);
         FrameSample {
             stages,
             render_phases: self.render_phases,
             film_phases: self.film_phases,
+            gameplay_phases,
             frame_ms,
             rays: self.rays,
         }
@@ -187,6 +199,47 @@ pub fn since(start: std::time::Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
 
+/// The parts of the gameplay stage timed apart, nested under it as `gameplay.<part>`:
+/// bringing the simulation's copy of the level up to date, the light gem's shadow rays,
+/// the wardens' sight (rays and minds), and everything else (the player's body, the goal,
+/// the wardens' feet and paths).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GameplayPhase {
+    World,
+    Exposure,
+    Sight,
+    Rest,
+}
+
+impl GameplayPhase {
+    pub const ALL: [GameplayPhase; 4] = [
+        GameplayPhase::World,
+        GameplayPhase::Exposure,
+        GameplayPhase::Sight,
+        GameplayPhase::Rest,
+    ];
+
+    pub const fn name(self) -> &'static str {
+        match self {
+            GameplayPhase::World => "world",
+            GameplayPhase::Exposure => "exposure",
+            GameplayPhase::Sight => "sight",
+            GameplayPhase::Rest => "rest",
+        }
+    }
+}
+
+/// `GameplayPhase` names, in order.
+pub const GAMEPLAY_PHASES: [&str; GameplayPhase::ALL.len()] = {
+    let mut names = [""; GameplayPhase::ALL.len()];
+    let mut index = 0;
+    while index < names.len() {
+        names[index] = GameplayPhase::ALL[index].name();
+        index += 1;
+    }
+    names
+};
+
 /// The phases inside `render` (render/mod.rs's wavefront over each tile), nested under it
 /// in every report as `render.<phase>`. The same names as `render::PhaseTimes::NAMES`
 /// (a test holds them equal; the profiler depends on nothing above it).
@@ -196,11 +249,12 @@ pub const RENDER_PHASES: [&str; 4] = ["primary", "shade", "shadow", "bounces"];
 /// `film.<step>`: the same names as `render::FilmPhaseTimes::NAMES`.
 pub const FILM_PHASES: [&str; 3] = ["temporal", "spatial", "remodulate"];
 
-/// A frame's phase times of a stage that has phases: `render`'s or `film`'s.
+/// A frame's phase times of a stage that has phases: `gameplay`'s, `render`'s or `film`'s.
 type PhasesOf = fn(&FrameSample) -> &[f64];
 
 /// The stages timed in phases, with their phase names, in `STAGES` order.
-const NESTED: [(&str, &[&str], PhasesOf); 2] = [
+const NESTED: [(&str, &[&str], PhasesOf); 3] = [
+    ("gameplay", &GAMEPLAY_PHASES, |frame| &frame.gameplay_phases),
     ("render", &RENDER_PHASES, |frame| &frame.render_phases),
     ("film", &FILM_PHASES, |frame| &frame.film_phases),
 ];
@@ -223,6 +277,8 @@ pub struct FrameSample {
     /// The film stage's milliseconds per step (`FILM_PHASES`), summing to it (zero when no
     /// filter ran).
     pub film_phases: [f64; FILM_PHASES.len()],
+    /// The gameplay stage's milliseconds per part (`GAMEPLAY_PHASES`), summing to it.
+    pub gameplay_phases: [f64; GAMEPLAY_PHASES.len()],
     pub frame_ms: f64,
     pub rays: u64,
 }
@@ -338,7 +394,7 @@ impl Profile {
             "mrays_per_s": self.mrays_per_s(),
             "rays_per_frame": self.frames.iter().map(|f| f.rays).collect::<Vec<_>>(),
         });
-        // "render_phases" and "film_phases": each phase's summary, by name.
+        // "gameplay_phases", "render_phases" and "film_phases": each phase's summary.
         for (stage, summaries) in self.phase_summaries() {
             let phases: serde_json::Map<String, Value> = summaries
                 .into_iter()
@@ -392,17 +448,19 @@ impl Profile {
     /// A row per frame: frame index, each stage, the frame, rays.
     pub fn to_csv(&self) -> String {
         let mut text = format!(
-            "frame,{},{},{},frame_ms,rays\n",
+            "frame,{},{},frame_ms,rays\n",
             STAGES.map(|s| format!("{s}_ms")).join(","),
-            RENDER_PHASES.map(|s| format!("render.{s}_ms")).join(","),
-            FILM_PHASES.map(|s| format!("film.{s}_ms")).join(",")
+            NESTED
+                .iter()
+                .flat_map(|(stage, names, _)| names.iter().map(move |n| format!("{stage}.{n}_ms")))
+                .collect::<Vec<_>>()
+                .join(","),
         );
         for (index, frame) in self.frames.iter().enumerate() {
             let stages: Vec<String> = frame
                 .stages
                 .iter()
-                .chain(&frame.render_phases)
-                .chain(&frame.film_phases)
+                .chain(NESTED.iter().flat_map(|(_, _, times)| times(frame)))
                 .map(|ms| format!("{ms:.6}"))
                 .collect();
             text += &format!(
@@ -516,6 +574,7 @@ mod tests {
             stages: [0.1, 0.0, 0.2, 0.1, 0.0, 0.3, 0.1, render, 0.2, 0.0],
             render_phases: [render * 0.4, render * 0.1, render * 0.2, render * 0.3],
             film_phases: [0.1, 0.05, 0.05],
+            gameplay_phases: [0.0, 0.0, 0.0, 0.0],
             frame_ms: render + 1.5,
             rays: 10,
         };
