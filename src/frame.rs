@@ -16,7 +16,10 @@
 //!    frame goes through temporal reprojection and the a-trous filter.
 //!
 //! The window shell (`app`) presents the result and times `Stage::Present`; headless tools
-//! (`bench`, `render`, `flythrough`, tests) drive the same `Engine`.
+//! (`bench`, `render`, `flythrough`, tests) drive the same `Engine`. At construction the
+//! level's navigation grid is built from the simulation's copy of its geometry
+//! (`game::NavGrid`). Each fixed step can record its input (`Engine::recording`) or take
+//! it from a recording (`Engine::playback`).
 
 use bevy_ecs::prelude::*;
 

@@ -39,6 +39,15 @@ fn feet(engine: &Engine, player: Entity) -> Vec3 {
     engine.world.get::<Transform>(player).unwrap().translation
 }
 
+/// Puts the player's feet at `at`.
+fn place(engine: &mut Engine, player: Entity, at: Vec3) {
+    engine
+        .world
+        .get_mut::<Transform>(player)
+        .unwrap()
+        .translation = at;
+}
+
 fn state(engine: &Engine, player: Entity) -> Player {
     engine.world.get::<Player>(player).unwrap().clone()
 }
@@ -139,11 +148,7 @@ fn a_jump_rises_half_a_metre_and_lands() {
 #[test]
 fn a_long_fall_never_passes_through_the_floor() {
     let (mut engine, player) = level();
-    engine
-        .world
-        .get_mut::<Transform>(player)
-        .unwrap()
-        .translation = Vec3::new(1.0, 40.0, 1.0);
+    place(&mut engine, player, Vec3::new(1.0, 40.0, 1.0));
     hold(&mut engine, &[], 5.0);
     let landed = feet(&engine, player);
     assert!(landed.y.abs() < 0.01, "landed on the floor: {landed}");
@@ -217,11 +222,7 @@ fn the_light_gem_rises_in_a_lamp_pool_and_falls_in_the_dark() {
         "the start: {dark}"
     );
     // Under the hall's north lamp.
-    engine
-        .world
-        .get_mut::<Transform>(player)
-        .unwrap()
-        .translation = HALL_LAMP_POOL;
+    place(&mut engine, player, HALL_LAMP_POOL);
     let mut last = dark;
     let mut steps = Vec::new();
     for _ in 0..60 {
@@ -254,11 +255,7 @@ fn the_light_gem_rises_in_a_lamp_pool_and_falls_in_the_dark() {
 #[test]
 fn a_shadow_the_player_can_see_hides_them() {
     let (mut engine, player) = level();
-    engine
-        .world
-        .get_mut::<Transform>(player)
-        .unwrap()
-        .translation = HALL_LAMP_POOL;
+    place(&mut engine, player, HALL_LAMP_POOL);
     hold(&mut engine, &[], 1.0);
     let lit = gem(&engine, player);
     // A board hung between the lamp (2.9 m up) and the player.
@@ -299,11 +296,7 @@ fn taking_every_shard_and_reaching_the_exit_wins() {
         Outcome::Running
     );
     for (x, z) in [(-10.8, -6.8), (0.0, -7.3), (11.0, 7.0)] {
-        engine
-            .world
-            .get_mut::<Transform>(player)
-            .unwrap()
-            .translation = Vec3::new(x, 0.0, z);
+        place(&mut engine, player, Vec3::new(x, 0.0, z));
         hold(&mut engine, &[], 0.1);
     }
     assert_eq!(shards(&mut engine), 0, "every shard taken");
@@ -314,11 +307,7 @@ fn taking_every_shard_and_reaching_the_exit_wins() {
         "their glow went with them"
     );
     // Back to the way out.
-    engine
-        .world
-        .get_mut::<Transform>(player)
-        .unwrap()
-        .translation = Vec3::new(10.0, 0.0, -7.3);
+    place(&mut engine, player, Vec3::new(10.0, 0.0, -7.3));
     hold(&mut engine, &[], 0.1);
     let progress = engine.world.resource::<Progress>().clone();
     assert_eq!(progress.outcome, Outcome::Won);
@@ -387,11 +376,7 @@ fn wardens_walk_their_routes_carrying_their_lamps() {
 fn the_body_is_hidden_from_its_own_eyes_but_casts_a_shadow() {
     use gloam::accel::{InstanceMask, Opaque, Ray};
     let (mut engine, player) = level();
-    engine
-        .world
-        .get_mut::<Transform>(player)
-        .unwrap()
-        .translation = HALL_LAMP_POOL;
+    place(&mut engine, player, HALL_LAMP_POOL);
     hold(&mut engine, &[], 0.5);
     engine.advance(STEP);
     // Its meshes are instances for shadow and bounce rays, not camera rays.

@@ -1,7 +1,8 @@
 //! Wardens on level 1: the navigation grid built at load finds its way through the doors
-//! and around the furniture; the shipped recordings end as they did (a clean win, and a
-//! catch that went patrol -> suspicious -> alert -> caught); and no warden ever grew more
-//! suspicious while the light gem showed the player hidden (fair by construction).
+//! and around the furniture; the shipped recordings end as they did (a clean win; a catch
+//! that went patrol -> suspicious -> alert -> caught; a glimpse searched for and given up);
+//! and no warden ever grew more suspicious while the light gem showed the player hidden
+//! (fair by construction).
 
 mod common;
 
@@ -146,4 +147,55 @@ fn the_caught_run_is_seen_chased_and_caught_in_order() {
         .unwrap();
     assert!(noticed["exposure"].as_f64().unwrap() > 0.6, "{noticed}");
     assert_fair(&report);
+}
+
+#[test]
+fn a_glimpse_is_searched_for_where_it_was_then_forgotten() {
+    use gloam::app::replay::read_recording;
+    use gloam::game::{Progress, Warden, WardenState, spawn_player};
+    let (glimpse, level) = read_recording(&recording("first-light-glimpsed.json")).unwrap();
+    let mut engine = Engine::new(
+        &Scene::load(&level).unwrap(),
+        RenderSettings::real_time(8, 8),
+    );
+    spawn_player(&mut engine.world).unwrap();
+    engine.playback = Some(glimpse.steps.iter().copied().collect());
+    let mut order = vec![WardenState::Patrol];
+    let mut searched_from: Option<Vec3> = None;
+    let mut nearest = f32::INFINITY;
+    for _ in 0..glimpse.steps.len() {
+        engine.step();
+        let mut wardens = engine
+            .world
+            .query::<(&bevy_ecs::name::Name, &Warden, &gloam::game::Transform)>();
+        let (_, warden, placed) = wardens
+            .iter(&engine.world)
+            .find(|(name, _, _)| name.as_str() == "warden 1")
+            .unwrap();
+        if *order.last().unwrap() != warden.state {
+            order.push(warden.state);
+        }
+        if warden.state == WardenState::Searching {
+            let target = *searched_from.get_or_insert(warden.last_seen.unwrap());
+            nearest = nearest.min(placed.translation.distance(target));
+        }
+    }
+    // It stopped to look, went to look where it had glimpsed the player, and gave up.
+    assert_eq!(
+        order,
+        [
+            WardenState::Patrol,
+            WardenState::Suspicious,
+            WardenState::Searching,
+            WardenState::Patrol
+        ]
+    );
+    assert!(
+        nearest < 0.5,
+        "it walked to within {nearest} m of the place"
+    );
+    let progress = engine.world.resource::<Progress>();
+    assert_eq!(progress.times_seen, 1);
+    assert_eq!(progress.outcome, gloam::game::Outcome::Running);
+    assert_fair(&replay(&recording("first-light-glimpsed.json"), 1).unwrap());
 }

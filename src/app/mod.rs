@@ -5,8 +5,11 @@
 //! 2. `RedrawRequested`: the engine advances by the real time since the last frame (fixed
 //!    60 Hz simulation, then extract -> accel -> render -> film accumulation);
 //! 3. present: the accumulated image is tone mapped (the film's tone mapper) into pixels'
-//!    frame buffer at the internal render resolution, the HUD is drawn over it, and pixels
-//!    scales it to the window.
+//!    frame buffer at the internal render resolution, the HUD is drawn over it (the light
+//!    gem, the shards, each warden's state mark projected over its head, the end screen),
+//!    and pixels scales it to the window;
+//! 4. when a warden has caught the player, the level starts again at once from the loaded
+//!    `Scene` (a watched recording stays on its last frame instead).
 //!
 //! Keys: W A S D walk, Shift sprints, Space jumps, C or Ctrl crouches, N toggles noclip
 //! (fly through walls: Space and C rise and sink), mouse looks once captured (click), Esc

@@ -1,10 +1,12 @@
 //! Game schedule, fixed step "gameplay": the wardens. Per step, after the player's light
 //! gem is measured:
 //! 1. `watch_for_player`: each warden looks (`sight::look`: its cones, rays from its eyes
-//!    to the body points, the light gem) and its suspicion fills by what it sees
-//!    (`FILL_RATE` x visibility a second: about half a second close and lit, several
-//!    seconds far and dim) or drains (`DRAIN` a second) when it sees nothing; its state
-//!    follows (below), and a warden reaching the player while alert catches them;
+//!    to the body points, the light gem) and its suspicion moves by
+//!    `FILL_RATE` x visibility - `DRAIN` a second: it fills in about half a second close
+//!    and lit, in several seconds far and dim, and drains when it sees nothing or too
+//!    little to grow (visibility below `DRAIN / FILL_RATE`, which counts as not seeing);
+//!    its state follows (below), and a warden reaching the player while alert catches
+//!    them;
 //! 2. `walk_wardens`: each moves as its state asks, turning at most `TURN_RATE`;
 //! 3. `animate_wardens`: each plays the clip its state and motion call for (`walk`,
 //!    `idle`, and `alert` once when it notices).
@@ -40,10 +42,11 @@ use crate::scene::level::{WardenDef, WardenLamp};
 /// The wardens' minds and legs, in one place (seconds, metres, 0..1 suspicion; GAME.md's
 /// starting numbers, tuned by playing level 1).
 pub mod tuning {
-    /// Suspicion a second at visibility 1 (close, lit, every point in sight): full in
-    /// 0.5 s; far and dim (visibility 0.1) takes 5 s.
+    /// Suspicion gained a second per unit of visibility: at visibility 1 (close, lit,
+    /// every point in sight) full in about 0.55 s; at 0.25 (far and dim) in 3.3 s.
     pub const FILL_RATE: f32 = 2.0;
-    /// Suspicion lost a second while it sees nothing.
+    /// Suspicion lost a second, whatever it sees: a player seen too little to outweigh it
+    /// is being forgotten.
     pub const DRAIN: f32 = 0.2;
     /// Suspicion at which a patrolling warden stops to look.
     pub const NOTICE: f32 = 0.25;
@@ -209,12 +212,12 @@ pub fn watch_for_player(
         warden.sighting = seen;
         warden.since_noticed += STEP;
         warden.timer += STEP;
-        let sees = seen.visibility > 0.0;
+        let growth = FILL_RATE * seen.visibility - DRAIN;
+        warden.suspicion = (warden.suspicion + growth * STEP).clamp(0.0, 1.0);
+        // Seeing is seeing enough to grow more suspicious.
+        let sees = growth > 0.0;
         if sees {
-            warden.suspicion = (warden.suspicion + FILL_RATE * seen.visibility * STEP).min(1.0);
             warden.last_seen = Some(feet);
-        } else {
-            warden.suspicion = (warden.suspicion - DRAIN * STEP).max(0.0);
         }
         let before = warden.state;
         warden.state = match before {
@@ -523,7 +526,7 @@ mod tests {
         let close = seconds_until(&mut world, &mut schedule, warden, WardenState::Alert, 5.0)
             .expect("a lit player 3 m ahead alarms the warden");
         assert!((0.3..=0.7).contains(&close), "{close} s");
-        let (mut world, mut schedule, warden) = world_with(Vec3::new(0.0, 0.0, 14.0), 0.3);
+        let (mut world, mut schedule, warden) = world_with(Vec3::new(0.0, 0.0, 10.0), 0.4);
         let far = seconds_until(
             &mut world,
             &mut schedule,
@@ -531,13 +534,26 @@ mod tests {
             WardenState::Suspicious,
             30.0,
         )
-        .expect("a dim player 14 m ahead is noticed in the end");
-        assert!(far >= 1.0, "noticed after {far} s");
-        // Suspicion rose past the notice level first: full alert takes several seconds.
+        .expect("a dim player 10 m ahead is noticed in the end");
+        assert!(far >= 0.6, "noticed after {far} s");
+        // Full alert takes several seconds.
         let alert = seconds_until(&mut world, &mut schedule, warden, WardenState::Alert, 30.0)
-            .map(|more| far + more);
-        assert!(alert.is_none_or(|alert| alert >= 4.0), "{alert:?} s");
+            .map(|more| far + more)
+            .expect("and alarms it in the end");
+        assert!(alert >= 3.0, "{alert} s");
         assert_eq!(world.resource::<Progress>().times_seen, 1);
+        // Seen so little that the drain outweighs it: never noticed.
+        let (mut world, mut schedule, warden) = world_with(Vec3::new(0.0, 0.0, 14.0), 0.25);
+        assert_eq!(
+            seconds_until(
+                &mut world,
+                &mut schedule,
+                warden,
+                WardenState::Suspicious,
+                30.0
+            ),
+            None
+        );
     }
 
     #[test]
