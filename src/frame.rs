@@ -88,7 +88,9 @@ impl Engine {
         engine.step_world.run(&mut engine.world);
         let geometry = &engine.world.resource::<WorldGeometry>().0;
         let grid = match geometry.bounds() {
-            Some(bounds) => crate::game::NavGrid::build(geometry.as_ref(), bounds),
+            Some(bounds) => {
+                crate::game::NavGrid::build(geometry.as_ref(), bounds, crate::game::nav::CELL)
+            }
             None => crate::game::NavGrid::default(),
         };
         engine.world.insert_resource(grid);
@@ -242,6 +244,12 @@ impl Engine {
                 .add(*stage, since(start));
         }
         self.steps += 1;
+    }
+
+    /// Brings the simulation's copy of the level up to date with the world as it stands
+    /// (a step does this at its start), for tools that ask it questions between steps.
+    pub fn update_step_world(&mut self) {
+        self.step_world.run(&mut self.world);
     }
 
     /// The camera the next frame renders from, at `width` x `height`.

@@ -73,6 +73,17 @@ fn bad_flags_are_one_line_and_exit_1() {
             "x.json",
         ],
         &["play", "levels/first-light.ron", "--json", "x.json"],
+        &[
+            "exposure",
+            "levels/first-light.ron",
+            "--cell",
+            "0",
+            "--out",
+            "x.png",
+            "--json",
+            "x.json",
+        ],
+        &["exposure", "levels/first-light.ron", "--out", "x.png"],
         &["play", "--headless", "--replay", "no-such-replay.json"],
     ] {
         let output = gloam(args);

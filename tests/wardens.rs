@@ -116,14 +116,12 @@ fn the_clean_run_wins_unseen() {
             assert_eq!(states(step, warden).0, "patrol", "t {}", step["t"]);
         }
     }
-    // The way out is lit (its green lamp): the gem shows it at the end.
-    assert!(
-        steps
-            .iter()
-            .rev()
-            .take(30)
-            .any(|s| s["exposure"].as_f64().unwrap() > 0.5)
-    );
+    // A dark route all the way: the gem never lights more than one of the HUD's cells.
+    let brightest = steps
+        .iter()
+        .map(|s| s["exposure"].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    assert!(brightest < 0.3, "{brightest}");
     assert_fair(&report);
 }
 

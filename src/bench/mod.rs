@@ -1,9 +1,10 @@
 //! Measurement tools, as library code: what `gloam bench` (`frames`), `raybench`,
-//! `flythrough` and `convergence` measure. Each module's `Options` is its command's flags
+//! `flythrough`, `convergence` and `exposure` (`exposure_map`) measure. Each module's `Options` is its command's flags
 //! (the command line parses them and calls `run`); each `run` prints its table and writes
 //! its reports. Outside the frame: these drive the engine's own steps and time them.
 
 pub mod convergence;
+pub mod exposure_map;
 pub mod flythrough;
 pub mod frames;
 pub mod raybench;

@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 
-use crate::bench::{FilterArg, convergence, flythrough, frames, raybench};
+use crate::bench::{FilterArg, convergence, exposure_map, flythrough, frames, raybench};
 use crate::scene::files::default_level;
 use crate::scene::world::Scene;
 
@@ -95,6 +95,11 @@ pub enum Command {
     /// against converged references for the raw frame, temporal filtering, and temporal +
     /// spatial filtering, plus a ghosting measure over the warden's trail.
     Flythrough(flythrough::Options),
+    /// The exposure map: the light gem a player would have standing and crouching on each
+    /// floor cell (the game's own exposure rays, lights and wardens' lamps at --time), and
+    /// whether a walkable route from the spawn through every shard to the exit stays at or
+    /// below --threshold. Writes MAP.png and MAP.json.
+    Exposure(exposure_map::Options),
     /// Compare two .exr renders of the same size: mean radiance of each, RMSE, and the
     /// ratio of their means over a 4 x 4 grid of regions (a local bias shows there).
     Compare {
@@ -290,6 +295,10 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         }
         Command::Flythrough(options) => {
             flythrough::run(&options)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Exposure(options) => {
+            exposure_map::run(&options)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Compare { image, reference } => {

@@ -16,7 +16,7 @@ use bevy_ecs::prelude::*;
 use glam::{Quat, Vec3};
 
 use super::player::tuning::STANDING_HEIGHT;
-use super::world_query::WorldGeometry;
+use super::world_query::{WorldGeometry, WorldQuery};
 use super::{Player, SIMULATION_HZ, Transform};
 use crate::profile::{GameplayPhase, StageTimes, since};
 use crate::scene::model::luminance;
@@ -89,6 +89,29 @@ pub fn body_points(feet: Vec3, yaw: f32, height: f32) -> [Vec3; BODY_POINTS.len(
     BODY_POINTS.map(|(_, offset)| feet + facing * (offset * squash))
 }
 
+/// Steps 1 and 2 of the module doc at `points`: each point's light and value (into
+/// `light` and `values`), and their combination, the gem's target (what it settles at).
+pub fn measure_points(
+    world: &dyn WorldQuery,
+    points: &[Vec3; BODY_POINTS.len()],
+    light: &mut [f32; BODY_POINTS.len()],
+    values: &mut [f32; BODY_POINTS.len()],
+) -> f32 {
+    for (index, point) in points.iter().enumerate() {
+        light[index] = luminance(world.light_arriving(*point));
+        values[index] = curve::point_value(light[index]);
+    }
+    curve::combine(values)
+}
+
+/// The gem a body `height` tall standing at `feet` settles at (the smoothing's end).
+pub fn settled_gem(world: &dyn WorldQuery, feet: Vec3, height: f32) -> f32 {
+    let points = body_points(feet, 0.0, height);
+    let mut light = [0.0; BODY_POINTS.len()];
+    let mut values = [0.0; BODY_POINTS.len()];
+    measure_points(world, &points, &mut light, &mut values)
+}
+
 /// Fixed step: the player's exposure (see the module doc).
 pub fn measure_exposure(
     geometry: Option<Res<WorldGeometry>>,
@@ -101,12 +124,12 @@ pub fn measure_exposure(
     for (player, transform, mut exposure) in &mut players {
         let points = body_points(transform.translation, player.yaw, player.height());
         let exposure = &mut *exposure;
-        for (index, point) in points.iter().enumerate() {
-            let light = luminance(geometry.0.light_arriving(*point));
-            exposure.light[index] = light;
-            exposure.values[index] = curve::point_value(light);
-        }
-        let target = curve::combine(&exposure.values);
+        let target = measure_points(
+            &*geometry.0,
+            &points,
+            &mut exposure.light,
+            &mut exposure.values,
+        );
         exposure.gem += (target - exposure.gem) * smoothing;
     }
     // For the profiler only: nothing in the simulation reads it.

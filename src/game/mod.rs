@@ -28,6 +28,7 @@
 
 pub mod animation;
 pub mod exposure;
+pub mod exposure_map;
 pub mod goal;
 pub mod input;
 pub mod level_io;

@@ -1,6 +1,7 @@
 //! Game, at level load: where a warden can walk, and the way from one place to another.
 //!
-//! `NavGrid::build` lays a grid of `CELL` metre cells over the level's geometry (asked
+//! `NavGrid::build` lays a grid of square cells (`CELL` metres for the wardens) over the
+//! level's geometry (asked
 //! through `WorldQuery`, as of the first step) and finds, in each cell's column, every
 //! surface a body can stand on: a ray cast down from above the level stops at each
 //! surface, and a surface counts when it faces up as a floor does and a standing capsule of the player's radius and height
@@ -24,8 +25,8 @@ use glam::Vec3;
 use super::player::tuning::{FLOOR_COSINE, RADIUS, STANDING_HEIGHT, STEP_HEIGHT};
 use super::world_query::{Contact, WorldQuery};
 
-/// The side of a cell in metres: small enough that a 1 m doorway keeps a cell of the
-/// capsule-inflated free space, large enough that a 20 m level is 6,400 columns.
+/// The side of the wardens' cells in metres: small enough that a 1 m doorway keeps a cell
+/// of the capsule-inflated free space, large enough that a 20 m level is 6,400 columns.
 pub const CELL: f32 = 0.25;
 
 /// The most floors one column holds.
@@ -36,31 +37,41 @@ const MAX_FLOORS: usize = 4;
 pub struct NavGrid {
     /// The minimum corner (x, z) of cell (0, 0).
     pub origin: (f32, f32),
+    /// The side of a cell in metres.
+    pub cell: f32,
+    /// Cells along +x and along +z.
     pub width: usize,
     pub depth: usize,
     /// Per column (row-major, x fastest), the floors' heights from the highest down.
     floors: Vec<Vec<f32>>,
 }
 
-/// A node: a floor in a column.
+/// A node of the grid: one floor in one column.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-struct Node {
-    column: usize,
-    floor: usize,
+pub struct Node {
+    /// The column, row-major (`row * width + column`).
+    pub column: usize,
+    /// Which of the column's floors, highest first.
+    pub floor: usize,
 }
 
 impl NavGrid {
-    /// The grid over `world`'s geometry within `bounds` (min, max corners).
-    pub fn build(world: &dyn WorldQuery, bounds: (Vec3, Vec3)) -> NavGrid {
+    /// The grid of `cell`-metre cells over `world`'s geometry within `bounds` (min, max
+    /// corners).
+    pub fn build(world: &dyn WorldQuery, bounds: (Vec3, Vec3), cell: f32) -> NavGrid {
         let (min, max) = bounds;
-        if !(min.is_finite() && max.is_finite()) || min.x > max.x || min.z > max.z {
+        if !(min.is_finite() && max.is_finite() && cell.is_finite() && cell > 0.0)
+            || min.x > max.x
+            || min.z > max.z
+        {
             return NavGrid::default();
         }
-        // A grid no bigger than 2048 cells a side (a 512 m level): the build is linear in it.
-        let width = (((max.x - min.x) / CELL).ceil() as usize).clamp(1, 2048);
-        let depth = (((max.z - min.z) / CELL).ceil() as usize).clamp(1, 2048);
+        // No more than 2048 cells a side: the build is linear in the cells.
+        let width = (((max.x - min.x) / cell).ceil() as usize).clamp(1, 2048);
+        let depth = (((max.z - min.z) / cell).ceil() as usize).clamp(1, 2048);
         let mut grid = NavGrid {
             origin: (min.x, min.z),
+            cell,
             width,
             depth,
             floors: vec![Vec::new(); width * depth],
@@ -96,8 +107,8 @@ impl NavGrid {
     /// The centre (x, z) of cell (`column`, `row`).
     pub fn centre(&self, column: usize, row: usize) -> (f32, f32) {
         (
-            self.origin.0 + (column as f32 + 0.5) * CELL,
-            self.origin.1 + (row as f32 + 0.5) * CELL,
+            self.origin.0 + (column as f32 + 0.5) * self.cell,
+            self.origin.1 + (row as f32 + 0.5) * self.cell,
         )
     }
 
@@ -107,31 +118,50 @@ impl NavGrid {
             .map_or(&[], |column| self.floors[column].as_slice())
     }
 
+    /// Every node, column by column.
+    pub fn nodes(&self) -> impl Iterator<Item = Node> + '_ {
+        self.floors
+            .iter()
+            .enumerate()
+            .flat_map(|(column, floors)| (0..floors.len()).map(move |floor| Node { column, floor }))
+    }
+
+    /// A dense index for `node` (below `index_bound`), for per-node tables.
+    pub fn index(&self, node: Node) -> usize {
+        node.column * MAX_FLOORS + node.floor
+    }
+
+    /// One more than the largest `index`.
+    pub fn index_bound(&self) -> usize {
+        self.floors.len() * MAX_FLOORS
+    }
+
     /// How many nodes (floor cells) the grid holds.
     pub fn walkable_cells(&self) -> usize {
         self.floors.iter().map(Vec::len).sum()
     }
 
     fn cell_of(&self, x: f32, z: f32) -> Option<usize> {
-        let column = ((x - self.origin.0) / CELL).floor();
-        let row = ((z - self.origin.1) / CELL).floor();
+        let column = ((x - self.origin.0) / self.cell).floor();
+        let row = ((z - self.origin.1) / self.cell).floor();
         if column < 0.0 || row < 0.0 || column >= self.width as f32 || row >= self.depth as f32 {
             return None;
         }
         Some(row as usize * self.width + column as usize)
     }
 
-    fn position(&self, node: Node) -> Vec3 {
+    /// Where a body stands on `node`: its cell's centre, on its floor.
+    pub fn position(&self, node: Node) -> Vec3 {
         let (x, z) = self.centre(node.column % self.width, node.column / self.width);
         Vec3::new(x, self.floors[node.column][node.floor], z)
     }
 
     /// The node nearest `at` (its own cell's floor nearest its feet, else the closest
     /// walkable cell within a metre).
-    fn node_near(&self, at: Vec3) -> Option<Node> {
-        let reach = (1.0 / CELL) as i64;
-        let column = ((at.x - self.origin.0) / CELL).floor() as i64;
-        let row = ((at.z - self.origin.1) / CELL).floor() as i64;
+    pub fn node_near(&self, at: Vec3) -> Option<Node> {
+        let reach = (1.0 / self.cell).ceil() as i64;
+        let column = ((at.x - self.origin.0) / self.cell).floor() as i64;
+        let row = ((at.z - self.origin.1) / self.cell).floor() as i64;
         let mut best: Option<(f32, Node)> = None;
         for dz in -reach..=reach {
             for dx in -reach..=reach {
@@ -173,9 +203,9 @@ impl NavGrid {
     pub fn path(&self, from: Vec3, to: Vec3) -> Option<Vec<Vec3>> {
         let start = self.node_near(from)?;
         let goal = self.node_near(to)?;
-        let index = |node: Node| node.column * MAX_FLOORS + node.floor;
-        let mut cost = vec![f32::INFINITY; self.floors.len() * MAX_FLOORS];
-        let mut came_from: Vec<Option<Node>> = vec![None; self.floors.len() * MAX_FLOORS];
+        let index = |node: Node| self.index(node);
+        let mut cost = vec![f32::INFINITY; self.index_bound()];
+        let mut came_from: Vec<Option<Node>> = vec![None; self.index_bound()];
         let mut open = BinaryHeap::new();
         cost[index(start)] = 0.0;
         open.push(Open {
@@ -224,11 +254,11 @@ impl NavGrid {
         let (bx, bz) = (b.column % self.width, b.column / self.width);
         let dx = ax.abs_diff(bx) as f32;
         let dz = az.abs_diff(bz) as f32;
-        CELL * (dx.max(dz) + (std::f32::consts::SQRT_2 - 1.0) * dx.min(dz))
+        self.cell * (dx.max(dz) + (std::f32::consts::SQRT_2 - 1.0) * dx.min(dz))
     }
 
     /// The nodes a body at `node` can step to, with the distance.
-    fn neighbours(&self, node: Node) -> impl Iterator<Item = (Node, f32)> + '_ {
+    pub fn neighbours(&self, node: Node) -> impl Iterator<Item = (Node, f32)> + '_ {
         let (x, z) = (
             (node.column % self.width) as i64,
             (node.column / self.width) as i64,
@@ -257,9 +287,9 @@ impl NavGrid {
                 // Diagonal: both sides open, or the path would clip the corner between.
                 open(dx, 0)?;
                 open(0, dz)?;
-                return Some((next, CELL * std::f32::consts::SQRT_2));
+                return Some((next, self.cell * std::f32::consts::SQRT_2));
             }
-            Some((next, CELL))
+            Some((next, self.cell))
         })
     }
 
@@ -286,7 +316,7 @@ impl NavGrid {
     /// between each and the next.
     pub fn walkable_line(&self, from: Vec3, to: Vec3) -> bool {
         let along = Vec3::new(to.x - from.x, 0.0, to.z - from.z);
-        let samples = (along.length() / (CELL * 0.25)).ceil().max(1.0) as usize;
+        let samples = (along.length() / (self.cell * 0.25)).ceil().max(1.0) as usize;
         let mut height = from.y;
         for sample in 1..=samples {
             let at = from + along * (sample as f32 / samples as f32);
