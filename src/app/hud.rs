@@ -98,6 +98,34 @@ pub fn draw_warden_mark(
     }
 }
 
+/// How many points a noise ring is drawn with.
+pub const RING_POINTS: usize = 96;
+
+/// Points on a noise ring (film points, None behind the camera) drawn as small dots
+/// blended towards white by `strength` (1 new, fading to 0).
+pub fn draw_noise_ring(
+    frame: &mut [u8],
+    width: u32,
+    height: u32,
+    points: impl Iterator<Item = Option<(f32, f32)>>,
+    strength: f32,
+) {
+    let strength = strength.clamp(0.0, 1.0);
+    for (x, y) in points.flatten() {
+        let (x, y) = (x.round() as i64, y.round() as i64);
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let (px, py) = (x + dx, y + dy);
+            if px < 0 || py < 0 || px >= width as i64 || py >= height as i64 {
+                continue;
+            }
+            let i = ((py as u32 * width + px as u32) * 4) as usize;
+            for channel in &mut frame[i..i + 3] {
+                *channel = (*channel as f32 + (235.0 - *channel as f32) * strength) as u8;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

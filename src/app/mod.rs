@@ -536,6 +536,24 @@ impl App {
                 );
             }
         }
+        // Each noise the player made, as a ring of its reach on the floor, fading.
+        if let Some(noises) = self.engine.world.get_resource::<crate::game::Noises>() {
+            for noise in &noises.0 {
+                let points = (0..hud::RING_POINTS).map(|i| {
+                    let angle = i as f32 / hud::RING_POINTS as f32 * std::f32::consts::TAU;
+                    let at = noise.at
+                        + glam::Vec3::new(
+                            angle.cos() * noise.radius,
+                            0.05,
+                            angle.sin() * noise.radius,
+                        );
+                    let seen = projection.project_lanes(at.into());
+                    seen.in_front.then_some((seen.x, seen.y))
+                });
+                let fade = 1.0 - noise.age / crate::game::noise::tuning::RING_SECONDS;
+                hud::draw_noise_ring(frame, width, height, points, fade);
+            }
+        }
         if let Some((at, by)) = &self.caught {
             if at.elapsed().as_secs_f32() < 3.0 {
                 let line = format!("Caught by {by}. The level starts again.");

@@ -13,10 +13,10 @@
 //! 1. `Stage::Input`: `remember_transforms` (where things were, for interpolated
 //!    rendering), then `fly_camera` (levels played without a player);
 //! 2. `Stage::Gameplay`: the player's body (`move_player`: look, walk, jump, crouch,
-//!    collide with the level through `WorldGeometry`), its light gem (`measure_exposure`),
-//!    the goal (`collect_shards`, `reach_exit`), the wardens (`watch_for_player`: sight,
-//!    suspicion, state; `walk_wardens`: their feet, on the `nav::NavGrid` built at load),
-//!    then `patrol` movers;
+//!    collide with the level through `WorldGeometry`), the noise it makes (`make_noise`),
+//!    its light gem (`measure_exposure`), the goal (`collect_shards`, `reach_exit`), the
+//!    wardens (`watch_for_player`: sight, suspicion, state; `hear_noises`; `walk_wardens`:
+//!    their feet, on the `nav::NavGrid` built at load), then `patrol` movers;
 //! 3. `Stage::Animation`: `animate_wardens` (each warden's clip for its state) and
 //!    `animate_player_body` (the player's own body walks or idles), then
 //!    `advance_animations` and `apply_animations` (glTF clips into node transforms and
@@ -33,6 +33,7 @@ pub mod goal;
 pub mod input;
 pub mod level_io;
 pub mod nav;
+pub mod noise;
 pub mod patrol;
 pub mod player;
 pub mod replay;
@@ -57,6 +58,7 @@ pub use goal::{Exit, Outcome, Progress, Shard, collect_shards, reach_exit};
 pub use input::{Action, Input, fly_camera};
 pub use level_io::level_from_world;
 pub use nav::NavGrid;
+pub use noise::{Footfalls, Noises, hear_noises, make_noise};
 pub use patrol::{Patrol, patrol};
 pub use player::{
     ActiveCamera, Player, PlayerBody, PlayerEye, animate_player_body, move_player, spawn_player,
@@ -192,10 +194,12 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                     schedule.add_systems(
                         (
                             move_player,
+                            make_noise,
                             measure_exposure,
                             collect_shards,
                             reach_exit,
                             watch_for_player,
+                            hear_noises,
                             walk_wardens,
                             patrol,
                         )

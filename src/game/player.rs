@@ -135,6 +135,7 @@ pub fn spawn_player(world: &mut World) -> Option<Entity> {
                 eye: start.eye_height,
             },
             super::Exposure::default(),
+            super::Footfalls::default(),
             body,
             GlobalTransform(body.affine()),
             PreviousGlobalTransform(body.affine()),
@@ -159,6 +160,7 @@ pub fn spawn_player(world: &mut World) -> Option<Entity> {
         spawn_body(world, player, body);
     }
     world.init_resource::<WorldGeometry>();
+    world.init_resource::<super::Noises>();
     Some(player)
 }
 

@@ -110,7 +110,7 @@ pub struct Warden {
     pub suspicion: f32,
     /// What it saw of the player this step.
     pub sighting: Sighting,
-    /// Where it last saw the player's feet.
+    /// Where it last saw the player's feet, or heard them (`noise`): where it searches.
     pub last_seen: Option<Vec3>,
     /// Seconds in this state (suspicious, searching) or since it last saw the player
     /// (alert).
@@ -357,7 +357,7 @@ pub fn walk_wardens(
 }
 
 /// The way from `from` to `to` on the grid, or straight there without one.
-fn plan(grid: Option<&NavGrid>, from: Vec3, to: Vec3) -> Vec<Vec3> {
+pub fn plan(grid: Option<&NavGrid>, from: Vec3, to: Vec3) -> Vec<Vec3> {
     match grid {
         Some(grid) if grid.walkable_cells() > 0 => grid.path(from, to).unwrap_or_default(),
         _ => vec![to],

@@ -1,0 +1,322 @@
+//! Game schedule, fixed step "gameplay": noise, and the wardens who hear it.
+//!
+//! Per step:
+//! 1. `make_noise` (after the player moves): sprinting on the ground makes a footfall every
+//!    `STRIDE` seconds, heard out to `SPRINT_RADIUS`; landing faster than `LANDING_SPEED`
+//!    (a drop of about 0.8 m; a jump on the flat lands softer) is heard out to
+//!    `LANDING_RADIUS`. Walking and crouching are quiet. Each noise is kept in `Noises`
+//!    for `RING_SECONDS`, the time the HUD shows its ring.
+//! 2. `hear_noises` (after the wardens look): a warden hears a noise made this step when
+//!    its ears are within the noise's radius, halved when anything stands between (a ray
+//!    from the noise to the ears through the level as of this step). A warden that hears
+//!    stops and turns to the place (suspicious), then goes to search it; a searching one
+//!    goes there instead; an alert one runs there if it has lost sight of the player.
+//!    Hearing is not seeing: it does not count as a time seen.
+//!
+//! The numbers are GAME.md's starting points, as the stealth games players love use them.
+//! Fair by construction: every noise a warden hears is a ring on the HUD.
+
+use bevy_ecs::prelude::*;
+use glam::Vec3;
+
+use super::goal::{Outcome, Progress};
+use super::nav::NavGrid;
+use super::player::Player;
+use super::player::tuning::WALK;
+use super::warden::{Warden, WardenState, plan, tuning::NOTICE};
+use super::world_query::WorldGeometry;
+use super::{SIMULATION_HZ, Transform};
+
+/// Noise, in one place (metres, seconds, m/s).
+pub mod tuning {
+    /// How far a sprinting footfall carries, and how often one falls.
+    pub const SPRINT_RADIUS: f32 = 8.0;
+    pub const STRIDE: f32 = 0.35;
+    /// How far a hard landing carries, and the fall speed that makes one.
+    pub const LANDING_RADIUS: f32 = 12.0;
+    pub const LANDING_SPEED: f32 = 4.0;
+    /// What a noise's reach is multiplied by when anything stands between.
+    pub const MUFFLED: f32 = 0.5;
+    /// Where a warden's ears are above its feet.
+    pub const EAR_HEIGHT: f32 = 1.6;
+    /// How long the HUD shows a noise's ring.
+    pub const RING_SECONDS: f32 = 1.0;
+}
+
+use tuning::*;
+
+/// A noise the player made.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Noise {
+    /// Where (at the feet).
+    pub at: Vec3,
+    /// How far it carries in the open.
+    pub radius: f32,
+    /// Seconds since it was made.
+    pub age: f32,
+}
+
+/// The noises of the last `RING_SECONDS` (the HUD draws them; wardens hear those of age 0).
+#[derive(Resource, Clone, Debug, Default, PartialEq)]
+pub struct Noises(pub Vec<Noise>);
+
+/// The player's feet, as noise sees them: time to the next sprinting footfall, and how
+/// fast the body was falling before this step.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq)]
+pub struct Footfalls {
+    pub until_next: f32,
+    pub falling: f32,
+    pub grounded: bool,
+}
+
+const STEP: f32 = 1.0 / SIMULATION_HZ as f32;
+
+/// Fixed step: the player's sprinting footfalls and hard landings become noises, and old
+/// noises fade (see the module doc).
+pub fn make_noise(
+    noises: Option<ResMut<Noises>>,
+    progress: Option<Res<Progress>>,
+    mut players: Query<(&Player, &Transform, &mut Footfalls)>,
+) {
+    let Some(mut noises) = noises else { return };
+    for noise in &mut noises.0 {
+        noise.age += STEP;
+    }
+    noises.0.retain(|noise| noise.age < RING_SECONDS);
+    if progress.is_some_and(|p| p.outcome != Outcome::Running) {
+        return;
+    }
+    for (player, body, mut feet) in &mut players {
+        let landed = player.grounded && !feet.grounded;
+        if landed && feet.falling > LANDING_SPEED && !player.noclip {
+            noises.0.push(Noise {
+                at: body.translation,
+                radius: LANDING_RADIUS,
+                age: 0.0,
+            });
+        }
+        let speed = Vec3::new(player.velocity.x, 0.0, player.velocity.z).length();
+        let sprinting = player.grounded && !player.crouched && speed > WALK + 0.1;
+        if sprinting && !player.noclip {
+            feet.until_next -= STEP;
+            if feet.until_next <= 0.0 {
+                noises.0.push(Noise {
+                    at: body.translation,
+                    radius: SPRINT_RADIUS,
+                    age: 0.0,
+                });
+                feet.until_next += STRIDE;
+            }
+        } else {
+            // The first sprinting step is heard at once.
+            feet.until_next = 0.0;
+        }
+        feet.falling = -player.velocity.y;
+        feet.grounded = player.grounded;
+    }
+}
+
+/// Fixed step: wardens within earshot of this step's noises go to look (see the module
+/// doc).
+pub fn hear_noises(
+    noises: Option<Res<Noises>>,
+    geometry: Option<Res<WorldGeometry>>,
+    grid: Option<Res<NavGrid>>,
+    mut wardens: Query<(&mut Warden, &Transform)>,
+) {
+    let (Some(noises), Some(geometry)) = (noises, geometry) else {
+        return;
+    };
+    for noise in noises.0.iter().filter(|noise| noise.age == 0.0) {
+        for (mut warden, placed) in &mut wardens {
+            let ears = placed.translation + Vec3::Y * EAR_HEIGHT;
+            let from = noise.at + Vec3::Y * 0.3;
+            let distance = from.distance(ears);
+            if distance > noise.radius {
+                continue;
+            }
+            let blocked = distance > 1e-3
+                && geometry
+                    .0
+                    .raycast(from, (ears - from) / distance, distance)
+                    .is_some();
+            if blocked && distance > noise.radius * MUFFLED {
+                continue;
+            }
+            heard(&mut warden, placed.translation, noise.at, grid.as_deref());
+        }
+    }
+}
+
+/// A warden at `at` heard something at `place`.
+fn heard(warden: &mut Warden, at: Vec3, place: Vec3, grid: Option<&NavGrid>) {
+    match warden.state {
+        WardenState::Patrol | WardenState::Suspicious => {
+            warden.state = WardenState::Suspicious;
+            warden.timer = 0.0;
+            warden.path.clear();
+            warden.suspicion = warden.suspicion.max(NOTICE);
+            warden.last_seen = Some(place);
+            if warden.since_noticed > 1.0 {
+                warden.since_noticed = 0.0;
+            }
+        }
+        WardenState::Searching => {
+            warden.last_seen = Some(place);
+            warden.path = plan(grid, at, place);
+            warden.timer = 0.0;
+        }
+        WardenState::Alert if warden.sighting.visibility <= 0.0 => {
+            warden.last_seen = Some(place);
+        }
+        WardenState::Alert | WardenState::Caught => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::game::warden::warden_parts;
+    use crate::game::world_query::{EmptyWorld, RayHit, WorldQuery};
+    use crate::scene::level::{WardenDef, WardenLamp};
+
+    /// Every ray is stopped halfway: a wall between everything.
+    struct Walled;
+
+    impl WorldQuery for Walled {
+        fn sphere_contacts(&self, _: Vec3, _: f32, _: &mut Vec<crate::game::world_query::Contact>) {
+        }
+        fn raycast(&self, _: Vec3, direction: Vec3, max_distance: f32) -> Option<RayHit> {
+            Some(RayHit {
+                distance: max_distance * 0.5,
+                normal: -direction,
+            })
+        }
+        fn light_arriving(&self, _: Vec3) -> Vec3 {
+            Vec3::ZERO
+        }
+        fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+            self
+        }
+    }
+
+    fn player(velocity: Vec3, grounded: bool) -> Player {
+        Player {
+            velocity,
+            grounded,
+            crouched: false,
+            noclip: false,
+            yaw: 0.0,
+            pitch: 0.0,
+            eye_height: 1.6,
+            eye: 1.6,
+        }
+    }
+
+    /// A world with the player at the origin moving at `velocity`, a warden standing
+    /// `distance` m away along +Z facing away (it cannot see), and `world` as geometry.
+    fn world_with(
+        velocity: Vec3,
+        distance: f32,
+        world: Box<dyn WorldQuery>,
+    ) -> (World, Entity, Entity) {
+        let mut ecs = World::new();
+        ecs.insert_resource(WorldGeometry(world));
+        ecs.init_resource::<Noises>();
+        let body = ecs
+            .spawn((
+                player(velocity, true),
+                Transform::default(),
+                Footfalls {
+                    grounded: true,
+                    ..Footfalls::default()
+                },
+            ))
+            .id();
+        let def = WardenDef {
+            route: vec![Vec3::new(0.0, 0.0, distance)],
+            speed: 1.2,
+            lamp: WardenLamp::default(),
+        };
+        let (warden, _, _) = warden_parts(&def, 0.0);
+        let placed = Transform {
+            translation: Vec3::new(0.0, 0.0, distance),
+            ..Transform::default()
+        };
+        let warden = ecs.spawn((warden, placed)).id();
+        (ecs, body, warden)
+    }
+
+    fn run_steps(world: &mut World, steps: usize) {
+        let mut schedule = Schedule::default();
+        schedule.add_systems((make_noise, hear_noises).chain());
+        for _ in 0..steps {
+            schedule.run(world);
+        }
+    }
+
+    #[test]
+    fn sprinting_is_heard_every_stride_and_walking_not_at_all() {
+        let (mut world, _, _) = world_with(Vec3::new(0.0, 0.0, -3.5), 30.0, Box::new(EmptyWorld));
+        run_steps(&mut world, 60);
+        // One second of sprinting: a footfall at once, then every 0.35 s (three in all),
+        // each kept a second.
+        assert_eq!(world.resource::<Noises>().0.len(), 3);
+        assert!(
+            world
+                .resource::<Noises>()
+                .0
+                .iter()
+                .all(|n| n.radius == SPRINT_RADIUS)
+        );
+        let (mut world, _, _) = world_with(Vec3::new(0.0, 0.0, -1.4), 30.0, Box::new(EmptyWorld));
+        run_steps(&mut world, 60);
+        assert!(world.resource::<Noises>().0.is_empty());
+    }
+
+    #[test]
+    fn a_hard_landing_is_heard_and_a_hop_is_not() {
+        for (falling, loud) in [(6.0, true), (3.1, false)] {
+            let (mut world, body, _) = world_with(Vec3::ZERO, 30.0, Box::new(EmptyWorld));
+            *world.get_mut::<Footfalls>(body).unwrap() = Footfalls {
+                until_next: 0.0,
+                falling,
+                grounded: false,
+            };
+            run_steps(&mut world, 1);
+            let landings = world
+                .resource::<Noises>()
+                .0
+                .iter()
+                .filter(|n| n.radius == LANDING_RADIUS)
+                .count();
+            assert_eq!(landings, usize::from(loud), "falling at {falling} m/s");
+        }
+    }
+
+    #[test]
+    fn a_warden_in_earshot_turns_to_the_noise_and_a_wall_halves_the_reach() {
+        let sprint = Vec3::new(0.0, 0.0, -3.5);
+        for (distance, walled, hears) in [
+            (6.0, false, true),
+            (9.0, false, false),
+            (6.0, true, false),
+            (3.0, true, true),
+        ] {
+            let geometry: Box<dyn WorldQuery> = if walled {
+                Box::new(Walled)
+            } else {
+                Box::new(EmptyWorld)
+            };
+            let (mut world, _, warden) = world_with(sprint, distance, geometry);
+            run_steps(&mut world, 1);
+            let warden = world.get::<Warden>(warden).unwrap();
+            let heard = warden.state == WardenState::Suspicious;
+            assert_eq!(heard, hears, "{distance} m, walled {walled}");
+            if hears {
+                assert_eq!(warden.last_seen, Some(Vec3::ZERO));
+                assert!(warden.suspicion >= NOTICE);
+            }
+        }
+    }
+}
