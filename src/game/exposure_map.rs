@@ -18,14 +18,13 @@
 //! order costs exactly the worst of the spawn's minimax distances to them: one search
 //! answers the whole route.
 
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use super::exposure::settled_gem;
-use super::nav::{NavGrid, Node};
+use super::nav::{NavGrid, Node, Open};
 use super::player::tuning::{CROUCHED_HEIGHT, STANDING_HEIGHT};
 use super::world_query::WorldQuery;
 
@@ -188,8 +187,11 @@ fn bottleneck_from(grid: &NavGrid, start: Node, cost: &[f32]) -> Vec<f32> {
     let mut best = vec![f32::INFINITY; grid.index_bound()];
     let mut open = BinaryHeap::new();
     best[grid.index(start)] = cost[grid.index(start)];
-    open.push(Least(cost[grid.index(start)], start));
-    while let Some(Least(value, node)) = open.pop() {
+    open.push(Open {
+        key: cost[grid.index(start)],
+        node: start,
+    });
+    while let Some(Open { key: value, node }) = open.pop() {
         if value > best[grid.index(node)] {
             continue; // reached more cheaply since
         }
@@ -197,36 +199,12 @@ fn bottleneck_from(grid: &NavGrid, start: Node, cost: &[f32]) -> Vec<f32> {
             let through = value.max(cost[grid.index(neighbour)]);
             if through < best[grid.index(neighbour)] {
                 best[grid.index(neighbour)] = through;
-                open.push(Least(through, neighbour));
+                open.push(Open {
+                    key: through,
+                    node: neighbour,
+                });
             }
         }
     }
     best
-}
-
-/// A node in the open set, least value first.
-struct Least(f32, Node);
-
-impl PartialEq for Least {
-    fn eq(&self, other: &Self) -> bool {
-        self.cmp(other) == Ordering::Equal
-    }
-}
-
-impl Eq for Least {}
-
-impl PartialOrd for Least {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for Least {
-    fn cmp(&self, other: &Self) -> Ordering {
-        other
-            .0
-            .total_cmp(&self.0)
-            .then_with(|| other.1.column.cmp(&self.1.column))
-            .then_with(|| other.1.floor.cmp(&self.1.floor))
-    }
 }

@@ -209,10 +209,14 @@ impl NavGrid {
         let mut open = BinaryHeap::new();
         cost[index(start)] = 0.0;
         open.push(Open {
-            estimate: self.heuristic(start, goal),
+            key: self.heuristic(start, goal),
             node: start,
         });
-        while let Some(Open { node, estimate }) = open.pop() {
+        while let Some(Open {
+            node,
+            key: estimate,
+        }) = open.pop()
+        {
             if node == goal {
                 break;
             }
@@ -226,7 +230,7 @@ impl NavGrid {
                     cost[index(next)] = through;
                     came_from[index(next)] = Some(node);
                     open.push(Open {
-                        estimate: through + self.heuristic(next, goal),
+                        key: through + self.heuristic(next, goal),
                         node: next,
                     });
                 }
@@ -347,11 +351,12 @@ fn stands_clear(world: &dyn WorldQuery, feet: Vec3, contacts: &mut Vec<Contact>)
     })
 }
 
-/// A node waiting in A*'s open set, least estimate first.
+/// A node waiting in a search's open set (A* here, the exposure map's minimax search),
+/// the least key first: a `BinaryHeap` of these pops the least.
 #[derive(Clone, Copy, Debug)]
-struct Open {
-    estimate: f32,
-    node: Node,
+pub struct Open {
+    pub key: f32,
+    pub node: Node,
 }
 
 impl PartialEq for Open {
@@ -372,8 +377,8 @@ impl Ord for Open {
     fn cmp(&self, other: &Self) -> Ordering {
         // Reversed for a min-heap; ties broken by node so the order is the same everywhere.
         other
-            .estimate
-            .total_cmp(&self.estimate)
+            .key
+            .total_cmp(&self.key)
             .then_with(|| other.node.column.cmp(&self.node.column))
             .then_with(|| other.node.floor.cmp(&self.node.floor))
     }

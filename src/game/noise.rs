@@ -177,41 +177,10 @@ fn heard(warden: &mut Warden, at: Vec3, place: Vec3, grid: Option<&NavGrid>) {
 mod tests {
     use super::*;
     use crate::game::warden::warden_parts;
-    use crate::game::world_query::{EmptyWorld, RayHit, WorldQuery};
+    use crate::game::world_query::{EmptyWorld, WorldQuery};
     use crate::scene::level::{WardenDef, WardenLamp};
 
-    /// Every ray is stopped halfway: a wall between everything.
-    struct Walled;
-
-    impl WorldQuery for Walled {
-        fn sphere_contacts(&self, _: Vec3, _: f32, _: &mut Vec<crate::game::world_query::Contact>) {
-        }
-        fn raycast(&self, _: Vec3, direction: Vec3, max_distance: f32) -> Option<RayHit> {
-            Some(RayHit {
-                distance: max_distance * 0.5,
-                normal: -direction,
-            })
-        }
-        fn light_arriving(&self, _: Vec3) -> Vec3 {
-            Vec3::ZERO
-        }
-        fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
-            self
-        }
-    }
-
-    fn player(velocity: Vec3, grounded: bool) -> Player {
-        Player {
-            velocity,
-            grounded,
-            crouched: false,
-            noclip: false,
-            yaw: 0.0,
-            pitch: 0.0,
-            eye_height: 1.6,
-            eye: 1.6,
-        }
-    }
+    use crate::game::world_query::fakes::Walled;
 
     /// A world with the player at the origin moving at `velocity`, a warden standing
     /// `distance` m away along +Z facing away (it cannot see), and `world` as geometry.
@@ -225,7 +194,7 @@ mod tests {
         ecs.init_resource::<Noises>();
         let body = ecs
             .spawn((
-                player(velocity, true),
+                Player::moving(velocity, true),
                 Transform::default(),
                 Footfalls {
                     grounded: true,

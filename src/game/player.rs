@@ -74,6 +74,21 @@ pub struct Player {
 }
 
 impl Player {
+    /// A player standing (eye at 1.6 m) and moving at `velocity`, for unit tests.
+    #[cfg(test)]
+    pub(crate) fn moving(velocity: Vec3, grounded: bool) -> Player {
+        Player {
+            velocity,
+            grounded,
+            crouched: false,
+            noclip: false,
+            yaw: 0.0,
+            pitch: 0.0,
+            eye_height: 1.6,
+            eye: 1.6,
+        }
+    }
+
     pub fn height(&self) -> f32 {
         if self.crouched {
             CROUCHED_HEIGHT

@@ -119,30 +119,7 @@ mod tests {
     use crate::game::exposure::body_points;
     use crate::game::world_query::EmptyWorld;
 
-    /// A world with a wall everywhere: every ray is stopped.
-    struct Walled;
-
-    impl WorldQuery for Walled {
-        fn sphere_contacts(&self, _: Vec3, _: f32, _: &mut Vec<crate::game::world_query::Contact>) {
-        }
-        fn raycast(
-            &self,
-            _: Vec3,
-            direction: Vec3,
-            max_distance: f32,
-        ) -> Option<crate::game::world_query::RayHit> {
-            Some(crate::game::world_query::RayHit {
-                distance: max_distance * 0.5,
-                normal: -direction,
-            })
-        }
-        fn light_arriving(&self, _: Vec3) -> Vec3 {
-            Vec3::ZERO
-        }
-        fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
-            self
-        }
-    }
+    use crate::game::world_query::fakes::Walled;
 
     /// What a warden at the origin facing +Z sees of a standing body at `feet` lit `gem`.
     fn sees(world: &dyn WorldQuery, feet: Vec3, gem: f32) -> Sighting {

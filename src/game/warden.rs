@@ -469,16 +469,7 @@ mod tests {
         let mut world = World::new();
         world.insert_resource(WorldGeometry(Box::new(EmptyWorld)));
         world.insert_resource(Progress::default());
-        let player = crate::game::Player {
-            velocity: Vec3::ZERO,
-            grounded: true,
-            crouched: false,
-            noclip: false,
-            yaw: 0.0,
-            pitch: 0.0,
-            eye_height: 1.6,
-            eye: 1.6,
-        };
+        let player = crate::game::Player::moving(Vec3::ZERO, true);
         let exposure = Exposure {
             gem,
             ..Exposure::default()

@@ -80,3 +80,31 @@ impl Default for WorldGeometry {
         WorldGeometry(Box::new(EmptyWorld))
     }
 }
+
+/// Test worlds shared by the game's unit tests.
+#[cfg(test)]
+pub(crate) mod fakes {
+    use super::*;
+
+    /// A wall between everything: every ray is stopped halfway.
+    pub struct Walled;
+
+    impl WorldQuery for Walled {
+        fn sphere_contacts(&self, _: Vec3, _: f32, _: &mut Vec<Contact>) {}
+
+        fn raycast(&self, _: Vec3, direction: Vec3, max_distance: f32) -> Option<RayHit> {
+            Some(RayHit {
+                distance: max_distance * 0.5,
+                normal: -direction,
+            })
+        }
+
+        fn light_arriving(&self, _: Vec3) -> Vec3 {
+            Vec3::ZERO
+        }
+
+        fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+            self
+        }
+    }
+}
