@@ -434,3 +434,48 @@ fn the_body_is_hidden_from_its_own_eyes_but_casts_a_shadow() {
     );
     assert!(towards.is_some_and(|hit| hit.t < 1.5), "{towards:?}");
 }
+
+#[test]
+fn e_douses_the_lamp_the_player_looks_at_and_relights_it() {
+    use gloam::game::SwitchedOff;
+    let (mut engine, player) = level();
+    let lamp = {
+        let mut named = engine.world.query::<(Entity, &Name)>();
+        named
+            .iter(&engine.world)
+            .find(|(_, n)| n.as_str() == "cellar lamp")
+            .unwrap()
+            .0
+    };
+    // A metre west of the cellar lamp (2.8 m up at (-8, -2)), in its pool.
+    place(&mut engine, player, Vec3::new(-9.0, 0.0, -2.0));
+    let press = |engine: &mut Engine| {
+        engine
+            .world
+            .resource_mut::<Input>()
+            .pressed
+            .insert(Action::Interact);
+        hold(engine, &[], 0.1);
+    };
+    // Looking ahead (north), the lamp is out of aim: nothing happens.
+    press(&mut engine);
+    assert!(engine.world.get::<SwitchedOff>(lamp).is_none());
+    // Looking up at it (east, 50 degrees up): doused, and the gem falls.
+    {
+        let mut body = engine.world.get_mut::<Player>(player).unwrap();
+        body.yaw = -std::f32::consts::FRAC_PI_2;
+        body.pitch = 1.2f32.atan2(1.0);
+    }
+    hold(&mut engine, &[], 1.0);
+    let lit = gem(&engine, player);
+    press(&mut engine);
+    assert!(engine.world.get::<SwitchedOff>(lamp).is_some());
+    hold(&mut engine, &[], 1.0);
+    let doused = gem(&engine, player);
+    assert!(doused < lit - 0.3, "{lit} -> {doused}");
+    // Again: relit.
+    press(&mut engine);
+    assert!(engine.world.get::<SwitchedOff>(lamp).is_none());
+    hold(&mut engine, &[], 1.0);
+    assert!((gem(&engine, player) - lit).abs() < 0.02);
+}

@@ -11,7 +11,8 @@
 //! 4. when a warden has caught the player, the level starts again at once from the loaded
 //!    `Scene` (a watched recording stays on its last frame instead).
 //!
-//! Keys: W A S D walk, Shift sprints, Space jumps, C or Ctrl crouches, N toggles noclip
+//! Keys: W A S D walk, Shift sprints, Space jumps, C or Ctrl crouches, E douses or
+//! relights the lamp looked at, N toggles noclip
 //! (fly through walls: Space and C rise and sink), mouse looks once captured (click), Esc
 //! pauses (and releases the mouse), Q quits, F11 toggles fullscreen, V toggles vsync, F3
 //! the profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw). A
@@ -147,6 +148,7 @@ const BINDINGS: &[(KeyCode, Binding)] = &[
     (KeyCode::ControlLeft, Binding::Game(Action::MoveDown)),
     (KeyCode::ShiftLeft, Binding::Game(Action::Sprint)),
     (KeyCode::KeyN, Binding::Game(Action::Noclip)),
+    (KeyCode::KeyE, Binding::Game(Action::Interact)),
     (KeyCode::Escape, Binding::Pause),
     (KeyCode::KeyQ, Binding::Quit),
     (KeyCode::F11, Binding::Fullscreen),

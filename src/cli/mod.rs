@@ -27,8 +27,9 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Play a level in a window (default: levels/first-light.ron). W A S D walk, Shift
-    /// sprints, Space jumps, C crouches, N toggles noclip, mouse looks after a click, Esc
-    /// pauses, Q quits, F11 fullscreen, V vsync, F3 profiler, F4 film filters.
+    /// sprints, Space jumps, C crouches, E douses or relights the lamp you look at, N
+    /// toggles noclip, mouse looks after a click, Esc pauses, Q quits, F11 fullscreen, V
+    /// vsync, F3 profiler, F4 film filters.
     Play {
         level: Option<PathBuf>,
         /// Internal render resolution; the window scales it.

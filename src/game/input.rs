@@ -28,11 +28,13 @@ pub enum Action {
     Sprint,
     /// Switch the player's collision off and on (fly through walls, for debugging).
     Noclip,
+    /// Douse or relight the lamp the player looks at, within reach.
+    Interact,
 }
 
 impl Action {
     /// Every action, in a fixed order (recordings store them as bits in this order).
-    pub const ALL: [Action; 8] = [
+    pub const ALL: [Action; 9] = [
         Action::MoveForward,
         Action::MoveBack,
         Action::MoveLeft,
@@ -41,6 +43,7 @@ impl Action {
         Action::MoveDown,
         Action::Sprint,
         Action::Noclip,
+        Action::Interact,
     ];
 
     /// This action's bit in a recording's bit sets.
@@ -91,7 +94,7 @@ pub fn fly_camera(
                 Action::MoveLeft => -right,
                 Action::MoveUp => Vec3::Y,
                 Action::MoveDown => Vec3::NEG_Y,
-                Action::Sprint | Action::Noclip => Vec3::ZERO,
+                Action::Sprint | Action::Noclip | Action::Interact => Vec3::ZERO,
             };
         }
         transform.translation += motion.normalize_or_zero() * step;

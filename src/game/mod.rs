@@ -12,7 +12,8 @@
 //! One fixed step (`fixed_step_schedules`, in `Stage::FIXED_STEP` order):
 //! 1. `Stage::Input`: `remember_transforms` (where things were, for interpolated
 //!    rendering), then `fly_camera` (levels played without a player);
-//! 2. `Stage::Gameplay`: the player's body (`move_player`: look, walk, jump, crouch,
+//! 2. `Stage::Gameplay`: lamps doused and relit (`douse_lamps`), the player's body
+//!    (`move_player`: look, walk, jump, crouch,
 //!    collide with the level through `WorldGeometry`), the noise it makes (`make_noise`),
 //!    its light gem (`measure_exposure`), the goal (`collect_shards`, `reach_exit`), the
 //!    wardens (`watch_for_player`: sight, suspicion, state; `hear_noises`; `walk_wardens`:
@@ -31,6 +32,7 @@ pub mod exposure;
 pub mod exposure_map;
 pub mod goal;
 pub mod input;
+pub mod lamps;
 pub mod level_io;
 pub mod nav;
 pub mod noise;
@@ -56,6 +58,7 @@ pub use animation::{
 pub use exposure::{Exposure, measure_exposure};
 pub use goal::{Exit, Outcome, Progress, Shard, collect_shards, reach_exit};
 pub use input::{Action, Input, fly_camera};
+pub use lamps::douse_lamps;
 pub use level_io::level_from_world;
 pub use nav::NavGrid;
 pub use noise::{Footfalls, Noises, hear_noises, make_noise};
@@ -193,6 +196,7 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                 Stage::Gameplay => {
                     schedule.add_systems(
                         (
+                            douse_lamps,
                             move_player,
                             make_noise,
                             measure_exposure,
