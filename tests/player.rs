@@ -479,3 +479,42 @@ fn e_douses_the_lamp_the_player_looks_at_and_relights_it() {
     hold(&mut engine, &[], 1.0);
     assert!((gem(&engine, player) - lit).abs() < 0.02);
 }
+
+#[test]
+fn a_warden_that_sees_a_doused_lamp_walks_over_and_lights_it_again() {
+    use gloam::game::{SwitchedOff, Warden, WardenState};
+    let (mut engine, _) = level_with_wardens();
+    let named = |engine: &mut Engine, name: &str| {
+        let mut named = engine.world.query::<(Entity, &Name)>();
+        named
+            .iter(&engine.world)
+            .find(|(_, n)| n.as_str() == name)
+            .unwrap()
+            .0
+    };
+    // The hall's south lamp, on warden 1's beat, doused while it walks there.
+    let lamp = named(&mut engine, "hall lamp south");
+    let warden = named(&mut engine, "warden 1");
+    engine.world.entity_mut(lamp).insert(SwitchedOff);
+    let mut errand = false;
+    for _ in 0..(30.0 / STEP) as usize {
+        engine.step();
+        let state = engine.world.get::<Warden>(warden).unwrap();
+        assert_eq!(state.state, WardenState::Patrol, "no player to see");
+        errand |= state.relight == Some(lamp);
+        if engine.world.get::<SwitchedOff>(lamp).is_none() {
+            break;
+        }
+    }
+    assert!(errand, "it saw the dark lamp and went to it");
+    assert!(
+        engine.world.get::<SwitchedOff>(lamp).is_none(),
+        "lit again within 30 s"
+    );
+    let lamp_at = engine.world.get::<Transform>(lamp).unwrap().translation;
+    let at = engine.world.get::<Transform>(warden).unwrap().translation;
+    assert!(
+        Vec3::new(lamp_at.x - at.x, 0.0, lamp_at.z - at.z).length() <= 1.0 + 1e-3,
+        "lit from beside it: {at} for {lamp_at}"
+    );
+}

@@ -4,14 +4,26 @@
 //! to the view, within `AIM_DEGREES` of it, with nothing between (a ray through the level
 //! as of this step). A doused lamp is a `SwitchedOff` lamp: its light leaves the renderer's
 //! light set, the light gem and the wardens' sight with it. Wardens' own lamps are theirs.
+//!
+//! After the wardens look (`relight_lamps`): a patrolling warden that sees a doused lamp
+//! (inside its sight cones, nothing between its eyes and the lamp) walks to it on the
+//! navigation grid and, within `RELIGHT_REACH` of it, lights it again, then walks back to
+//! its route. A warden that notices the player drops the errand.
 
 use bevy_ecs::prelude::*;
 use glam::{Quat, Vec3};
 
+use super::nav::NavGrid;
+use super::sight;
+use super::warden::{Warden, WardenState, plan};
 use super::world_query::WorldGeometry;
 use super::{
     Action, GlobalTransform, Input, LevelEntity, Player, PlayerEye, PunctualLight, SwitchedOff,
+    Transform,
 };
+
+/// How close (across the ground) a warden gets to a lamp to light it again.
+pub const RELIGHT_REACH: f32 = 1.0;
 
 /// How far from the eye a lamp can be reached (metres), and how far off the view it may
 /// lie (degrees).
@@ -65,4 +77,73 @@ pub fn douse_lamps(
             }
         }
     }
+}
+
+/// Fixed step: patrolling wardens go to the doused lamps they see and light them again
+/// (see the module doc).
+pub fn relight_lamps(
+    mut commands: Commands,
+    geometry: Option<Res<WorldGeometry>>,
+    grid: Option<Res<NavGrid>>,
+    mut wardens: Query<(&mut Warden, &Transform)>,
+    doused: Query<
+        (Entity, &GlobalTransform),
+        (With<SwitchedOff>, With<PunctualLight>, With<LevelEntity>),
+    >,
+) {
+    let Some(geometry) = geometry else { return };
+    for (mut warden, placed) in &mut wardens {
+        let warden = &mut *warden;
+        if warden.state != WardenState::Patrol {
+            continue;
+        }
+        let at = placed.translation;
+        match warden.relight {
+            Some(lamp) => {
+                let Ok((_, lamp_at)) = doused.get(lamp) else {
+                    // Lit again (by the player): back to the route.
+                    warden.relight = None;
+                    warden.path = home(warden, at, grid.as_deref());
+                    continue;
+                };
+                let lamp_at = Vec3::from(lamp_at.0.translation);
+                let across = glam::Vec2::new(lamp_at.x - at.x, lamp_at.z - at.z).length();
+                if across <= RELIGHT_REACH {
+                    commands.entity(lamp).remove::<SwitchedOff>();
+                } else if !warden.path.is_empty() {
+                    continue; // still on its way
+                }
+                // Lit, or no way leads within reach of it: back to the route.
+                warden.relight = None;
+                warden.path = home(warden, at, grid.as_deref());
+            }
+            None => {
+                let eye = sight::eye(at, warden.forward());
+                let seen = doused.iter().find(|(_, lamp_at)| {
+                    let offset = Vec3::from(lamp_at.0.translation) - eye;
+                    let distance = offset.length();
+                    sight::in_view(offset, warden.forward())
+                        && distance > 1e-3
+                        && geometry
+                            .0
+                            .raycast(eye, offset / distance, (distance - 0.05).max(0.0))
+                            .is_none()
+                });
+                if let Some((lamp, lamp_at)) = seen {
+                    let below = Vec3::new(lamp_at.0.translation.x, at.y, lamp_at.0.translation.z);
+                    warden.relight = Some(lamp);
+                    warden.path = plan(grid.as_deref(), at, below);
+                }
+            }
+        }
+    }
+}
+
+/// The way back to the warden's route.
+fn home(warden: &Warden, at: Vec3, grid: Option<&NavGrid>) -> Vec<Vec3> {
+    warden
+        .def
+        .route
+        .get(warden.next)
+        .map_or_else(Vec::new, |&point| plan(grid, at, point))
 }

@@ -16,8 +16,9 @@
 //!    (`move_player`: look, walk, jump, crouch,
 //!    collide with the level through `WorldGeometry`), the noise it makes (`make_noise`),
 //!    its light gem (`measure_exposure`), the goal (`collect_shards`, `reach_exit`), the
-//!    wardens (`watch_for_player`: sight, suspicion, state; `hear_noises`; `walk_wardens`:
-//!    their feet, on the `nav::NavGrid` built at load), then `patrol` movers;
+//!    wardens (`watch_for_player`: sight, suspicion, state; `hear_noises`;
+//!    `relight_lamps`; `walk_wardens`: their feet, on the `nav::NavGrid` built at load),
+//!    then `patrol` movers;
 //! 3. `Stage::Animation`: `animate_wardens` (each warden's clip for its state) and
 //!    `animate_player_body` (the player's own body walks or idles), then
 //!    `advance_animations` and `apply_animations` (glTF clips into node transforms and
@@ -58,7 +59,7 @@ pub use animation::{
 pub use exposure::{Exposure, measure_exposure};
 pub use goal::{Exit, Outcome, Progress, Shard, collect_shards, reach_exit};
 pub use input::{Action, Input, fly_camera};
-pub use lamps::douse_lamps;
+pub use lamps::{douse_lamps, relight_lamps};
 pub use level_io::level_from_world;
 pub use nav::NavGrid;
 pub use noise::{Footfalls, Noises, hear_noises, make_noise};
@@ -204,6 +205,7 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                             reach_exit,
                             watch_for_player,
                             hear_noises,
+                            relight_lamps,
                             walk_wardens,
                             patrol,
                         )

@@ -11,7 +11,8 @@
 //! 3. `animate_wardens`: each plays the clip its state and motion call for (`walk`,
 //!    `idle`, and `alert` once when it notices).
 //!
-//! States: patrol (walks its route, point after point, round again) -> suspicious
+//! States: patrol (walks its route, point after point, round again; a doused lamp it
+//! sees is an errand: `lamps::relight_lamps`) -> suspicious
 //! (suspicion reached `NOTICE`: stops and turns to where it glimpsed the player) ->
 //! searching (`LOOK_TIME` without seeing them: walks to that place, finding its way on
 //! the `NavGrid`, and looks around for `SEARCH_TIME`, then walks back to its route) ->
@@ -123,6 +124,8 @@ pub struct Warden {
     pub moved: f32,
     /// The yaw it looks around from while searching.
     pub look_from: f32,
+    /// A doused lamp it saw and is on its way to relight (`lamps::relight_lamps`).
+    pub relight: Option<Entity>,
 }
 
 impl Warden {
@@ -164,6 +167,7 @@ pub fn warden_parts(def: &WardenDef, yaw: f32) -> (Warden, PunctualLight, Transf
             path: Vec::new(),
             moved: 0.0,
             look_from: yaw,
+            relight: None,
         },
         PunctualLight(def.lamp.light()),
         lamp_transform(&def.lamp),
@@ -249,6 +253,8 @@ pub fn watch_for_player(
         }
         if warden.state != before {
             warden.timer = 0.0;
+            // Relighting is a patrol's errand: the player comes first.
+            warden.relight = None;
             // The way to where the new state goes: the last place it saw the player, or
             // back to its route; a chase plans as it runs.
             warden.path = match (warden.state, warden.last_seen) {
@@ -299,7 +305,7 @@ pub fn walk_wardens(
         match warden.state {
             WardenState::Patrol => {
                 if !warden.path.is_empty() {
-                    // Back to its route after a search.
+                    // To a lamp to relight, or back to its route after a search.
                     follow_path(warden, &mut at, warden.def.speed * STEP);
                 } else {
                     walk_route(warden, &mut at);
