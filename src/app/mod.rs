@@ -288,6 +288,40 @@ fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// "E  douse the lamp" or "E  light the lamp" when a lamp is within reach of the player's
+/// aim (`game::lamps::aimed_lamp`, the question E's press asks).
+fn lamp_prompt(world: &mut bevy_ecs::world::World) -> Option<&'static str> {
+    use crate::game::{
+        GlobalTransform, LevelEntity, Player, PlayerEye, PunctualLight, SwitchedOff, WorldGeometry,
+    };
+    use bevy_ecs::query::With;
+    let (player, eye) = {
+        let mut players = world.query::<&Player>();
+        let player = players.iter(world).next()?.clone();
+        let mut eyes = world.query_filtered::<&GlobalTransform, With<PlayerEye>>();
+        let eye: glam::Vec3 = eyes.iter(world).next()?.0.translation.into();
+        (player, eye)
+    };
+    let mut lamps = world.query_filtered::<(
+        bevy_ecs::entity::Entity,
+        &GlobalTransform,
+        bevy_ecs::query::Has<SwitchedOff>,
+    ), (With<PunctualLight>, With<LevelEntity>)>();
+    let candidates: Vec<_> = lamps
+        .iter(world)
+        .map(|(lamp, placed, doused)| (lamp, placed.0.translation.into(), doused))
+        .collect();
+    let geometry = world.get_resource::<WorldGeometry>()?;
+    let view = crate::game::lamps::view(&player);
+    let (_, doused) =
+        crate::game::lamps::aimed_lamp(&*geometry.0, eye, view, candidates.into_iter())?;
+    Some(if doused {
+        "E  light the lamp"
+    } else {
+        "E  douse the lamp"
+    })
+}
+
 /// The name of the warden that caught the player.
 fn caught_by(world: &mut bevy_ecs::world::World) -> String {
     let mut wardens = world.query::<(&crate::game::Warden, &bevy_ecs::name::Name)>();
@@ -537,6 +571,11 @@ impl App {
                     warden.suspicion,
                 );
             }
+        }
+        // The lamp within reach of the player's aim, and what E would do to it.
+        if let Some(prompt) = lamp_prompt(&mut self.engine.world) {
+            let x = (width / 2).saturating_sub(prompt.len() as u32 * 4);
+            hud::draw_text(frame, width, height, x, height.saturating_sub(44), prompt);
         }
         // Each noise the player made, as a ring of its reach on the floor, fading.
         if let Some(noises) = self.engine.world.get_resource::<crate::game::Noises>() {

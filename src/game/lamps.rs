@@ -16,7 +16,7 @@ use glam::{Quat, Vec3};
 use super::nav::NavGrid;
 use super::sight;
 use super::warden::{Warden, WardenState, plan};
-use super::world_query::WorldGeometry;
+use super::world_query::{WorldGeometry, WorldQuery};
 use super::{
     Action, GlobalTransform, Input, LevelEntity, Player, PlayerEye, PunctualLight, SwitchedOff,
     Transform,
@@ -51,25 +51,15 @@ pub fn douse_lamps(
         let Some(eye) = children.iter().find_map(|child| eyes.get(child).ok()) else {
             continue;
         };
-        let from: Vec3 = eye.0.translation.into();
-        let view =
-            Quat::from_rotation_y(player.yaw) * Quat::from_rotation_x(player.pitch) * Vec3::NEG_Z;
-        let aimed = lamps
+        let candidates = lamps
             .iter()
-            .filter_map(|(lamp, placed, doused)| {
-                let to = Vec3::from(placed.0.translation) - from;
-                let distance = to.length();
-                let cosine = to.dot(view) / distance.max(1e-6);
-                let in_reach = distance <= REACH && cosine >= AIM_DEGREES.to_radians().cos();
-                let clear = in_reach
-                    && geometry
-                        .0
-                        .raycast(from, to / distance, (distance - 0.05).max(0.0))
-                        .is_none();
-                clear.then_some((cosine, lamp, doused))
-            })
-            .max_by(|a, b| a.0.total_cmp(&b.0));
-        if let Some((_, lamp, doused)) = aimed {
+            .map(|(lamp, placed, doused)| (lamp, placed.0.translation.into(), doused));
+        if let Some((lamp, doused)) = aimed_lamp(
+            &*geometry.0,
+            eye.0.translation.into(),
+            view(player),
+            candidates,
+        ) {
             if doused {
                 commands.entity(lamp).remove::<SwitchedOff>();
             } else {
@@ -77,6 +67,36 @@ pub fn douse_lamps(
             }
         }
     }
+}
+
+/// Where `player` looks (unit).
+pub fn view(player: &Player) -> Vec3 {
+    Quat::from_rotation_y(player.yaw) * Quat::from_rotation_x(player.pitch) * Vec3::NEG_Z
+}
+
+/// Of `lamps` (entity, position, doused), the one an eye at `eye` looking along `view`
+/// reaches (see the module doc), and whether it is doused. The HUD asks the same question
+/// to show the prompt.
+pub fn aimed_lamp(
+    world: &dyn WorldQuery,
+    eye: Vec3,
+    view: Vec3,
+    lamps: impl Iterator<Item = (Entity, Vec3, bool)>,
+) -> Option<(Entity, bool)> {
+    lamps
+        .filter_map(|(lamp, at, doused)| {
+            let to = at - eye;
+            let distance = to.length();
+            let cosine = to.dot(view) / distance.max(1e-6);
+            let in_reach = distance <= REACH && cosine >= AIM_DEGREES.to_radians().cos();
+            let clear = in_reach
+                && world
+                    .raycast(eye, to / distance, (distance - 0.05).max(0.0))
+                    .is_none();
+            clear.then_some((cosine, lamp, doused))
+        })
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, lamp, doused)| (lamp, doused))
 }
 
 /// Fixed step: patrolling wardens go to the doused lamps they see and light them again
