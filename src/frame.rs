@@ -16,9 +16,9 @@
 //!    frame goes through temporal reprojection and the a-trous filter.
 //!
 //! The window shell (`app`) presents the result and times `Stage::Present`; headless tools
-//! (`bench`, `render`, `flythrough`, tests) drive the same `Engine`. At construction the
-//! level's navigation grid is built from the simulation's copy of its geometry
-//! (`game::NavGrid`). Each fixed step can record its input (`Engine::recording`) or take
+//! (`bench`, `render`, `flythrough`, tests) drive the same `Engine`. At construction a
+//! level with wardens gets its navigation grid, built from the simulation's copy of its
+//! geometry (`game::NavGrid`). Each fixed step can record its input (`Engine::recording`) or take
 //! it from a recording (`Engine::playback`).
 
 use bevy_ecs::prelude::*;
@@ -84,16 +84,17 @@ impl Engine {
             playback: None,
         };
         engine.settle();
-        // Where wardens can walk: the level's geometry as the first step will see it.
-        engine.step_world.run(&mut engine.world);
-        let geometry = &engine.world.resource::<WorldGeometry>().0;
-        let grid = match geometry.bounds() {
-            Some(bounds) => {
+        // Where wardens can walk: the level's geometry as the first step will see it (only
+        // a level with wardens needs it; `render` and the benchmarks of big scenes do not).
+        let mut wardens = engine.world.query::<&crate::game::Warden>();
+        if wardens.iter(&engine.world).next().is_some() {
+            engine.step_world.run(&mut engine.world);
+            let geometry = &engine.world.resource::<WorldGeometry>().0;
+            let grid = geometry.bounds().map_or_else(Default::default, |bounds| {
                 crate::game::NavGrid::build(geometry.as_ref(), bounds, crate::game::nav::CELL)
-            }
-            None => crate::game::NavGrid::default(),
-        };
-        engine.world.insert_resource(grid);
+            });
+            engine.world.insert_resource(grid);
+        }
         let mut views = engine.world.query_filtered::<(), With<ViewCamera>>();
         if views.iter(&engine.world).next().is_none() {
             // A skinned file's rest vertices may lie anywhere: frame the posed scene.
