@@ -1,28 +1,36 @@
 //! The window shell: the only code that knows winit and pixels.
 //!
 //! Per displayed frame (winit 0.30 `ApplicationHandler`):
-//! 1. window and device events -> the key-binding table -> the game's `Input` resource;
+//! 1. window and device events -> the player's key bindings (`settings`) -> the game's
+//!    `Input` resource, or, while a menu is open, -> the menu (`menu`);
 //! 2. `RedrawRequested`: the engine advances by the real time since the last frame (fixed
-//!    60 Hz simulation, then extract -> accel -> render -> film accumulation);
-//! 3. present: the accumulated image is tone mapped (the film's tone mapper) into pixels'
-//!    frame buffer at the internal render resolution, the HUD is drawn over it (the light
-//!    gem, the shards, each warden's state mark projected over its head, the end screen),
-//!    and pixels scales it to the window;
+//!    60 Hz simulation, then extract -> accel -> render -> film accumulation), unless a
+//!    menu holds it;
+//! 3. present: the accumulated image is tone mapped (the film's tone mapper, scaled by the
+//!    brightness setting) into pixels' frame buffer at the internal render resolution, the
+//!    HUD is drawn over it (the light gem, the shards, each warden's state mark projected
+//!    over its head), or the open menu over the darkened image, and pixels scales it to
+//!    the window;
 //! 4. when a warden has caught the player, the level starts again at once from the loaded
-//!    `Scene` (a watched recording stays on its last frame instead).
+//!    `Scene`; when the player gets out, the best time is kept and the end page opens (a
+//!    watched recording stays on its last frame instead).
 //!
-//! Keys: W A S D walk, Shift sprints, Space jumps, C or Ctrl crouches, E douses or
-//! relights the lamp looked at, N toggles noclip
-//! (fly through walls: Space and C rise and sink), mouse looks once captured (click), Esc
-//! pauses (and releases the mouse), Q quits, F11 toggles fullscreen, V toggles vsync, F3
-//! the profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw). A
-//! level without a player start is flown through with the same keys.
+//! With no level named, the window opens on the main menu over the first level seen from
+//! its own camera, its wardens walking their beats. Keys in play (the defaults; the keys
+//! page rebinds them): W A S D walk, Shift sprints, Space jumps, C or Ctrl crouches, E
+//! douses or relights the lamp looked at, N toggles noclip (fly through walls: Space and C
+//! rise and sink), mouse looks once captured (click). Fixed: Esc pauses (the pause page:
+//! resume, restart, settings, main menu, quit), F11 toggles fullscreen, V vsync, F3 the
+//! profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw). No
+//! single key quits. A level without a player start is flown through with the same keys.
 
 mod hud;
+pub mod menu;
 pub mod replay;
 pub mod resolution;
+pub mod settings;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -39,16 +47,20 @@ use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 use crate::extract::DeformStats;
 use crate::film::FilterMode;
 use crate::frame::Engine;
-use crate::game::{Action, Input};
+use crate::game::Input;
 use crate::profile::StageTimes;
 use crate::profile::{Profile, overlay};
 use crate::render::RenderSettings;
 use crate::render::film::tone_map;
+use crate::scene::files::default_level;
 use crate::scene::world::Scene;
+use menu::{Finish, Menu, MenuCommand, MenuContext, MenuInput, Page};
 use resolution::ResolutionController;
+use settings::{BestTimes, Settings};
 
 pub struct PlayOptions {
-    pub level: PathBuf,
+    /// The level to play; None opens the main menu.
+    pub level: Option<PathBuf>,
     /// Internal render resolution (pixels scales it to the window).
     pub width: u32,
     pub height: u32,
@@ -64,8 +76,9 @@ pub struct PlayOptions {
     pub profiler: bool,
     /// The film's filters.
     pub filter: FilterMode,
-    /// Adapt the internal resolution to hold this frame time (None: fixed).
-    pub target_ms: Option<f64>,
+    /// The frame time the internal resolution adapts to hold: `Some(None)` keeps it fixed,
+    /// None takes the player's setting.
+    pub target_ms: Option<Option<f64>>,
     /// Record every step's input of the attempt to this file.
     pub record: Option<PathBuf>,
     /// Watch this recording's inputs play instead of taking the keyboard's (its level is
@@ -88,7 +101,10 @@ impl StageLog {
     fn new(options: &PlayOptions) -> StageLog {
         StageLog {
             profile: Profile {
-                scene: options.level.display().to_string(),
+                scene: options
+                    .level
+                    .as_ref()
+                    .map_or_else(|| "menu".to_string(), |level| level.display().to_string()),
                 width: options.width,
                 height: options.height,
                 threads: rayon::current_num_threads(),
@@ -125,42 +141,29 @@ impl StageLog {
     }
 }
 
-/// What a key does.
+/// What a key does beyond the game's actions (those are the player's, in `settings`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Binding {
-    Game(Action),
     Pause,
-    Quit,
     Fullscreen,
     Profiler,
     Filter,
     Vsync,
 }
 
-/// The one key-binding table.
-const BINDINGS: &[(KeyCode, Binding)] = &[
-    (KeyCode::KeyW, Binding::Game(Action::MoveForward)),
-    (KeyCode::KeyS, Binding::Game(Action::MoveBack)),
-    (KeyCode::KeyA, Binding::Game(Action::MoveLeft)),
-    (KeyCode::KeyD, Binding::Game(Action::MoveRight)),
-    (KeyCode::Space, Binding::Game(Action::MoveUp)),
-    (KeyCode::KeyC, Binding::Game(Action::MoveDown)),
-    (KeyCode::ControlLeft, Binding::Game(Action::MoveDown)),
-    (KeyCode::ShiftLeft, Binding::Game(Action::Sprint)),
-    (KeyCode::KeyN, Binding::Game(Action::Noclip)),
-    (KeyCode::KeyE, Binding::Game(Action::Interact)),
+/// The window's own keys (`settings::RESERVED_KEYS`, which no game action may take).
+const WINDOW_KEYS: [(KeyCode, Binding); 5] = [
     (KeyCode::Escape, Binding::Pause),
-    (KeyCode::KeyQ, Binding::Quit),
     (KeyCode::F11, Binding::Fullscreen),
     (KeyCode::F3, Binding::Profiler),
     (KeyCode::F4, Binding::Filter),
     (KeyCode::KeyV, Binding::Vsync),
 ];
 
-/// Radians of view turn per pixel of mouse motion.
+/// Radians of view turn per pixel of mouse motion, at sensitivity 1.
 const MOUSE_SENSITIVITY: f32 = 0.0025;
 
-/// Opens the window and plays `options.level` until the player quits.
+/// Opens the window: plays `options.level`, or opens the main menu when none is named.
 pub fn play(options: PlayOptions) -> anyhow::Result<()> {
     if options.headless {
         return play_headless(options);
@@ -173,39 +176,63 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
             "no display to open a window on (DISPLAY and WAYLAND_DISPLAY are unset); `gloam play --headless` (and `--replay FILE`), `gloam render` and `gloam bench` work without one"
         ));
     }
-    let scene = Scene::load(&options.level)?;
-    let title = format!(
-        "Gloam - {}",
-        if scene.level.name.is_empty() {
-            options.level.display().to_string()
-        } else {
-            scene.level.name.clone()
-        }
-    );
+    // A level named on the command line that does not load is an error before any window.
+    let first = match &options.level {
+        Some(level) => Some((Scene::load(level)?, level.clone())),
+        None => None,
+    };
     let event_loop = EventLoop::new().map_err(|error| {
         anyhow!("cannot open a window ({error}); `gloam play --headless`, `gloam render` and `gloam bench` work without a display")
     })?;
+    let mut notices = Vec::new();
+    let config = settings::config_dir();
+    let (player_settings, best) = match &config {
+        Some(dir) => {
+            let loaded = settings::load::<Settings>(&dir.join(settings::SETTINGS_FILE));
+            let best = settings::load::<BestTimes>(&dir.join(settings::BEST_TIMES_FILE));
+            notices.extend(loaded.warning);
+            notices.extend(best.warning);
+            (loaded.value, best.value)
+        }
+        None => {
+            notices.push(
+                "no config folder (set HOME or GLOAM_CONFIG_DIR): settings and best times are not kept"
+                    .to_string(),
+            );
+            (Settings::default(), BestTimes::default())
+        }
+    };
+    let levels_folder = default_level()
+        .parent()
+        .map_or_else(|| PathBuf::from("levels"), Path::to_path_buf);
+    let (levels, warnings) = menu::find_levels(&levels_folder);
+    notices.extend(warnings);
+    for notice in &notices {
+        eprintln!("gloam: {notice}");
+    }
     let log = StageLog::new(&options);
     let overlay = options.profiler;
-    let mut engine = play_engine(&scene, &options);
-    if options.record.is_some() {
-        engine.recording = Some(Vec::new());
-    }
-    if let Some(recording) = &options.watch {
-        engine.playback = Some(recording.steps.iter().copied().collect());
-    }
     let mut app = App {
-        resolution: options.target_ms.map(ResolutionController::new),
-        engine,
-        scene,
+        resolution: None,
+        game: None,
+        backdrop: None,
+        menu: None,
+        context: MenuContext {
+            levels,
+            best,
+            settings: player_settings,
+            playing: None,
+            finish: None,
+        },
+        config,
+        notice: notices.last().map(|line| (Instant::now(), line.clone())),
+        pointer: None,
         caught: None,
         options,
-        title,
         window: None,
         pixels: None,
         last_frame: Instant::now(),
         frame_ms: Vec::new(),
-        paused: false,
         vsync: true,
         overlay,
         captured: false,
@@ -214,6 +241,11 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         error: None,
         log,
     };
+    app.apply_target();
+    match first {
+        Some((scene, level)) => app.start(scene, level),
+        None => app.open_main_menu(),
+    }
     event_loop
         .run_app(&mut app)
         .context("running the window's event loop")?;
@@ -241,6 +273,17 @@ fn play_engine(scene: &Scene, options: &PlayOptions) -> Engine {
     engine
 }
 
+/// Sets the player's eye to `degrees` of vertical field of view.
+fn set_field_of_view(engine: &mut Engine, degrees: f32) {
+    use bevy_ecs::query::With;
+    let mut eyes = engine
+        .world
+        .query_filtered::<&mut crate::game::ViewCamera, With<crate::game::PlayerEye>>();
+    for mut eye in eyes.iter_mut(&mut engine.world) {
+        eye.yfov = degrees.to_radians();
+    }
+}
+
 /// Feeds a frame's time to the resolution controller and applies a change of step.
 fn adapt_resolution(
     controller: &mut Option<ResolutionController>,
@@ -259,9 +302,14 @@ fn adapt_resolution(
 /// The same frame loop with no window: real time drives the simulation as in `play`, and
 /// present costs nothing.
 fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
-    let scene = Scene::load(&options.level)?;
+    let level = options.level.clone().unwrap_or_else(default_level);
+    let scene = Scene::load(&level)?;
     let mut engine = play_engine(&scene, &options);
-    let mut controller = options.target_ms.map(ResolutionController::new);
+    // Headless runs are measurements: the player's settings do not enter them.
+    let target = options
+        .target_ms
+        .unwrap_or(Some(settings::DEFAULT_TARGET_MS));
+    let mut controller = target.map(ResolutionController::new);
     let mut log = StageLog::new(&options);
     let mut last = Instant::now();
     for _ in 0..options.frames.unwrap_or(60) {
@@ -331,22 +379,39 @@ fn caught_by(world: &mut bevy_ecs::world::World) -> String {
         .map_or_else(|| "a warden".to_string(), |(_, name)| name.to_string())
 }
 
-struct App {
+/// A level being played.
+struct Game {
     engine: Engine,
     /// The level as loaded: a caught player starts it again from here.
     scene: Scene,
+    level: PathBuf,
+}
+
+struct App {
+    game: Option<Game>,
+    /// The main menu's backdrop: the first level seen from its own camera, no player in
+    /// it, the wardens walking their beats.
+    backdrop: Option<Engine>,
+    /// The open menu (None: playing).
+    menu: Option<Menu>,
+    context: MenuContext,
+    /// Where the settings and best times are kept (None: nowhere to keep them).
+    config: Option<PathBuf>,
+    /// A line shown at the top for a few seconds (a broken settings file, a level that
+    /// would not load).
+    notice: Option<(Instant, String)>,
+    /// The mouse pointer in frame pixels, while over the window.
+    pointer: Option<(u32, u32)>,
     /// When the player was last caught, and by whom (shown over the new attempt).
     caught: Option<(Instant, String)>,
     /// Adaptive internal resolution (None: fixed).
     resolution: Option<ResolutionController>,
     options: PlayOptions,
-    title: String,
     window: Option<Arc<Window>>,
     pixels: Option<Pixels<'static>>,
     last_frame: Instant,
     /// Recent frame times for the HUD.
     frame_ms: Vec<f32>,
-    paused: bool,
     vsync: bool,
     /// The profiler overlay (F3) is shown.
     overlay: bool,
@@ -359,19 +424,162 @@ struct App {
     log: StageLog,
 }
 
+/// How long a notice stays on screen.
+const NOTICE_SECONDS: f32 = 8.0;
+
 impl App {
     fn fail(&mut self, event_loop: &ActiveEventLoop, error: anyhow::Error) {
         self.error = Some(error);
         event_loop.exit();
     }
 
+    fn notify(&mut self, line: String) {
+        eprintln!("gloam: {line}");
+        self.notice = Some((Instant::now(), line));
+    }
+
+    /// Starts playing `scene` (loaded from `level`), menus closed.
+    fn start(&mut self, scene: Scene, level: PathBuf) {
+        let mut engine = play_engine(&scene, &self.options);
+        set_field_of_view(&mut engine, self.context.settings.field_of_view);
+        if self.options.record.is_some() {
+            engine.recording = Some(Vec::new());
+        }
+        if let Some(recording) = &self.options.watch {
+            engine.playback = Some(recording.steps.iter().copied().collect());
+        }
+        let name = if scene.level.name.is_empty() {
+            level.display().to_string()
+        } else {
+            scene.level.name.clone()
+        };
+        if let Some(window) = &self.window {
+            window.set_title(&format!("Gloam - {name}"));
+        }
+        self.context.playing = Some(level.clone());
+        self.context.finish = None;
+        self.game = Some(Game {
+            engine,
+            scene,
+            level,
+        });
+        self.backdrop = None;
+        self.menu = None;
+        self.caught = None;
+        self.apply_target();
+    }
+
+    /// Loads and plays `level`; a level that does not load is named and the menu stays.
+    fn start_level(&mut self, level: PathBuf) {
+        match Scene::load(&level) {
+            Ok(scene) => {
+                self.start(scene, level);
+                self.set_capture(true);
+            }
+            Err(error) => {
+                let line = format!("{error:#}");
+                self.notify(line.lines().next().unwrap_or_default().to_string());
+            }
+        }
+    }
+
+    /// The main menu, over the first level's backdrop.
+    fn open_main_menu(&mut self) {
+        self.finish_recording(crate::game::replay::Ended::Quit);
+        self.game = None;
+        self.context.playing = None;
+        self.menu = Some(Menu::new(Page::Main));
+        self.set_capture(false);
+        if let Some(window) = &self.window {
+            window.set_title("Gloam");
+        }
+        self.backdrop = self
+            .context
+            .levels
+            .first()
+            .and_then(|entry| Scene::load(&entry.path).ok())
+            .map(|scene| {
+                let mut engine = Engine::new(&scene, frame_settings(&self.options));
+                engine.film.filter.mode = self.options.filter;
+                engine
+            });
+        self.apply_target();
+    }
+
+    /// The adaptive resolution as the command line or the settings ask.
+    fn apply_target(&mut self) {
+        let target = self
+            .options
+            .target_ms
+            .unwrap_or(self.context.settings.frame_time_target_ms);
+        if self.resolution.as_ref().map(|c| c.target_ms) == target {
+            return;
+        }
+        self.resolution = target.map(ResolutionController::new);
+        let (width, height) = (self.options.width, self.options.height);
+        if let Some(engine) = self.engine_mut() {
+            engine.film.set_resolution(width, height);
+        }
+    }
+
+    /// The engine on screen: the level played, else the menu's backdrop.
+    fn engine_mut(&mut self) -> Option<&mut Engine> {
+        match &mut self.game {
+            Some(game) => Some(&mut game.engine),
+            None => self.backdrop.as_mut(),
+        }
+    }
+
+    /// Writes the settings after a change and applies them to the level being played.
+    fn settings_changed(&mut self) {
+        let fov = self.context.settings.field_of_view;
+        if let Some(game) = &mut self.game {
+            set_field_of_view(&mut game.engine, fov);
+        }
+        self.apply_target();
+        if let Some(dir) = &self.config
+            && let Err(error) =
+                settings::save(&dir.join(settings::SETTINGS_FILE), &self.context.settings)
+        {
+            self.notify(format!("{error:#}"));
+        }
+    }
+
+    /// Carries out what the menu asked for.
+    fn command(&mut self, event_loop: &ActiveEventLoop, command: MenuCommand) {
+        match command {
+            MenuCommand::Play(level) => {
+                self.finish_recording(crate::game::replay::Ended::Quit);
+                self.start_level(level);
+            }
+            MenuCommand::Resume => {
+                self.menu = None;
+                self.set_capture(true);
+            }
+            MenuCommand::Restart => {
+                self.finish_recording(crate::game::replay::Ended::Quit);
+                if let Some(game) = self.game.take() {
+                    self.start(game.scene, game.level);
+                    self.set_capture(true);
+                }
+            }
+            MenuCommand::MainMenu => self.open_main_menu(),
+            MenuCommand::Quit => {
+                self.finish_recording(crate::game::replay::Ended::Quit);
+                event_loop.exit();
+            }
+            MenuCommand::SettingsChanged => self.settings_changed(),
+        }
+    }
+
     /// Writes the recording, if one is being made, ended as `ended`; says where.
     fn finish_recording(&mut self, ended: crate::game::replay::Ended) {
-        let (Some(out), Some(steps)) = (&self.options.record, self.engine.recording.take()) else {
+        let Some(game) = &mut self.game else { return };
+        let (Some(out), Some(steps)) = (&self.options.record, game.engine.recording.take()) else {
             return;
         };
         let count = steps.len();
-        match replay::write_recording(out, &self.options.level, steps, ended) {
+        match replay::write_recording(out, &game.level, steps, ended) {
             Ok(()) => println!("wrote {} ({count} steps, ended {ended:?})", out.display()),
             Err(error) => eprintln!("gloam: {error:#}"),
         }
@@ -379,14 +587,53 @@ impl App {
 
     /// Caught: the level starts again at once, and says who caught the player.
     fn restart_caught(&mut self) {
-        let by = caught_by(&mut self.engine.world);
-        let internal = (
-            self.engine.film.settings.width,
-            self.engine.film.settings.height,
-        );
-        self.engine = play_engine(&self.scene, &self.options);
-        self.engine.film.set_resolution(internal.0, internal.1);
+        let Some(game) = self.game.take() else { return };
+        let mut engine = game.engine;
+        let by = caught_by(&mut engine.world);
+        let internal = (engine.film.settings.width, engine.film.settings.height);
+        self.start(game.scene, game.level);
+        if let Some(game) = &mut self.game {
+            game.engine.film.set_resolution(internal.0, internal.1);
+        }
         self.caught = Some((Instant::now(), by));
+    }
+
+    /// Won: the finish is offered to the best times (kept when it beats them) and the end
+    /// page opens.
+    fn won(&mut self) {
+        let Some(game) = &mut self.game else { return };
+        let Some(progress) = game
+            .engine
+            .world
+            .get_resource::<crate::game::Progress>()
+            .cloned()
+        else {
+            return;
+        };
+        let finish = settings::Best {
+            seconds: progress.seconds() as f64,
+            shards: progress.shards_taken,
+            times_seen: progress.times_seen,
+        };
+        let level = game.level.clone();
+        let previous = self.context.best.get(&level);
+        // A watched recording is someone's run, not the player's.
+        let new_best = self.options.watch.is_none() && self.context.best.offer(&level, finish);
+        if new_best
+            && let Some(dir) = &self.config
+            && let Err(error) =
+                settings::save(&dir.join(settings::BEST_TIMES_FILE), &self.context.best)
+        {
+            self.notify(format!("{error:#}"));
+        }
+        self.context.finish = Some(Finish {
+            level,
+            best: finish,
+            new_best,
+            previous,
+        });
+        self.menu = Some(Menu::new(Page::Won));
+        self.set_capture(false);
     }
 
     fn set_capture(&mut self, capture: bool) {
@@ -403,33 +650,70 @@ impl App {
         window.set_cursor_visible(!self.captured);
     }
 
+    fn menu_input(&mut self, event_loop: &ActiveEventLoop, input: MenuInput) {
+        let Some(menu) = &mut self.menu else { return };
+        if let Some(command) = menu.input(input, &mut self.context) {
+            self.command(event_loop, command);
+        }
+    }
+
     fn key(&mut self, event_loop: &ActiveEventLoop, code: KeyCode, state: ElementState) {
-        let Some(&(_, binding)) = BINDINGS.iter().find(|(key, _)| *key == code) else {
+        let pressed = state == ElementState::Pressed;
+        if self.menu.is_some() {
+            if !pressed {
+                return;
+            }
+            let input = match code {
+                _ if self.menu.as_ref().is_some_and(Menu::waiting_for_key) => MenuInput::Key(code),
+                KeyCode::ArrowUp => MenuInput::Up,
+                KeyCode::ArrowDown => MenuInput::Down,
+                KeyCode::ArrowLeft => MenuInput::Left,
+                KeyCode::ArrowRight => MenuInput::Right,
+                KeyCode::Enter | KeyCode::NumpadEnter | KeyCode::Space => MenuInput::Activate,
+                KeyCode::Escape => MenuInput::Back,
+                _ => match WINDOW_KEYS.iter().find(|(key, _)| *key == code) {
+                    Some(&(_, binding)) => return self.window_key(binding),
+                    None => return,
+                },
+            };
+            return self.menu_input(event_loop, input);
+        }
+        if let Some(action) = self.context.settings.keys.action(code) {
+            // A recording being watched plays its own input.
+            if self.options.watch.is_some() {
+                return;
+            }
+            let Some(game) = &mut self.game else { return };
+            let mut input = game.engine.world.resource_mut::<Input>();
+            if pressed {
+                input.held.insert(action);
+                input.pressed.insert(action);
+            } else {
+                input.held.remove(&action);
+            }
+            return;
+        }
+        let Some(&(_, binding)) = WINDOW_KEYS.iter().find(|(key, _)| *key == code) else {
             return;
         };
-        let pressed = state == ElementState::Pressed;
+        if !pressed {
+            return;
+        }
+        if binding == Binding::Pause {
+            if let Some(game) = &mut self.game {
+                game.engine.world.resource_mut::<Input>().held.clear();
+            }
+            self.menu = Some(Menu::new(Page::Paused));
+            self.set_capture(false);
+            return;
+        }
+        self.window_key(binding);
+    }
+
+    /// F11, F3, F4 and V, in play and in menus alike.
+    fn window_key(&mut self, binding: Binding) {
         match binding {
-            // A recording being watched plays its own input.
-            Binding::Game(_) if self.options.watch.is_some() => {}
-            Binding::Game(action) => {
-                let mut input = self.engine.world.resource_mut::<Input>();
-                if pressed && !self.paused {
-                    input.held.insert(action);
-                    input.pressed.insert(action);
-                } else {
-                    input.held.remove(&action);
-                }
-            }
-            Binding::Pause if pressed => {
-                self.paused = !self.paused;
-                self.engine.world.resource_mut::<Input>().held.clear();
-                self.set_capture(false);
-            }
-            Binding::Quit if pressed => {
-                self.finish_recording(crate::game::replay::Ended::Quit);
-                event_loop.exit();
-            }
-            Binding::Fullscreen if pressed => {
+            Binding::Fullscreen => {
                 if let Some(window) = &self.window {
                     let fullscreen = window
                         .fullscreen()
@@ -438,20 +722,22 @@ impl App {
                     window.set_fullscreen(fullscreen);
                 }
             }
-            Binding::Profiler if pressed => self.overlay = !self.overlay,
-            Binding::Filter if pressed => {
-                let accumulation = &mut self.engine.film;
-                accumulation.filter.mode = accumulation.filter.mode.next();
-                accumulation.filter.reset();
-                accumulation.reset = true;
+            Binding::Profiler => self.overlay = !self.overlay,
+            Binding::Filter => {
+                if let Some(engine) = self.engine_mut() {
+                    let accumulation = &mut engine.film;
+                    accumulation.filter.mode = accumulation.filter.mode.next();
+                    accumulation.filter.reset();
+                    accumulation.reset = true;
+                }
             }
-            Binding::Vsync if pressed => {
+            Binding::Vsync => {
                 self.vsync = !self.vsync;
                 if let Some(pixels) = &mut self.pixels {
                     pixels.enable_vsync(self.vsync);
                 }
             }
-            _ => {}
+            Binding::Pause => {}
         }
     }
 
@@ -463,30 +749,35 @@ impl App {
             .options
             .frames
             .is_some_and(|limit| self.rendered >= limit);
-        let advanced = !self.paused && !holding;
+        // A menu holds the level; the main menu's backdrop goes on living behind it.
+        let held = self.menu.is_some() && self.game.is_some();
+        let advanced = !held && !holding && (self.game.is_some() || self.backdrop.is_some());
         if advanced {
-            adapt_resolution(
-                &mut self.resolution,
-                &mut self.engine,
-                &self.options,
-                elapsed.as_secs_f64() * 1e3,
-            );
-            self.engine.advance(elapsed.as_secs_f64());
-            // A recording holds one attempt: it ends when the attempt does.
-            let outcome = self
-                .engine
-                .world
-                .get_resource::<crate::game::Progress>()
-                .map(|p| p.outcome);
-            match outcome {
-                Some(crate::game::Outcome::Won) => {
-                    self.finish_recording(crate::game::replay::Ended::Won)
+            let (options, resolution) = (&self.options, &mut self.resolution);
+            let engine = match &mut self.game {
+                Some(game) => &mut game.engine,
+                None => self.backdrop.as_mut().expect("advanced needs an engine"),
+            };
+            adapt_resolution(resolution, engine, options, elapsed.as_secs_f64() * 1e3);
+            engine.advance(elapsed.as_secs_f64());
+            if let Some(game) = &self.game {
+                // A recording holds one attempt: it ends when the attempt does.
+                let outcome = game
+                    .engine
+                    .world
+                    .get_resource::<crate::game::Progress>()
+                    .map(|p| p.outcome);
+                match outcome {
+                    Some(crate::game::Outcome::Won) => {
+                        self.finish_recording(crate::game::replay::Ended::Won);
+                        self.won();
+                    }
+                    Some(crate::game::Outcome::Caught) if self.options.watch.is_none() => {
+                        self.finish_recording(crate::game::replay::Ended::Caught);
+                        self.restart_caught();
+                    }
+                    _ => {}
                 }
-                Some(crate::game::Outcome::Caught) if self.options.watch.is_none() => {
-                    self.finish_recording(crate::game::replay::Ended::Caught);
-                    self.restart_caught();
-                }
-                _ => {}
             }
             self.rendered += 1;
             self.frame_ms.push(elapsed.as_secs_f32() * 1e3);
@@ -496,164 +787,104 @@ impl App {
         }
         let present_start = Instant::now();
         profiling::scope!("present");
+        let (width, height) = (self.options.width, self.options.height);
+        let brightness = self.context.settings.brightness;
         let Some(pixels) = &mut self.pixels else {
             return;
         };
-        let accumulation = &self.engine.film;
-        let internal = (accumulation.settings.width, accumulation.settings.height);
-        // The buffer keeps the configured size; a lowered internal resolution is scaled up.
-        let (width, height) = (self.options.width, self.options.height);
-        let image = accumulation.image().resized(width, height);
         let frame = pixels.frame_mut();
-        for (rgba, radiance) in frame.chunks_exact_mut(4).zip(&image.pixels) {
-            let [r, g, b] = tone_map(*radiance, 1.0);
-            rgba.copy_from_slice(&[r, g, b, 255]);
-        }
-        let mean_ms = self.frame_ms.iter().sum::<f32>() / self.frame_ms.len().max(1) as f32;
-        let film = match accumulation.filter.mode {
-            FilterMode::Off => format!("{} spp", accumulation.frames),
-            mode => mode.name().to_string(),
+        let engine = match &mut self.game {
+            Some(game) => Some(&mut game.engine),
+            None => self.backdrop.as_mut(),
         };
-        let status = format!(
-            "{:.1} fps {:.1} ms {}x{}{} {film}{}",
-            1000.0 / mean_ms.max(1e-3),
-            mean_ms,
-            internal.0,
-            internal.1,
-            match &self.resolution {
-                Some(controller) => format!(" ({:.0}%)", controller.scale() * 100.0),
-                None => String::new(),
-            },
-            if self.vsync { "" } else { " novsync" }
-        );
-        // The light gem (the player's exposure), and its exact value with the overlay.
-        let gem = self
-            .engine
-            .world
-            .query::<&crate::game::Exposure>()
-            .iter(&self.engine.world)
-            .next()
-            .map(|exposure| exposure.gem);
-        hud::draw_text(frame, width, height, 2, 2, &status);
-        if let Some(gem) = gem
-            && self.overlay
-        {
-            hud::draw_text(frame, width, height, 2, 22, &format!("light gem {gem:.3}"));
+        match engine {
+            Some(engine) => {
+                // The buffer keeps the configured size; a lowered internal resolution is
+                // scaled up.
+                let image = engine.film.image().resized(width, height);
+                for (rgba, radiance) in frame.chunks_exact_mut(4).zip(&image.pixels) {
+                    let [r, g, b] = tone_map(*radiance, brightness);
+                    rgba.copy_from_slice(&[r, g, b, 255]);
+                }
+            }
+            None => {
+                for (index, rgba) in frame.chunks_exact_mut(4).enumerate() {
+                    let shade = 10 + (index as u32 / width * 14 / height.max(1)) as u8;
+                    rgba.copy_from_slice(&[shade, shade, shade + 4, 255]);
+                }
+            }
         }
-        if self.paused {
-            hud::draw_text(frame, width, height, 2, 42, "PAUSED  Esc resume  Q quit");
+        if let Some(game) = &mut self.game {
+            draw_hud(
+                frame,
+                (width, height),
+                &mut game.engine,
+                &self.caught,
+                self.options.watch.is_some(),
+            );
+        }
+        let internal = self.engine_mut().map(|engine| {
+            (
+                engine.film.settings.width,
+                engine.film.settings.height,
+                engine.film.filter.mode,
+                engine.film.frames,
+            )
+        });
+        let frame = match &mut self.pixels {
+            Some(pixels) => pixels.frame_mut(),
+            None => return,
+        };
+        if let Some((internal_width, internal_height, mode, frames)) = internal
+            && (self.menu.is_none() || self.overlay)
+        {
+            let mean_ms = self.frame_ms.iter().sum::<f32>() / self.frame_ms.len().max(1) as f32;
+            let film = match mode {
+                FilterMode::Off => format!("{frames} spp"),
+                mode => mode.name().to_string(),
+            };
+            let status = format!(
+                "{:.1} fps {:.1} ms {internal_width}x{internal_height}{} {film}{}",
+                1000.0 / mean_ms.max(1e-3),
+                mean_ms,
+                match &self.resolution {
+                    Some(controller) => format!(" ({:.0}%)", controller.scale() * 100.0),
+                    None => String::new(),
+                },
+                if self.vsync { "" } else { " novsync" }
+            );
+            hud::draw_text(frame, width, height, 2, 2, &status);
         }
         if self.overlay {
             let frames = &self.log.profile.frames;
             let recent = &frames[frames.len().saturating_sub(overlay::HISTORY)..];
-            let deform = self.engine.deform_stats();
-            overlay::draw(frame, width, height, recent, deform.refits, deform.rebuilds);
+            let (refits, rebuilds) = self.game.as_ref().map_or((0, 0), |game| {
+                let deform = game.engine.deform_stats();
+                (deform.refits, deform.rebuilds)
+            });
+            overlay::draw(frame, width, height, recent, refits, rebuilds);
         }
-        if let Some(gem) = gem {
-            hud::draw_gem(frame, width, height, gem);
+        if let Some(menu) = &self.menu {
+            let view = menu.view(&self.context);
+            menu::draw(frame, width, height, &view);
         }
-        // Each warden's state above its head: what it knows, the player knows.
-        let projection = self.engine.view_camera(width, height).projection();
-        let mut wardens = self
-            .engine
-            .world
-            .query::<(&crate::game::Warden, &crate::game::GlobalTransform)>();
-        for (warden, placed) in wardens.iter(&self.engine.world) {
-            let head = placed.0.translation + glam::Vec3A::Y * hud::MARK_HEIGHT;
-            let seen = projection.project_lanes(head);
-            if seen.in_front && seen.distance < hud::MARK_RANGE {
-                hud::draw_warden_mark(
-                    frame,
-                    width,
-                    height,
-                    (seen.x, seen.y),
-                    warden.state,
-                    warden.suspicion,
-                );
+        if let Some((at, line)) = &self.notice {
+            if at.elapsed().as_secs_f32() < NOTICE_SECONDS {
+                hud::draw_text(frame, width, height, 2, 20, line);
             }
         }
-        // The lamp within reach of the player's aim, and what E would do to it.
-        if let Some(prompt) = lamp_prompt(&mut self.engine.world) {
-            let x = (width / 2).saturating_sub(prompt.len() as u32 * 4);
-            hud::draw_text(frame, width, height, x, height.saturating_sub(44), prompt);
-        }
-        // Each noise the player made, as a ring of its reach on the floor, fading.
-        if let Some(noises) = self.engine.world.get_resource::<crate::game::Noises>() {
-            for noise in &noises.0 {
-                let points = (0..hud::RING_POINTS).map(|i| {
-                    let angle = i as f32 / hud::RING_POINTS as f32 * std::f32::consts::TAU;
-                    let at = noise.at
-                        + glam::Vec3::new(
-                            angle.cos() * noise.radius,
-                            0.05,
-                            angle.sin() * noise.radius,
-                        );
-                    let seen = projection.project_lanes(at.into());
-                    seen.in_front.then_some((seen.x, seen.y))
-                });
-                let fade = 1.0 - noise.age / crate::game::noise::tuning::RING_SECONDS;
-                hud::draw_noise_ring(frame, width, height, points, fade);
-            }
-        }
-        if let Some((at, by)) = &self.caught {
-            if at.elapsed().as_secs_f32() < 3.0 {
-                let line = format!("Caught by {by}. The level starts again.");
-                let x = (width / 2).saturating_sub(line.len() as u32 * 4);
-                hud::draw_text(frame, width, height, x, height / 3, &line);
-            }
-        }
-        // The goal: shards so far, and the end screen once the attempt is over.
-        if let Some(progress) = self.engine.world.get_resource::<crate::game::Progress>() {
-            let progress = progress.clone();
-            let left = self
-                .engine
-                .world
-                .query_filtered::<(), bevy_ecs::query::With<crate::game::Shard>>()
-                .iter(&self.engine.world)
-                .count() as u32;
-            let total = progress.shards_taken + left;
-            if total > 0 {
-                let line = format!("shards {}/{total}", progress.shards_taken);
-                hud::draw_text(frame, width, height, 2, height.saturating_sub(18), &line);
-            }
-            if progress.outcome == crate::game::Outcome::Caught {
-                // Only a watched recording shows this: in play the level has restarted.
-                let line = format!("Caught by {}.  Q quits", caught_by(&mut self.engine.world));
-                let x = (width / 2).saturating_sub(line.len() as u32 * 4);
-                hud::draw_text(frame, width, height, x, height / 3, &line);
-            }
-            if progress.outcome == crate::game::Outcome::Won {
-                let seconds = progress.seconds();
-                let lines = [
-                    "You got out.".to_string(),
-                    format!(
-                        "time {}:{:04.1}  shards {}/{total}  seen {} times",
-                        (seconds / 60.0) as u32,
-                        seconds % 60.0,
-                        progress.shards_taken,
-                        progress.times_seen
-                    ),
-                    "Q quits".to_string(),
-                ];
-                for (row, line) in lines.iter().enumerate() {
-                    let x = (width / 2).saturating_sub(line.len() as u32 * 4);
-                    let y = height / 2 - 30 + row as u32 * 20;
-                    hud::draw_text(frame, width, height, x, y, line);
-                }
-            }
-        }
+        let Some(pixels) = &mut self.pixels else {
+            return;
+        };
         if let Err(error) = pixels.render() {
             return self.fail(event_loop, anyhow!("presenting the frame: {error}"));
         }
-        if advanced {
-            let times = self.engine.stage_times();
+        if advanced && let Some(engine) = self.engine_mut() {
+            let times = engine.stage_times();
+            let deform = engine.deform_stats();
             let present = present_start.elapsed().as_secs_f64() * 1e3;
-            self.log.push(
-                &times,
-                self.engine.deform_stats(),
-                present,
-                now.elapsed().as_secs_f64() * 1e3,
-            );
+            self.log
+                .push(&times, deform, present, now.elapsed().as_secs_f64() * 1e3);
         }
         if holding && self.done_at.is_none() {
             println!("ready: {} frames shown", self.rendered);
@@ -665,14 +896,106 @@ impl App {
     }
 }
 
+/// The HUD over the level being played: the light gem, each warden's state mark, the lamp
+/// prompt, noise rings, the caught banner, the shards.
+fn draw_hud(
+    frame: &mut [u8],
+    (width, height): (u32, u32),
+    engine: &mut Engine,
+    caught: &Option<(Instant, String)>,
+    watching: bool,
+) {
+    let gem = engine
+        .world
+        .query::<&crate::game::Exposure>()
+        .iter(&engine.world)
+        .next()
+        .map(|exposure| exposure.gem);
+    if let Some(gem) = gem {
+        hud::draw_gem(frame, width, height, gem);
+    }
+    // Each warden's state above its head: what it knows, the player knows.
+    let projection = engine.view_camera(width, height).projection();
+    let mut wardens = engine
+        .world
+        .query::<(&crate::game::Warden, &crate::game::GlobalTransform)>();
+    for (warden, placed) in wardens.iter(&engine.world) {
+        let head = placed.0.translation + glam::Vec3A::Y * hud::MARK_HEIGHT;
+        let seen = projection.project_lanes(head);
+        if seen.in_front && seen.distance < hud::MARK_RANGE {
+            hud::draw_warden_mark(
+                frame,
+                width,
+                height,
+                (seen.x, seen.y),
+                warden.state,
+                warden.suspicion,
+            );
+        }
+    }
+    // The lamp within reach of the player's aim, and what E would do to it.
+    if let Some(prompt) = lamp_prompt(&mut engine.world) {
+        let x = (width / 2).saturating_sub(prompt.len() as u32 * 4);
+        hud::draw_text(frame, width, height, x, height.saturating_sub(44), prompt);
+    }
+    // Each noise the player made, as a ring of its reach on the floor, fading.
+    if let Some(noises) = engine.world.get_resource::<crate::game::Noises>() {
+        for noise in &noises.0 {
+            let points = (0..hud::RING_POINTS).map(|i| {
+                let angle = i as f32 / hud::RING_POINTS as f32 * std::f32::consts::TAU;
+                let at = noise.at
+                    + glam::Vec3::new(angle.cos() * noise.radius, 0.05, angle.sin() * noise.radius);
+                let seen = projection.project_lanes(at.into());
+                seen.in_front.then_some((seen.x, seen.y))
+            });
+            let fade = 1.0 - noise.age / crate::game::noise::tuning::RING_SECONDS;
+            hud::draw_noise_ring(frame, width, height, points, fade);
+        }
+    }
+    if let Some((at, by)) = caught
+        && at.elapsed().as_secs_f32() < 3.0
+    {
+        let line = format!("Caught by {by}. The level starts again.");
+        let x = (width / 2).saturating_sub(line.len() as u32 * 4);
+        hud::draw_text(frame, width, height, x, height / 3, &line);
+    }
+    // The goal: shards so far.
+    if let Some(progress) = engine.world.get_resource::<crate::game::Progress>() {
+        let progress = progress.clone();
+        let left = engine
+            .world
+            .query_filtered::<(), bevy_ecs::query::With<crate::game::Shard>>()
+            .iter(&engine.world)
+            .count() as u32;
+        let total = progress.shards_taken + left;
+        if total > 0 {
+            let line = format!("shards {}/{total}", progress.shards_taken);
+            hud::draw_text(frame, width, height, 2, height.saturating_sub(18), &line);
+        }
+        if progress.outcome == crate::game::Outcome::Caught && watching {
+            // Only a watched recording shows this: in play the level has restarted.
+            let line = format!("Caught by {}.  Esc: menu", caught_by(&mut engine.world));
+            let x = (width / 2).saturating_sub(line.len() as u32 * 4);
+            hud::draw_text(frame, width, height, x, height / 3, &line);
+        }
+    }
+}
+
 impl ApplicationHandler for App {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.window.is_some() {
             return;
         }
         let (width, height) = (self.options.width, self.options.height);
+        let title = match &self.game {
+            Some(game) if !game.scene.level.name.is_empty() => {
+                format!("Gloam - {}", game.scene.level.name)
+            }
+            Some(game) => format!("Gloam - {}", game.level.display()),
+            None => "Gloam".to_string(),
+        };
         let attributes = Window::default_attributes()
-            .with_title(self.title.clone())
+            .with_title(title)
             .with_inner_size(LogicalSize::new(width * 2, height * 2));
         let window = match event_loop.create_window(attributes) {
             Ok(window) => Arc::new(window),
@@ -721,12 +1044,39 @@ impl ApplicationHandler for App {
                     self.key(event_loop, code, event.state);
                 }
             }
+            WindowEvent::CursorMoved { position, .. } => {
+                let Some(pixels) = &self.pixels else { return };
+                self.pointer = pixels
+                    .window_pos_to_pixel((position.x as f32, position.y as f32))
+                    .ok()
+                    .map(|(x, y)| (x as u32, y as u32));
+                if let (Some(menu), Some((x, y))) = (&self.menu, self.pointer) {
+                    let view = menu.view(&self.context);
+                    let (width, height) = (self.options.width, self.options.height);
+                    if let Some(row) = menu::row_at(&view, width, height, x, y) {
+                        self.menu_input(event_loop, MenuInput::Point(row));
+                    }
+                }
+            }
+            WindowEvent::CursorLeft { .. } => self.pointer = None,
             WindowEvent::MouseInput {
                 state: ElementState::Pressed,
                 button: MouseButton::Left,
                 ..
-            } if !self.paused => {
-                self.set_capture(true);
+            } => {
+                if let Some(menu) = &self.menu {
+                    // A click chooses the row under the pointer.
+                    let view = menu.view(&self.context);
+                    let (width, height) = (self.options.width, self.options.height);
+                    if let Some((x, y)) = self.pointer
+                        && let Some(row) = menu::row_at(&view, width, height, x, y)
+                    {
+                        self.menu_input(event_loop, MenuInput::Point(row));
+                        self.menu_input(event_loop, MenuInput::Activate);
+                    }
+                } else {
+                    self.set_capture(true);
+                }
             }
             WindowEvent::Focused(false) => self.set_capture(false),
             WindowEvent::RedrawRequested => self.redraw(event_loop),
@@ -737,12 +1087,16 @@ impl ApplicationHandler for App {
     fn device_event(&mut self, _: &ActiveEventLoop, _: DeviceId, event: DeviceEvent) {
         if let DeviceEvent::MouseMotion { delta } = event
             && self.captured
-            && !self.paused
+            && self.menu.is_none()
+            && let Some(game) = &mut self.game
         {
-            self.engine.world.resource_mut::<Input>().look +=
+            let settings = &self.context.settings;
+            let pitch = if settings.invert_y { 1.0 } else { -1.0 };
+            game.engine.world.resource_mut::<Input>().look +=
                 Vec2::new(delta.0 as f32, delta.1 as f32)
                     * MOUSE_SENSITIVITY
-                    * Vec2::new(1.0, -1.0);
+                    * settings.mouse_sensitivity
+                    * Vec2::new(1.0, pitch);
         }
     }
 

@@ -26,10 +26,12 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Play a level in a window (default: levels/first-light.ron). W A S D walk, Shift
-    /// sprints, Space jumps, C crouches, E douses or relights the lamp you look at, N
-    /// toggles noclip, mouse looks after a click, Esc pauses, Q quits, F11 fullscreen, V
-    /// vsync, F3 profiler, F4 film filters.
+    /// Play a level in a window; with no level, open the main menu (level select, settings,
+    /// best times). Default keys: W A S D walk, Shift sprints, Space jumps, C crouches, E
+    /// douses or relights the lamp you look at, N toggles noclip, mouse looks after a
+    /// click; Esc pauses (resume, restart, settings, main menu, quit), F11 fullscreen, V
+    /// vsync, F3 profiler, F4 film filters. Settings and best times live in the user's
+    /// config folder (~/.config/gloam, or $GLOAM_CONFIG_DIR).
     Play {
         level: Option<PathBuf>,
         /// Internal render resolution; the window scales it.
@@ -56,9 +58,10 @@ pub enum Command {
         /// Keep the internal resolution fixed instead of adapting it to --target-ms.
         #[arg(long)]
         fixed_resolution: bool,
-        /// The frame time the adaptive resolution holds, in milliseconds.
-        #[arg(long, default_value_t = 33.3)]
-        target_ms: f64,
+        /// The frame time the adaptive resolution holds, in milliseconds (default: the
+        /// settings' frame-time target, 33.3 until changed).
+        #[arg(long)]
+        target_ms: Option<f64>,
         /// Record every step's input of this attempt to FILE (JSON), written when it is
         /// won, caught or quit.
         #[arg(long, value_name = "FILE")]
@@ -169,22 +172,14 @@ pub fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let command = cli.command.unwrap_or(Command::Play {
-        level: None,
-        width: 480,
-        height: 270,
-        frames: None,
-        linger_seconds: 0.0,
-        headless: false,
-        profiler: false,
-        filter: FilterArg::Full,
-        fixed_resolution: false,
-        target_ms: 33.3,
-        record: None,
-        replay: None,
-        json: None,
-        threads: None,
-    });
+    // Bare `gloam` is `gloam play`, with `play`'s own defaults.
+    let command = match cli.command {
+        Some(command) => command,
+        None => match Cli::try_parse_from(["gloam", "play"]).map(|cli| cli.command) {
+            Ok(Some(command)) => command,
+            _ => return ExitCode::FAILURE,
+        },
+    };
     match run(command) {
         Ok(code) => code,
         Err(error) => {
@@ -249,10 +244,18 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             if width == 0 || height == 0 {
                 anyhow::bail!("--width and --height must be at least 1");
             }
-            if !(target_ms.is_finite() && target_ms > 0.0) {
+            if let Some(target_ms) = target_ms
+                && !(target_ms.is_finite() && target_ms > 0.0)
+            {
                 anyhow::bail!("--target-ms must be a positive number of milliseconds");
             }
-            let level = level.unwrap_or_else(default_level);
+            // Only a bare window opens on the menu: scripted runs play the default level.
+            let menu = !headless && frames.is_none() && record.is_none();
+            let level = match level {
+                Some(level) => Some(level),
+                None if menu => None,
+                None => Some(default_level()),
+            };
             crate::app::play(crate::app::PlayOptions {
                 level,
                 width,
@@ -262,7 +265,11 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 headless,
                 profiler,
                 filter: filter.mode(),
-                target_ms: (!fixed_resolution).then_some(target_ms),
+                target_ms: if fixed_resolution {
+                    Some(None)
+                } else {
+                    target_ms.map(Some)
+                },
                 record,
                 watch,
             })?;

@@ -80,12 +80,14 @@ pub fn level_from_world(world: &mut World) -> Level {
         version: LEVEL_VERSION,
         name: String::new(),
         playable: true,
+        campaign: None,
         environment: Default::default(),
     });
     Level {
         version: info.version,
         name: info.name,
         playable: info.playable,
+        campaign: info.campaign,
         environment: info.environment,
         entities: entities.into_iter().map(|(_, def)| def).collect(),
     }

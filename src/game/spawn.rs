@@ -33,6 +33,7 @@ pub struct LevelInfo {
     pub version: u32,
     pub name: String,
     pub playable: bool,
+    pub campaign: Option<u32>,
     pub environment: Environment,
 }
 
@@ -67,6 +68,7 @@ pub fn spawn_level(world: &mut World, scene: &Scene) {
         version: scene.level.version,
         name: scene.level.name.clone(),
         playable: scene.level.playable,
+        campaign: scene.level.campaign,
         environment: scene.level.environment.clone(),
     });
     world.init_resource::<Input>();
@@ -137,6 +139,7 @@ pub fn spawn(world: &mut World, def: &EntityDef) -> Result<Entity, LoadError> {
         version: crate::scene::level::LEVEL_VERSION,
         name: String::new(),
         playable: false,
+        campaign: None,
         environment: Environment::default(),
         entities: vec![def.clone()],
     };

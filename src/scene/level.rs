@@ -38,6 +38,10 @@ pub struct Level {
     /// sets this to false.
     #[serde(default = "default_true", skip_serializing_if = "is_true")]
     pub playable: bool,
+    /// Its place in the campaign: the level select lists levels by this number, then those
+    /// without one by file name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub campaign: Option<u32>,
     #[serde(default, skip_serializing_if = "Environment::is_default")]
     pub environment: Environment,
     #[serde(default)]

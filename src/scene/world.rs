@@ -119,6 +119,7 @@ impl Scene {
             version: LEVEL_VERSION,
             name: stem,
             playable: false,
+            campaign: None,
             environment: Environment {
                 // A file with no light of its own would render black: show it under a
                 // uniform white sky instead.
