@@ -611,7 +611,7 @@ impl App {
             return;
         };
         let finish = settings::Best {
-            seconds: progress.seconds() as f64,
+            seconds: progress.seconds(),
             shards: progress.shards_taken,
             times_seen: progress.times_seen,
         };
