@@ -55,6 +55,19 @@ pub struct StepWorld {
     emitters: Vec<(u32, Vec<(u32, u32)>)>,
     /// Radiance of the sky.
     sky: Vec3,
+    /// Per mirroring instance, its mirror triangles (see `is_mirror`).
+    mirror_triangles: Vec<(u32, Vec<u32>)>,
+    /// Those triangles in world space as of this step, front faces by their winding.
+    mirrors: Vec<[Vec3; 3]>,
+}
+
+/// A material the game treats as a mirror that wardens and the player see each other in:
+/// a perfect conductor (metallic 1, roughness 0, no texture to vary either), as the
+/// renderer reflects it.
+fn is_mirror(material: &crate::scene::model::Material) -> bool {
+    material.metallic >= 0.99
+        && material.roughness <= 0.01
+        && material.metallic_roughness_texture.is_none()
 }
 
 impl Default for StepWorld {
@@ -68,6 +81,8 @@ impl Default for StepWorld {
             emission: Vec::new(),
             emission_sides: Vec::new(),
             emitters: Vec::new(),
+            mirror_triangles: Vec::new(),
+            mirrors: Vec::new(),
             sky: Vec3::ZERO,
         }
     }
@@ -105,6 +120,10 @@ impl WorldQuery for StepWorld {
             distance: hit.t,
             normal: self.accel.surface(&hit).geometric_normal.into(),
         })
+    }
+
+    fn mirrors(&self) -> &[[Vec3; 3]] {
+        &self.mirrors
     }
 
     fn light_arriving(&self, point: Vec3) -> Vec3 {
@@ -325,6 +344,20 @@ pub fn update_step_world(
             }
         }
     }
+    world.mirrors.clear();
+    for (instance, triangles) in &world.mirror_triangles {
+        let instance = &world.accel.instances()[*instance as usize];
+        let to_world = instance.world_from_object();
+        let mirrored = to_world.matrix3.determinant() < 0.0;
+        let geometry = &world.accel.blases[instance.blas as usize].geometry;
+        for &triangle in triangles {
+            let [a, b, c] = geometry
+                .triangle_vertices(triangle as usize)
+                .map(|v| Vec3::from(to_world.transform_point3a(v)));
+            // A mirrored placement turns the winding: keep the front the front.
+            world.mirrors.push(if mirrored { [a, c, b] } else { [a, b, c] });
+        }
+    }
     world.sky = level.map_or(Vec3::ZERO, |l| l.environment.sky);
     let ms = since(start);
     times.add(Stage::Gameplay, ms);
@@ -360,7 +393,23 @@ fn assemble(
     world.emitters.clear();
     world.emission.clear();
     world.emission_sides.clear();
+    world.mirror_triangles.clear();
     for (_, entity, node, transform) in entries {
+        let mut mirror = Vec::new();
+        let mut triangle = 0u32;
+        for primitive in &node.asset.meshes[node.mesh].primitives {
+            let count = primitive.indices.len() as u32;
+            if primitive
+                .material
+                .is_some_and(|material| is_mirror(&node.asset.materials[material]))
+            {
+                mirror.extend(triangle..triangle + count);
+            }
+            triangle += count;
+        }
+        if !mirror.is_empty() {
+            world.mirror_triangles.push((instances.len() as u32, mirror));
+        }
         // Its emissive triangles, by the materials as the entity has them.
         if let Ok((_, asset_instance, switched)) = roots.get(node.root)
             && !switched

@@ -15,6 +15,12 @@
 //! `FULL_SIGHT` and falls linearly to `FAR_FALLOFF` at `FAR_RANGE`. A warden reads
 //! nothing else of the player: the gem is on the HUD, the rest is geometry the player
 //! sees too.
+//!
+//! Sight goes through mirrors, as the player's does: a point not seen straight may be
+//! seen in a mirror triangle (`WorldQuery::mirrors`, the level's perfect-mirror surfaces),
+//! along the reflected path, with the cones and the falloff taken at that path's length.
+//! Light does not: the gem's shadow rays, like the renderer's light sampling, stop at the
+//! first surface, so a mirror shows a lamp but throws none of its light.
 
 use glam::Vec3;
 
@@ -84,7 +90,7 @@ pub fn in_view(offset: Vec3, forward: Vec3) -> bool {
 }
 
 /// What a warden with eyes at `eye` looking along `forward` sees of a body whose points
-/// are `points`, lit as the gem says.
+/// are `points`, lit as the gem says: straight, or in any mirror (`reflected_path`).
 pub fn look(
     world: &dyn WorldQuery,
     eye: Vec3,
@@ -93,24 +99,87 @@ pub fn look(
     gem: f32,
 ) -> Sighting {
     let middle = points.iter().sum::<Vec3>() / points.len() as f32;
-    let distance = middle.distance(eye);
+    let mirrors = world.mirrors();
     let mut seen = 0;
+    // The shortest way the eyes reach a point they see, for the falloff.
+    let mut nearest = f32::INFINITY;
     for &point in points {
         let offset = point - eye;
-        if !in_view(offset, forward) {
+        let length = offset.length();
+        if in_view(offset, forward)
+            && (length < 1e-4 || world.raycast(eye, offset / length, length).is_none())
+        {
+            seen += 1;
+            nearest = nearest.min(middle.distance(eye));
             continue;
         }
-        let length = offset.length();
-        if length < 1e-4 || world.raycast(eye, offset / length, length).is_none() {
+        let reflected = mirrors
+            .iter()
+            .filter_map(|mirror| reflected_path(world, eye, forward, point, mirror))
+            .reduce(f32::min);
+        if let Some(path) = reflected {
             seen += 1;
+            nearest = nearest.min(path);
         }
     }
     let share = seen as f32 / points.len() as f32;
+    let distance = if seen > 0 {
+        nearest
+    } else {
+        middle.distance(eye)
+    };
     Sighting {
         share,
         visibility: share * lit(gem) * falloff(distance),
         distance,
     }
+}
+
+/// The length of the path from `eye` to `point` by way of the front of the mirror
+/// triangle `mirror`, when the eyes see the point there: both in front of its plane, the
+/// reflection landing inside the triangle, the spot on the mirror in a cone at the path's
+/// length, and nothing on either leg. The law of reflection makes that path the straight
+/// line from the eye's image behind the mirror to the point.
+pub fn reflected_path(
+    world: &dyn WorldQuery,
+    eye: Vec3,
+    forward: Vec3,
+    point: Vec3,
+    mirror: &[Vec3; 3],
+) -> Option<f32> {
+    let [a, b, c] = *mirror;
+    let normal = (b - a).cross(c - a).try_normalize()?;
+    let (eye_height, point_height) = ((eye - a).dot(normal), (point - a).dot(normal));
+    if eye_height <= 1e-3 || point_height <= 1e-3 {
+        return None;
+    }
+    let image = eye - 2.0 * eye_height * normal;
+    // Where the line from the point to the eye's image crosses the mirror's plane.
+    let spot = point + (image - point) * (point_height / (point_height + eye_height));
+    if !inside_triangle(spot, mirror, normal) {
+        return None;
+    }
+    let path = point.distance(image);
+    let to_spot = spot - eye;
+    if !in_view(to_spot.normalize_or_zero() * path, forward) {
+        return None;
+    }
+    // Both legs clear, short of the mirror itself.
+    let clear = |from: Vec3, to: Vec3| {
+        let leg = to - from;
+        let length = leg.length();
+        length <= 2e-3 || world.raycast(from, leg / length, length - 2e-3).is_none()
+    };
+    (clear(eye, spot) && clear(point, spot)).then_some(path)
+}
+
+/// Whether `p`, on the plane of `triangle` (unit `normal`), lies inside it (edges
+/// included).
+fn inside_triangle(p: Vec3, triangle: &[Vec3; 3], normal: Vec3) -> bool {
+    (0..3).all(|i| {
+        let (from, to) = (triangle[i], triangle[(i + 1) % 3]);
+        (to - from).cross(p - from).dot(normal) >= -1e-6
+    })
 }
 
 #[cfg(test)]
@@ -170,5 +239,114 @@ mod tests {
         assert_eq!(falloff(FULL_SIGHT), 1.0);
         assert!((falloff(FAR_RANGE) - FAR_FALLOFF).abs() < 1e-6);
         assert!(falloff(12.0) < 1.0 && falloff(12.0) > FAR_FALLOFF);
+    }
+
+    /// A screen 0.5 m either side of the line ahead (the plane z = 2) hides the body at
+    /// (0, 0, 6) from a warden at the origin; a mirror (the plane x = 1, facing the warden,
+    /// z 0..10) shows it from the side. `with_mirror` false keeps the glass but not its
+    /// reflection (a plain wall there).
+    struct MirrorRoom {
+        with_mirror: bool,
+    }
+
+    const MIRROR: [[Vec3; 3]; 2] = [
+        [
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 10.0),
+            Vec3::new(1.0, 3.0, 0.0),
+        ],
+        [
+            Vec3::new(1.0, 3.0, 0.0),
+            Vec3::new(1.0, 0.0, 10.0),
+            Vec3::new(1.0, 3.0, 10.0),
+        ],
+    ];
+
+    impl WorldQuery for MirrorRoom {
+        fn sphere_contacts(&self, _: Vec3, _: f32, _: &mut Vec<crate::game::world_query::Contact>) {}
+
+        fn raycast(
+            &self,
+            origin: Vec3,
+            direction: Vec3,
+            max_distance: f32,
+        ) -> Option<crate::game::world_query::RayHit> {
+            // (distance along the ray to the plane, whether the crossing is on the panel)
+            let screen = (direction.z.abs() > 1e-6).then(|| {
+                let t = (2.0 - origin.z) / direction.z;
+                let at = origin + direction * t;
+                (t, at.x.abs() < 0.5 && (0.0..3.0).contains(&at.y))
+            });
+            let glass = (direction.x.abs() > 1e-6).then(|| {
+                let t = (1.0 - origin.x) / direction.x;
+                let at = origin + direction * t;
+                (t, (0.0..10.0).contains(&at.z) && (0.0..3.0).contains(&at.y))
+            });
+            [screen, glass]
+                .into_iter()
+                .flatten()
+                .filter(|&(t, on)| on && t > 0.0 && t < max_distance)
+                .map(|(t, _)| t)
+                .reduce(f32::min)
+                .map(|distance| crate::game::world_query::RayHit {
+                    distance,
+                    normal: -direction,
+                })
+        }
+
+        fn light_arriving(&self, _: Vec3) -> Vec3 {
+            Vec3::ZERO
+        }
+
+        fn mirrors(&self) -> &[[Vec3; 3]] {
+            if self.with_mirror { &MIRROR } else { &[] }
+        }
+
+        fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+            self
+        }
+    }
+
+    #[test]
+    fn a_body_hidden_from_straight_sight_is_seen_in_a_mirror_at_the_reflected_distance() {
+        let feet = Vec3::new(0.0, 0.0, 6.0);
+        let plain = sees(&MirrorRoom { with_mirror: false }, feet, 1.0);
+        assert_eq!(plain.share, 0.0, "the screen hides it: {plain:?}");
+        let mirrored = sees(&MirrorRoom { with_mirror: true }, feet, 1.0);
+        assert!(mirrored.share >= 0.5, "{mirrored:?}");
+        // The path by the mirror is the straight line from the eye's image (x = 2).
+        let image = eye(Vec3::ZERO, Vec3::Z) + Vec3::X * 2.0;
+        let points = body_points(feet, 0.0, crate::game::player::tuning::STANDING_HEIGHT);
+        let shortest = points
+            .iter()
+            .map(|point| point.distance(image))
+            .fold(f32::INFINITY, f32::min);
+        assert!((mirrored.distance - shortest).abs() < 1e-4, "{mirrored:?} {shortest}");
+        assert!(mirrored.visibility > 0.0 && mirrored.visibility < 1.0);
+    }
+
+    #[test]
+    fn a_mirror_shows_nothing_from_behind_or_outside_the_glass() {
+        let points = body_points(
+            Vec3::new(0.0, 0.0, 6.0),
+            0.0,
+            crate::game::player::tuning::STANDING_HEIGHT,
+        );
+        let room = MirrorRoom { with_mirror: true };
+        // Eyes behind the glass (x > 1) see its back: no reflection.
+        let behind = look(&room, Vec3::new(2.0, 1.6, 0.15), Vec3::Z, &points, 1.0);
+        assert_eq!(behind.share, 0.0, "{behind:?}");
+        // A body whose reflection would land past the glass's far end is not seen in it.
+        let beyond = body_points(
+            Vec3::new(0.0, 0.0, 30.0),
+            0.0,
+            crate::game::player::tuning::STANDING_HEIGHT,
+        );
+        let eye = eye(Vec3::ZERO, Vec3::Z);
+        for point in beyond {
+            for triangle in &MIRROR {
+                assert_eq!(reflected_path(&room, eye, Vec3::Z, point, triangle), None);
+            }
+        }
     }
 }

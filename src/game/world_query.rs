@@ -43,6 +43,13 @@ pub trait WorldQuery: Send + Sync + 'static {
     /// share found with a shadow ray, with the renderer's own light definitions.
     fn light_arriving(&self, point: Vec3) -> Vec3;
 
+    /// Every mirror triangle in the level (world space, front face by its winding): the
+    /// surfaces the renderer reflects perfectly, through which wardens and the player see
+    /// each other (`sight`).
+    fn mirrors(&self) -> &[[Vec3; 3]] {
+        &[]
+    }
+
     /// The corners (min, max) of a box around all the geometry, if there is any.
     fn bounds(&self) -> Option<(Vec3, Vec3)> {
         None
