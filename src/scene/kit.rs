@@ -1,8 +1,21 @@
 //! Gloam's own assets, reproducible from code: the Cornell box (`cornell/cornell-box.gltf`
-//! and its `.bin`), the level kit (`kit/wall.glb`, `floor.glb`, `pillar.glb`, `crate.glb`,
-//! `shard.glb`, and the morphing cloth `banner.glb`) and the enemy (`kit/warden.glb`, a
-//! skinned, animated guard), plus a wavy-grid stress mesh for import timing and a
-//! high-detail warden for skinning benchmarks.
+//! and its `.bin`), the level kit under `kit/` and the enemy (`kit/warden.glb`, a skinned,
+//! animated guard), plus a wavy-grid stress mesh for import timing and a high-detail
+//! warden for skinning benchmarks.
+//!
+//! The kit (one `.glb` each; the dimensions and origins are in each builder's doc):
+//! - structure: `wall`, `wall-doorway` and `wall-window` (4 x 3 x 0.2 m, with a 1.2 x
+//!   2.2 m doorway or a 1.2 x 1 m window), `floor` (4 x 4 m tile), `pillar`, `stairs`
+//!   (15 steps, 3 m up over 5 m), `door` (fills the doorway) and `gate` (an iron
+//!   portcullis);
+//! - furniture: `crate`, `table`, `bookcase` (with books), `mirror` (its reflecting face is
+//!   the z = 0.03 plane over x -0.6..0.6, y 0..2);
+//! - lights: `lamp-bracket` (a wall lantern) and `candle`, whose emissive glass and flame
+//!   are closed solids: their punctual lights go just outside them ([`LAMP_BRACKET_LIGHT`],
+//!   [`CANDLE_LIGHT`]);
+//! - the collectable `shard` and the morphing cloth `banner`.
+//!
+//! Every kit piece but the banner is built from closed solids with outward faces.
 //!
 //! Load-time tooling, never run by the game itself. `gloam generate assets` calls
 //! [`generate_assets`] to rewrite every file under `assets/`; a test checks that the
@@ -27,7 +40,7 @@ pub fn generate_assets(out_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let cornell = out_dir.join("cornell").join("cornell-box.gltf");
     write_gltf(&cornell_box()?, &cornell)?;
     let mut written = vec![cornell.with_extension("bin"), cornell];
-    let kit: [(&str, GltfDocument); 7] = [
+    let mut kit: Vec<(&str, GltfDocument)> = vec![
         ("wall", wall()),
         ("floor", floor()?),
         ("pillar", pillar()),
@@ -36,6 +49,13 @@ pub fn generate_assets(out_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
         ("warden", warden_document(WARDEN_DETAIL)?),
         ("banner", banner()),
     ];
+    for (name, piece) in kit_pieces()? {
+        let mut document = piece.document()?;
+        if name == "gate" {
+            document.animations.push(gate_lift());
+        }
+        kit.push((name, document));
+    }
     for (name, document) in kit {
         let path = out_dir.join("kit").join(format!("{name}.glb"));
         write_gltf(&document, &path)?;
@@ -278,13 +298,7 @@ fn wall() -> GltfDocument {
         Vec3::new(2.0, 3.0, 0.1),
         0,
     );
-    single_mesh(
-        mesh,
-        MaterialData {
-            roughness: 0.9,
-            ..MaterialData::lambertian("plaster", Vec3::new(0.62, 0.6, 0.56))
-        },
-    )
+    single_mesh(mesh, plaster())
 }
 
 /// A 4 x 4 m tile 0.1 m thick with its top at y = 0, textured once across.
@@ -310,19 +324,20 @@ fn floor() -> anyhow::Result<GltfDocument> {
     Ok(document)
 }
 
+/// A small integer hash: deterministic noise for the floor texture and the books.
+fn hash32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}
+
 /// Side of the floor texture in texels.
 const FLOOR_TEXTURE_SIZE: u32 = 64;
 
 /// 64x64 sRGB PNG: four stone tiles with a little per-texel variation and darker grout.
 fn floor_tiles_png() -> anyhow::Result<Vec<u8>> {
-    /// A small integer hash (deterministic noise).
-    fn hash(mut x: u32) -> u32 {
-        x ^= x >> 16;
-        x = x.wrapping_mul(0x7feb_352d);
-        x ^= x >> 15;
-        x = x.wrapping_mul(0x846c_a68b);
-        x ^ (x >> 16)
-    }
     const TILE: u32 = FLOOR_TEXTURE_SIZE / 2;
     const STONE: [[i32; 3]; 4] = [
         [150, 146, 138],
@@ -343,7 +358,7 @@ fn floor_tiles_png() -> anyhow::Result<Vec<u8>> {
             } else {
                 STONE[(y / TILE * 2 + x / TILE) as usize]
             };
-            let noise = (hash(y * FLOOR_TEXTURE_SIZE + x) % 13) as i32 - 6;
+            let noise = (hash32(y * FLOOR_TEXTURE_SIZE + x) % 13) as i32 - 6;
             rgb.extend(base.map(|channel| (channel + noise).clamp(0, 255) as u8));
         }
     }
@@ -361,10 +376,7 @@ fn floor_tiles_png() -> anyhow::Result<Vec<u8>> {
 
 /// Radius 0.3 m, 3 m tall, 24 segments, base at y = 0.
 fn pillar() -> GltfDocument {
-    single_mesh(
-        MeshData::cylinder("pillar", 0.3, 3.0, 24, 0),
-        MaterialData::lambertian("stone", Vec3::new(0.5, 0.5, 0.48)),
-    )
+    single_mesh(MeshData::cylinder("pillar", 0.3, 3.0, 24, 0), stone())
 }
 
 /// A 1 m cube sitting on y = 0.
@@ -375,13 +387,7 @@ fn crate_box() -> GltfDocument {
         Vec3::new(0.5, 1.0, 0.5),
         0,
     );
-    single_mesh(
-        mesh,
-        MaterialData {
-            roughness: 0.8,
-            ..MaterialData::lambertian("wood", Vec3::new(0.55, 0.38, 0.2))
-        },
-    )
+    single_mesh(mesh, wood())
 }
 
 /// The collectable light shard: an elongated octahedron 0.15 m across and 0.5 m tall,
@@ -406,6 +412,633 @@ fn shard() -> anyhow::Result<GltfDocument> {
         ..MaterialData::lambertian("shard glow", Vec3::new(0.1, 0.2, 0.25))
     };
     Ok(single_mesh(mesh, glow))
+}
+
+// ---- modular pieces: openings, doors, stairs, lamps and furniture --------------------------
+
+/// `plaster` (0.62, 0.6, 0.56), roughness 0.9: the walls.
+fn plaster() -> MaterialData {
+    MaterialData {
+        roughness: 0.9,
+        ..MaterialData::lambertian("plaster", Vec3::new(0.62, 0.6, 0.56))
+    }
+}
+
+/// `stone` (0.5, 0.5, 0.48), Lambertian: the pillar and the stairs.
+fn stone() -> MaterialData {
+    MaterialData::lambertian("stone", Vec3::new(0.5, 0.5, 0.48))
+}
+
+/// `wood` (0.55, 0.38, 0.2), roughness 0.8: the crate and the table.
+fn wood() -> MaterialData {
+    MaterialData {
+        roughness: 0.8,
+        ..MaterialData::lambertian("wood", Vec3::new(0.55, 0.38, 0.2))
+    }
+}
+
+/// `dark wood` (0.3, 0.18, 0.1), roughness 0.7: the door, the window sill, the bookcase
+/// and the mirror frame.
+fn dark_wood() -> MaterialData {
+    MaterialData {
+        roughness: 0.7,
+        ..MaterialData::lambertian("dark wood", Vec3::new(0.3, 0.18, 0.1))
+    }
+}
+
+/// `iron` (0.2, 0.2, 0.2), metallic 1, roughness 0.5: the lamp bracket and the gate.
+fn iron() -> MaterialData {
+    MaterialData {
+        metallic: 1.0,
+        roughness: 0.5,
+        ..MaterialData::lambertian("iron", Vec3::splat(0.2))
+    }
+}
+
+/// `brass` (0.75, 0.56, 0.3), metallic 1, roughness 0.4: the door handles and the candle dish.
+fn brass() -> MaterialData {
+    MaterialData {
+        metallic: 1.0,
+        roughness: 0.4,
+        ..MaterialData::lambertian("brass", Vec3::new(0.75, 0.56, 0.3))
+    }
+}
+
+/// A kit piece made of closed solids, each a `MeshData` whose `material` indexes
+/// `materials`. [`Piece::document`] merges the solids that share a name into one mesh
+/// (in order of first use), each shown by a root node of the same name.
+struct Piece {
+    materials: Vec<MaterialData>,
+    solids: Vec<MeshData>,
+}
+
+impl Piece {
+    fn new(materials: Vec<MaterialData>) -> Self {
+        Piece {
+            materials,
+            solids: Vec::new(),
+        }
+    }
+
+    /// Adds an axis-aligned box between the corners `a` and `b` (in any order).
+    fn cuboid(&mut self, name: &str, a: Vec3, b: Vec3, material: usize) {
+        self.solids
+            .push(MeshData::cuboid(name, a.min(b), a.max(b), material));
+    }
+
+    fn document(&self) -> anyhow::Result<GltfDocument> {
+        let mut meshes: Vec<MeshData> = Vec::new();
+        for solid in &self.solids {
+            ensure!(
+                solid.material < self.materials.len(),
+                "solid '{}' names material {} of {}",
+                solid.name,
+                solid.material,
+                self.materials.len()
+            );
+            let mesh = match meshes.iter().position(|m| m.name == solid.name) {
+                Some(index) => &mut meshes[index],
+                None => {
+                    meshes.push(MeshData::new(&solid.name, solid.material));
+                    meshes.last_mut().expect("just pushed")
+                }
+            };
+            ensure!(
+                mesh.material == solid.material,
+                "the solids of mesh '{}' use different materials",
+                solid.name
+            );
+            let first = mesh.positions.len() as u32;
+            mesh.positions.extend(&solid.positions);
+            mesh.normals.extend(&solid.normals);
+            mesh.uvs.extend(&solid.uvs);
+            mesh.indices
+                .extend(solid.indices.iter().map(|t| t.map(|i| first + i)));
+        }
+        Ok(GltfDocument {
+            nodes: meshes
+                .iter()
+                .enumerate()
+                .map(|(i, mesh)| NodeData::with_mesh(&mesh.name, i))
+                .collect(),
+            roots: (0..meshes.len()).collect(),
+            meshes,
+            materials: self.materials.clone(),
+            ..GltfDocument::default()
+        })
+    }
+}
+
+/// `mesh` moved by `offset`.
+fn translated(mut mesh: MeshData, offset: Vec3) -> MeshData {
+    mesh.positions.iter_mut().for_each(|p| *p += offset);
+    mesh
+}
+
+/// A straight bar of square cross-section (`half_width` each side of its axis) from `from`
+/// to `to`, its end faces square to the axis.
+fn bar(
+    name: &str,
+    from: Vec3,
+    to: Vec3,
+    half_width: f32,
+    material: usize,
+) -> anyhow::Result<MeshData> {
+    let axis = (to - from).normalize();
+    let helper = if axis.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+    let u = axis.cross(helper).normalize() * half_width;
+    let v = axis.cross(u);
+    let corners = [-u - v, u - v, u + v, v - u];
+    let vertices: Vec<Vec3> = corners
+        .iter()
+        .map(|&c| from + c)
+        .chain(corners.iter().map(|&c| to + c))
+        .collect();
+    let faces: [&[usize]; 6] = [
+        &[0, 1, 2, 3],
+        &[4, 5, 6, 7],
+        &[0, 1, 5, 4],
+        &[1, 2, 6, 5],
+        &[2, 3, 7, 6],
+        &[3, 0, 4, 7],
+    ];
+    MeshData::convex_solid(name, &vertices, &faces, material)
+}
+
+/// A closed square pyramid: a horizontal base square `half_width` each side of
+/// `base_centre`, and the apex.
+fn pyramid(
+    name: &str,
+    base_centre: Vec3,
+    half_width: f32,
+    apex: Vec3,
+    material: usize,
+) -> anyhow::Result<MeshData> {
+    let h = half_width;
+    let vertices = [
+        base_centre + Vec3::new(-h, 0.0, -h),
+        base_centre + Vec3::new(h, 0.0, -h),
+        base_centre + Vec3::new(h, 0.0, h),
+        base_centre + Vec3::new(-h, 0.0, h),
+        apex,
+    ];
+    let faces: [&[usize]; 5] = [
+        &[0, 1, 2, 3],
+        &[0, 1, 4],
+        &[1, 2, 4],
+        &[2, 3, 4],
+        &[3, 0, 4],
+    ];
+    MeshData::convex_solid(name, &vertices, &faces, material)
+}
+
+/// Half the width and the height of the opening in `wall-doorway` (x -0.6..0.6, y 0..2.2),
+/// which is also the size of `door`.
+const DOORWAY_HALF_WIDTH: f32 = 0.6;
+const DOORWAY_HEIGHT: f32 = 2.2;
+
+/// `wall-doorway`: `wall` (4 m wide (x) x 3 m high x 0.2 m thick (z), origin at the bottom
+/// centre, `plaster`) with a doorway 1.2 m wide x 2.2 m high at x -0.6..0.6 from the floor:
+/// three boxes, the jambs x -2..-0.6 and 0.6..2 (full height) and the lintel x -0.6..0.6,
+/// y 2.2..3. `door` placed at x = -0.6 fills the opening.
+fn wall_doorway() -> Piece {
+    let mut piece = Piece::new(vec![plaster()]);
+    let (w, h) = (DOORWAY_HALF_WIDTH, DOORWAY_HEIGHT);
+    for side in [-1.0, 1.0] {
+        piece.cuboid(
+            "wall-doorway",
+            Vec3::new(side * 2.0, 0.0, -0.1),
+            Vec3::new(side * w, 3.0, 0.1),
+            0,
+        );
+    }
+    piece.cuboid(
+        "wall-doorway",
+        Vec3::new(-w, h, -0.1),
+        Vec3::new(w, 3.0, 0.1),
+        0,
+    );
+    piece
+}
+
+/// `wall-window`: `wall` (4 x 3 x 0.2 m, origin at the bottom centre, `plaster`) with a
+/// window opening 1.2 m wide x 1.0 m high, x -0.6..0.6, y 1.0..2.0: four plaster boxes (the
+/// sides x -2..-0.6 and 0.6..2 full height, the breast under the opening up to y 0.95 and
+/// the head over it from y 2.0) and a `dark wood` sill x -0.7..0.7, y 0.95..1.0,
+/// z -0.15..0.15 whose top is the opening's bottom, its ends let 0.1 m into the sides and
+/// standing 5 cm proud of both faces.
+fn wall_window() -> Piece {
+    let mut piece = Piece::new(vec![plaster(), dark_wood()]);
+    let v = Vec3::new;
+    for side in [-1.0, 1.0] {
+        piece.cuboid(
+            "wall-window",
+            v(side * 2.0, 0.0, -0.1),
+            v(side * 0.6, 3.0, 0.1),
+            0,
+        );
+    }
+    piece.cuboid("wall-window", v(-0.6, 0.0, -0.1), v(0.6, 0.95, 0.1), 0);
+    piece.cuboid("wall-window", v(-0.6, 2.0, -0.1), v(0.6, 3.0, 0.1), 0);
+    piece.cuboid("window sill", v(-0.7, 0.95, -0.15), v(0.7, 1.0, 0.15), 1);
+    piece
+}
+
+/// `door`: a `dark wood` leaf 1.2 m wide x 2.2 m high x 0.08 m thick, origin at the bottom
+/// of its hinge edge: x 0..1.2, y 0..2.2, z -0.04..0.04 (it turns about the y axis). A
+/// `brass` lever handle on each face, centred at x = 1.05, y = 1.0: a 6 x 12 cm rose, a
+/// stem and a 12.5 cm lever pointing back towards the hinge, 0.105 m out from the middle of
+/// the leaf at most. Placed at x = -0.6 of `wall-doorway` it fills the opening.
+fn door() -> Piece {
+    let mut piece = Piece::new(vec![dark_wood(), brass()]);
+    let v = Vec3::new;
+    let (w, h) = (2.0 * DOORWAY_HALF_WIDTH, DOORWAY_HEIGHT);
+    piece.cuboid("door", v(0.0, 0.0, -0.04), v(w, h, 0.04), 0);
+    for side in [1.0, -1.0] {
+        piece.cuboid(
+            "door handles",
+            v(1.02, 0.94, side * 0.04),
+            v(1.08, 1.06, side * 0.048),
+            1,
+        );
+        piece.cuboid(
+            "door handles",
+            v(1.04, 0.99, side * 0.048),
+            v(1.06, 1.01, side * 0.09),
+            1,
+        );
+        piece.cuboid(
+            "door handles",
+            v(0.94, 0.988, side * 0.09),
+            v(1.065, 1.012, side * 0.105),
+            1,
+        );
+    }
+    piece
+}
+
+/// Steps in `stairs`.
+const STAIR_STEPS: u32 = 15;
+
+/// `stairs`: a straight flight 1.2 m wide (x -0.6..0.6) climbing 3 m over 5 m towards -Z:
+/// 15 steps of rise 0.2 m and run 1/3 m, each a solid `stone` box down to y = 0 (step `i`,
+/// from 0: z -(i + 1)/3..-i/3, top at y = 0.2 (i + 1)). Origin at the floor under the first
+/// step's front edge (z = 0); the top step's back edge is the landing edge, y = 3 at z = -5.
+fn stairs() -> Piece {
+    let mut piece = Piece::new(vec![stone()]);
+    for step in 0..STAIR_STEPS {
+        let (near, far) = (step as f32, (step + 1) as f32);
+        let steps = STAIR_STEPS as f32;
+        piece.cuboid(
+            "stairs",
+            Vec3::new(-0.6, 0.0, -5.0 * far / steps),
+            Vec3::new(0.6, 3.0 * far / steps, -5.0 * near / steps),
+            0,
+        );
+    }
+    piece
+}
+
+/// The centre of `lamp-bracket`'s lantern housing, relative to the mount point.
+pub const LANTERN_CENTRE: Vec3 = Vec3::new(0.0, -0.15, 0.35);
+/// Where a level puts `lamp-bracket`'s punctual light: 4 cm under the housing's base, on
+/// its axis. Not at `LANTERN_CENTRE`: the glass is a closed opaque solid, so a light inside
+/// it would be hidden from everything (the renderer's shadow rays and the game's rays to
+/// a lamp alike).
+pub const LAMP_BRACKET_LIGHT: Vec3 = Vec3::new(0.0, -0.27, 0.35);
+
+/// `lamp-bracket`: a wall-mounted `iron` bracket with a lantern. Origin at the mount point
+/// on the wall, which is the z = 0 plane behind it; nothing lies behind z = 0. A back plate
+/// (x -0.05..0.05, y -0.12..0.06, z 0..0.015), a 2.5 cm square arm along +Z at y = 0 out to
+/// z = 0.38 with a diagonal brace under it, a hanger, and the lantern housing 0.16 m
+/// across centred at (0, -0.15, 0.35) (x -0.08..0.08, y -0.23..-0.07, z 0.27..0.43): an
+/// iron cap, base and four corner posts around an emissive `lantern glass` box (0.14 x
+/// 0.125 x 0.14 m, base colour (0.9, 0.8, 0.6), radiance (6, 4, 1.5)), under a pyramid
+/// roof peaking at y = -0.035. A level's light goes at (0, -0.27, 0.35), 4 cm under the
+/// housing (see `LAMP_BRACKET_LIGHT`).
+fn lamp_bracket() -> anyhow::Result<Piece> {
+    const IRON: usize = 0;
+    const GLASS: usize = 1;
+    let glass = MaterialData {
+        emissive: Vec3::new(6.0, 4.0, 1.5),
+        ..MaterialData::lambertian("lantern glass", Vec3::new(0.9, 0.8, 0.6))
+    };
+    let mut piece = Piece::new(vec![iron(), glass]);
+    let v = Vec3::new;
+    let c = LANTERN_CENTRE;
+    let name = "lamp bracket";
+    piece.cuboid(name, v(-0.05, -0.12, 0.0), v(0.05, 0.06, 0.015), IRON);
+    piece.cuboid(
+        name,
+        v(-0.0125, -0.0125, 0.015),
+        v(0.0125, 0.0125, 0.38),
+        IRON,
+    );
+    // The brace's ends are buried in the plate and the arm.
+    piece.solids.push(bar(
+        name,
+        v(0.0, -0.1, 0.0075),
+        v(0.0, 0.0, 0.2),
+        0.008,
+        IRON,
+    )?);
+    piece.cuboid(
+        name,
+        v(-0.006, -0.045, c.z - 0.006),
+        v(0.006, 0.0, c.z + 0.006),
+        IRON,
+    );
+    piece.solids.push(pyramid(
+        name,
+        c + v(0.0, 0.08, 0.0),
+        0.085,
+        c + v(0.0, 0.115, 0.0),
+        IRON,
+    )?);
+    piece.cuboid(
+        name,
+        c + v(-0.08, 0.065, -0.08),
+        c + v(0.08, 0.08, 0.08),
+        IRON,
+    );
+    piece.cuboid(
+        name,
+        c + v(-0.08, -0.08, -0.08),
+        c + v(0.08, -0.06, 0.08),
+        IRON,
+    );
+    for (x, z) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+        piece.cuboid(
+            name,
+            c + v(x * 0.065, -0.06, z * 0.065),
+            c + v(x * 0.08, 0.065, z * 0.08),
+            IRON,
+        );
+    }
+    piece.cuboid(
+        "lantern glass",
+        c + v(-0.07, -0.06, -0.07),
+        c + v(0.07, 0.065, 0.07),
+        GLASS,
+    );
+    Ok(piece)
+}
+
+/// Height of the middle of `candle`'s flame (y 0.17..0.22).
+pub const CANDLE_FLAME_CENTRE: f32 = 0.195;
+/// Where a level puts `candle`'s punctual light: 2 cm over the flame's tip, on its axis
+/// (inside the closed flame it would be hidden, as for `LAMP_BRACKET_LIGHT`).
+pub const CANDLE_LIGHT: Vec3 = Vec3::new(0.0, 0.24, 0.0);
+
+/// `candle`: a candle on a dish, origin at the bottom centre. A `brass` dish (cylinder of
+/// radius 0.06 m, 1.5 cm high, 16 segments), a `wax` candle (0.9, 0.85, 0.7), roughness
+/// 0.6 (radius 0.02 m, 0.15 m tall, y 0.015..0.165, 12 segments) and a `candle flame` (base
+/// colour (1, 0.9, 0.6), radiance (8, 5, 1.5)): a flat-shaded spindle 0.02 m across,
+/// y 0.17..0.22, its widest ring (6 sides) at y 0.185; flame centre y = 0.195. A level's
+/// light goes at (0, 0.24, 0), 2 cm over the tip (see `CANDLE_LIGHT`).
+fn candle() -> anyhow::Result<Piece> {
+    let wax = MaterialData {
+        roughness: 0.6,
+        ..MaterialData::lambertian("wax", Vec3::new(0.9, 0.85, 0.7))
+    };
+    let flame = MaterialData {
+        emissive: Vec3::new(8.0, 5.0, 1.5),
+        ..MaterialData::lambertian("candle flame", Vec3::new(1.0, 0.9, 0.6))
+    };
+    let mut piece = Piece::new(vec![brass(), wax, flame]);
+    piece
+        .solids
+        .push(MeshData::cylinder("candle dish", 0.06, 0.015, 16, 0));
+    piece.solids.push(translated(
+        MeshData::cylinder("candle", 0.02, 0.15, 12, 1),
+        Vec3::new(0.0, 0.015, 0.0),
+    ));
+    let mut vertices = vec![Vec3::new(0.0, 0.17, 0.0), Vec3::new(0.0, 0.22, 0.0)];
+    vertices.extend((0..6).map(|i| {
+        let angle = std::f64::consts::TAU * f64::from(i) / 6.0;
+        Vec3::new(
+            (0.01 * angle.sin()) as f32,
+            0.185,
+            (0.01 * angle.cos()) as f32,
+        )
+    }));
+    let faces: Vec<[usize; 3]> = (0..6)
+        .flat_map(|i| [[0, 2 + i, 2 + (i + 1) % 6], [1, 2 + i, 2 + (i + 1) % 6]])
+        .collect();
+    let faces: Vec<&[usize]> = faces.iter().map(|face| face.as_slice()).collect();
+    piece.solids.push(MeshData::convex_solid(
+        "candle flame",
+        &vertices,
+        &faces,
+        2,
+    )?);
+    Ok(piece)
+}
+
+/// `table`: a `wood` table (as `crate`), origin at the floor under its centre. Top 1.6 x
+/// 0.8 m (x -0.8..0.8, z -0.4..0.4), 0.05 m thick, its top surface at y = 0.75; four legs
+/// 0.07 m square, 5 cm in from the edges (x +-0.68..+-0.75, z +-0.28..+-0.35), and 0.1 m
+/// aprons under the top between the legs.
+fn table() -> Piece {
+    let mut piece = Piece::new(vec![wood()]);
+    let v = Vec3::new;
+    piece.cuboid("table", v(-0.8, 0.7, -0.4), v(0.8, 0.75, 0.4), 0);
+    for (x, z) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+        piece.cuboid(
+            "table",
+            v(x * 0.68, 0.0, z * 0.28),
+            v(x * 0.75, 0.7, z * 0.35),
+            0,
+        );
+    }
+    for side in [-1.0, 1.0] {
+        piece.cuboid(
+            "table",
+            v(-0.68, 0.6, side * 0.31),
+            v(0.68, 0.7, side * 0.33),
+            0,
+        );
+        piece.cuboid(
+            "table",
+            v(side * 0.71, 0.6, -0.28),
+            v(side * 0.73, 0.7, 0.28),
+            0,
+        );
+    }
+    piece
+}
+
+/// The bookcase's book materials: (name, linear base colour); roughness 0.8.
+const BOOK_COLOURS: [(&str, Vec3); 4] = [
+    ("book red", Vec3::new(0.45, 0.07, 0.05)),
+    ("book green", Vec3::new(0.1, 0.28, 0.14)),
+    ("book blue", Vec3::new(0.1, 0.14, 0.35)),
+    ("book ochre", Vec3::new(0.55, 0.4, 0.14)),
+];
+
+/// `bookcase`: a `dark wood` bookcase 1.2 m wide x 2.0 m high x 0.4 m deep, origin at the
+/// bottom centre of its back: x -0.6..0.6, y 0..2, z 0..0.4, so placed on a wall's face it
+/// stands against it and reaches out along +Z. The carcass: a 2 cm back, 2 cm sides, a
+/// plinth up to y = 0.1, a 2.5 cm top and three 2.5 cm shelves, leaving four shelves of
+/// books (standing on y 0.1, 0.56875, 1.0375 and 1.50625). Each shelf holds a run of
+/// upright books (boxes 2.5..5.5 cm thick, 0.2..0.32 m tall, 0.17..0.22 m deep, fronts
+/// near z = 0.38) from one end, in four colours (`book red`, `book green`, `book blue`,
+/// `book ochre`), all chosen by a fixed hash.
+fn bookcase() -> Piece {
+    let mut materials = vec![dark_wood()];
+    materials.extend(BOOK_COLOURS.iter().map(|&(name, colour)| MaterialData {
+        roughness: 0.8,
+        ..MaterialData::lambertian(name, colour)
+    }));
+    let mut piece = Piece::new(materials);
+    let v = Vec3::new;
+    let (bottom, top) = (0.1, 1.975);
+    piece.cuboid("bookcase", v(-0.6, 0.0, 0.0), v(0.6, 2.0, 0.02), 0);
+    for side in [-1.0, 1.0] {
+        piece.cuboid(
+            "bookcase",
+            v(side * 0.6, 0.0, 0.02),
+            v(side * 0.58, 2.0, 0.4),
+            0,
+        );
+    }
+    piece.cuboid("bookcase", v(-0.58, 0.0, 0.02), v(0.58, bottom, 0.4), 0);
+    piece.cuboid("bookcase", v(-0.58, top, 0.02), v(0.58, 2.0, 0.4), 0);
+    let pitch = (top - bottom) / 4.0;
+    for shelf in 1..4 {
+        let y = bottom + shelf as f32 * pitch;
+        piece.cuboid("bookcase", v(-0.58, y - 0.025, 0.02), v(0.58, y, 0.4), 0);
+    }
+    for shelf in 0..4_u32 {
+        let floor = bottom + shelf as f32 * pitch;
+        let seed = hash32(0x0b00_c500 + shelf);
+        let run = 0.45 + (seed % 36) as f32 * 0.01;
+        let from_left = seed & 0x100 == 0;
+        let mut filled = 0.0;
+        for book in 0_u32.. {
+            let r = hash32(seed ^ book.wrapping_mul(0x9e37_79b9));
+            let thickness = 0.025 + (r % 31) as f32 * 0.001;
+            if filled + thickness > run {
+                break;
+            }
+            let height = 0.2 + ((r >> 5) % 13) as f32 * 0.01;
+            let depth = 0.17 + ((r >> 9) % 6) as f32 * 0.01;
+            let front = 0.385 - ((r >> 13) % 3) as f32 * 0.005;
+            let colour = ((r >> 16) % 4) as usize;
+            let (left, right) = if from_left {
+                (-0.575 + filled, -0.575 + filled + thickness)
+            } else {
+                (0.575 - filled - thickness, 0.575 - filled)
+            };
+            piece.cuboid(
+                BOOK_COLOURS[colour].0,
+                v(left, floor, front - depth),
+                v(right, floor + height, front),
+                1 + colour,
+            );
+            filled += thickness + 0.002;
+        }
+    }
+    piece
+}
+
+/// `mirror`: a 1.2 m wide x 2.0 m high mirror facing +Z, origin at the bottom centre of the
+/// glass's back. The glass is a box x -0.6..0.6, y 0..2, z 0..0.03, material `mirror` (0.9,
+/// 0.9, 0.9), metallic 1, roughness 0: its reflecting face is the z = 0.03 plane over x
+/// -0.6..0.6, y 0..2 (the rectangle the game uses for sight through mirrors). Around it a
+/// 0.06 m `dark wood` frame (x -0.66..0.66, y -0.06..2.06, z 0..0.05) stands 2 cm proud of
+/// the glass; it reaches 6 cm below the origin, so hang the mirror at y >= 0.06.
+fn mirror() -> Piece {
+    let glass = MaterialData {
+        metallic: 1.0,
+        roughness: 0.0,
+        ..MaterialData::lambertian("mirror", Vec3::splat(0.9))
+    };
+    let mut piece = Piece::new(vec![glass, dark_wood()]);
+    let v = Vec3::new;
+    piece.cuboid("mirror", v(-0.6, 0.0, 0.0), v(0.6, 2.0, 0.03), 0);
+    for side in [-1.0, 1.0] {
+        piece.cuboid(
+            "mirror frame",
+            v(side * 0.6, -0.06, 0.0),
+            v(side * 0.66, 2.06, 0.05),
+            1,
+        );
+    }
+    piece.cuboid("mirror frame", v(-0.6, -0.06, 0.0), v(0.6, 0.0, 0.05), 1);
+    piece.cuboid("mirror frame", v(-0.6, 2.0, 0.0), v(0.6, 2.06, 0.05), 1);
+    piece
+}
+
+/// `gate`: an `iron` portcullis 2.0 m wide x 2.4 m high x 0.1 m deep, origin at the bottom
+/// centre (x -1..1, y 0..2.4, z -0.05..0.05), to slide up and down. Ten vertical bars 0.05 m
+/// square every 0.2 m (centres x = -0.9..0.9), each ending in a 0.1 m pyramid spike at
+/// y = 0, and three full-width rails 0.06 m high and 0.1 m deep (tops at y 0.41, 1.31, 2.4).
+fn gate() -> anyhow::Result<Piece> {
+    let mut piece = Piece::new(vec![iron()]);
+    let v = Vec3::new;
+    for bar in 0..10 {
+        let x = (2 * bar - 9) as f32 * 0.1;
+        piece.cuboid(
+            "gate",
+            v(x - 0.025, 0.1, -0.025),
+            v(x + 0.025, 2.37, 0.025),
+            0,
+        );
+        piece
+            .solids
+            .push(pyramid("gate", v(x, 0.1, 0.0), 0.025, v(x, 0.0, 0.0), 0)?);
+    }
+    for top in [0.41, 1.31, 2.4] {
+        piece.cuboid("gate", v(-1.0, top - 0.06, -0.05), v(1.0, top, 0.05), 0);
+    }
+    Ok(piece)
+}
+
+/// The gate's cycle, seconds: shut, rising, open, falling (then round again).
+pub const GATE_CYCLE: [f32; 4] = [4.0, 1.5, 4.0, 1.5];
+/// How far the open gate has risen, metres: its spikes clear a standing player's head.
+pub const GATE_RISE: f32 = 2.3;
+
+/// Clip `lift` of `gate.glb`: its node shut at y = 0 for `GATE_CYCLE[0]`, rising
+/// `GATE_RISE` over `GATE_CYCLE[1]`, open for `GATE_CYCLE[2]`, falling over
+/// `GATE_CYCLE[3]`; LINEAR translation, the last key equal to the first, so it loops.
+fn gate_lift() -> AnimationData {
+    let [shut, rising, open, falling] = GATE_CYCLE;
+    let times = vec![
+        0.0,
+        shut,
+        shut + rising,
+        shut + rising + open,
+        shut + rising + open + falling,
+    ];
+    let heights = [0.0, 0.0, GATE_RISE, GATE_RISE, 0.0];
+    AnimationData {
+        name: "lift".into(),
+        channels: vec![ChannelData {
+            node: 0,
+            property: AnimatedProperty::Translation,
+            interpolation: Interpolation::Linear,
+            times,
+            values: heights.iter().flat_map(|&y| [0.0, y, 0.0]).collect(),
+        }],
+    }
+}
+
+/// The kit pieces built from closed solids, by file stem.
+fn kit_pieces() -> anyhow::Result<Vec<(&'static str, Piece)>> {
+    Ok(vec![
+        ("wall-doorway", wall_doorway()),
+        ("wall-window", wall_window()),
+        ("door", door()),
+        ("stairs", stairs()),
+        ("lamp-bracket", lamp_bracket()?),
+        ("candle", candle()?),
+        ("table", table()),
+        ("bookcase", bookcase()),
+        ("mirror", mirror()),
+        ("gate", gate()?),
+    ])
 }
 
 // ---- the warden: the skinned, animated enemy -----------------------------------------------
@@ -1204,10 +1837,20 @@ mod tests {
             "cornell/cornell-box.bin",
             "cornell/cornell-box.gltf",
             "kit/banner.glb",
+            "kit/bookcase.glb",
+            "kit/candle.glb",
             "kit/crate.glb",
+            "kit/door.glb",
             "kit/floor.glb",
+            "kit/gate.glb",
+            "kit/lamp-bracket.glb",
+            "kit/mirror.glb",
             "kit/pillar.glb",
             "kit/shard.glb",
+            "kit/stairs.glb",
+            "kit/table.glb",
+            "kit/wall-doorway.glb",
+            "kit/wall-window.glb",
             "kit/wall.glb",
             "kit/warden.glb",
         ];
@@ -1219,7 +1862,7 @@ mod tests {
             "the shipped warden has {warden_triangles} triangles"
         );
         // (file, triangles, material names)
-        let expectations: [(&str, usize, &[&str]); 8] = [
+        let expectations: [(&str, usize, &[&str]); 18] = [
             (
                 "kit/warden.glb",
                 warden_triangles,
@@ -1236,6 +1879,36 @@ mod tests {
             ("kit/pillar.glb", 24 * 2 + 2 * 22, &["stone"]),
             ("kit/crate.glb", 12, &["wood"]),
             ("kit/shard.glb", 8, &["shard glow"]),
+            ("kit/wall-doorway.glb", 3 * 12, &["plaster"]),
+            ("kit/wall-window.glb", 5 * 12, &["plaster", "dark wood"]),
+            ("kit/door.glb", 7 * 12, &["dark wood", "brass"]),
+            ("kit/stairs.glb", 15 * 12, &["stone"]),
+            (
+                "kit/lamp-bracket.glb",
+                11 * 12 + 6,
+                &["iron", "lantern glass"],
+            ),
+            // Dish and candle: 2 triangles per side segment, n - 2 per cap; flame 12.
+            (
+                "kit/candle.glb",
+                (2 * 16 + 2 * 14) + (2 * 12 + 2 * 10) + 12,
+                &["brass", "wax", "candle flame"],
+            ),
+            ("kit/table.glb", 9 * 12, &["wood"]),
+            ("kit/mirror.glb", 5 * 12, &["mirror", "dark wood"]),
+            ("kit/gate.glb", 10 * (12 + 6) + 3 * 12, &["iron"]),
+            // Eight carcass boxes and 64 books.
+            (
+                "kit/bookcase.glb",
+                72 * 12,
+                &[
+                    "dark wood",
+                    "book red",
+                    "book green",
+                    "book blue",
+                    "book ochre",
+                ],
+            ),
         ];
         for (file, triangles, materials) in expectations {
             let asset =
@@ -1369,6 +2042,196 @@ mod tests {
             }
         }
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The axis-aligned bounds of `meshes`' positions.
+    fn bounds<'a>(meshes: impl IntoIterator<Item = &'a MeshData>) -> (Vec3, Vec3) {
+        meshes
+            .into_iter()
+            .flat_map(|mesh| &mesh.positions)
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            })
+    }
+
+    fn assert_near(actual: (Vec3, Vec3), expected: (Vec3, Vec3), what: &str) {
+        assert!(
+            actual.0.abs_diff_eq(expected.0, 1e-5) && actual.1.abs_diff_eq(expected.1, 1e-5),
+            "{what}: bounds {actual:?}, expected {expected:?}"
+        );
+    }
+
+    #[test]
+    fn kit_pieces_are_closed_solids_facing_outwards() {
+        for (name, piece) in kit_pieces().unwrap() {
+            let document = piece.document().unwrap();
+            let triangles = document.triangle_count();
+            assert!(triangles < 2000, "{name} has {triangles} triangles");
+            for (index, material) in piece.materials.iter().enumerate() {
+                assert!(
+                    document.meshes.iter().any(|m| m.material == index),
+                    "{name}: material '{}' is unused",
+                    material.name
+                );
+            }
+            for solid in &piece.solids {
+                // Closed: each edge (by position, to 0.01 mm) is crossed once each way.
+                let key = |p: Vec3| (p * 1e5).round().as_ivec3().to_array();
+                let mut edges = std::collections::BTreeMap::new();
+                let mut volume = 0.0;
+                for triangle in &solid.indices {
+                    let [a, b, c] = triangle.map(|i| solid.positions[i as usize]);
+                    for (from, to) in [(a, b), (b, c), (c, a)] {
+                        *edges.entry((key(from), key(to))).or_insert(0) += 1;
+                        *edges.entry((key(to), key(from))).or_insert(0) -= 1;
+                    }
+                    volume += a.dot(b.cross(c)) / 6.0;
+                    let normal = (b - a).cross(c - a);
+                    for &i in triangle {
+                        assert!(
+                            solid.normals[i as usize].dot(normal) > 0.0,
+                            "{name}/{}: a vertex normal disagrees with the winding",
+                            solid.name
+                        );
+                    }
+                }
+                assert!(
+                    edges.values().all(|&count| count == 0),
+                    "{name}/{}: not closed",
+                    solid.name
+                );
+                assert!(volume > 0.0, "{name}/{}: faces inwards", solid.name);
+            }
+        }
+    }
+
+    #[test]
+    fn kit_pieces_fit_their_documented_frames() {
+        let v = Vec3::new;
+        let pieces: std::collections::BTreeMap<&str, Piece> =
+            kit_pieces().unwrap().into_iter().collect();
+        let mesh_bounds = |piece: &str, mesh: &str| {
+            bounds(pieces[piece].solids.iter().filter(|s| s.name == mesh))
+        };
+        let whole = |piece: &str| bounds(&pieces[piece].solids);
+        // No solid reaches into the open box (lo, hi) by more than rounding.
+        let clear = |piece: &str, lo: Vec3, hi: Vec3| {
+            for solid in &pieces[piece].solids {
+                let (min, max) = bounds([solid]);
+                assert!(
+                    max.cmple(lo + 1e-5).any() || min.cmpge(hi - 1e-5).any(),
+                    "{piece}: '{}' ({min} .. {max}) is in the way",
+                    solid.name
+                );
+            }
+        };
+
+        let wall = (v(-2.0, 0.0, -0.1), v(2.0, 3.0, 0.1));
+        assert_near(whole("wall-doorway"), wall, "wall-doorway");
+        clear("wall-doorway", v(-0.6, 0.0, -1.0), v(0.6, 2.2, 1.0));
+        assert_near(
+            mesh_bounds("wall-window", "wall-window"),
+            wall,
+            "wall-window",
+        );
+        clear("wall-window", v(-0.6, 1.0, -1.0), v(0.6, 2.0, 1.0));
+        assert_eq!(mesh_bounds("wall-window", "window sill").1.y, 1.0);
+
+        // The door fills the doorway when placed at x = -0.6.
+        let leaf = mesh_bounds("door", "door");
+        assert_near(leaf, (v(0.0, 0.0, -0.04), v(1.2, 2.2, 0.04)), "door");
+        let (lo, hi) = mesh_bounds("door", "door handles");
+        assert!(
+            lo.x > 0.9 && hi.x < 1.1 && lo.y > 0.9 && hi.y < 1.1,
+            "{lo} .. {hi}"
+        );
+        assert!(lo.z < -0.1 && hi.z > 0.1);
+
+        // Stairs: each step's top face lies at 0.2 (i + 1) over its run.
+        assert_near(
+            whole("stairs"),
+            (v(-0.6, 0.0, -5.0), v(0.6, 3.0, 0.0)),
+            "stairs",
+        );
+        let stairs = pieces["stairs"].document().unwrap();
+        let mesh = &stairs.meshes[0];
+        for step in 0..STAIR_STEPS {
+            let z = -(step as f32 + 0.5) / 3.0;
+            let top = mesh
+                .indices
+                .iter()
+                .map(|t| t.map(|i| mesh.positions[i as usize]))
+                .filter(|[a, b, c]| {
+                    (b - a).cross(c - a).y > 0.0
+                        && a.z.min(b.z).min(c.z) <= z
+                        && a.z.max(b.z).max(c.z) >= z
+                })
+                .map(|[a, ..]| a.y)
+                .fold(f32::NEG_INFINITY, f32::max);
+            assert!(
+                (top - 0.2 * (step + 1) as f32).abs() < 1e-5,
+                "step {step}: {top}"
+            );
+        }
+
+        // The lamp: nothing behind the wall, the housing around its centre, the light
+        // outside every solid.
+        let (lo, hi) = whole("lamp-bracket");
+        assert!(lo.z == 0.0 && hi.z <= 0.435 + 1e-6, "{lo} .. {hi}");
+        let (lo, hi) = mesh_bounds("lamp-bracket", "lantern glass");
+        assert!(((lo + hi) * 0.5 - LANTERN_CENTRE).length() < 0.01);
+        // The housing: cap, base, posts and glass (the solids after the roof).
+        assert_near(
+            bounds(pieces["lamp-bracket"].solids.iter().skip(5)),
+            (v(-0.08, -0.23, 0.27), v(0.08, -0.07, 0.43)),
+            "lantern housing",
+        );
+        for (piece, light) in [
+            ("lamp-bracket", LAMP_BRACKET_LIGHT),
+            ("candle", CANDLE_LIGHT),
+        ] {
+            for solid in &pieces[piece].solids {
+                let (min, max) = bounds([solid]);
+                assert!(
+                    light.cmplt(min).any() || light.cmpgt(max).any(),
+                    "{piece}: the light is inside '{}'",
+                    solid.name
+                );
+            }
+        }
+
+        let (lo, hi) = mesh_bounds("candle", "candle flame");
+        assert!(((lo.y + hi.y) * 0.5 - CANDLE_FLAME_CENTRE).abs() < 1e-5);
+        assert!(hi.y < CANDLE_LIGHT.y && whole("candle").0.y == 0.0);
+
+        assert_near(
+            whole("table"),
+            (v(-0.8, 0.0, -0.4), v(0.8, 0.75, 0.4)),
+            "table",
+        );
+        assert_near(
+            whole("bookcase"),
+            (v(-0.6, 0.0, 0.0), v(0.6, 2.0, 0.4)),
+            "bookcase",
+        );
+        assert!(pieces["bookcase"].solids.len() > 40, "too few books");
+
+        let glass = mesh_bounds("mirror", "mirror");
+        assert_near(
+            glass,
+            (v(-0.6, 0.0, 0.0), v(0.6, 2.0, 0.03)),
+            "mirror glass",
+        );
+        assert_near(
+            whole("mirror"),
+            (v(-0.66, -0.06, 0.0), v(0.66, 2.06, 0.05)),
+            "mirror",
+        );
+        assert_near(
+            whole("gate"),
+            (v(-1.0, 0.0, -0.05), v(1.0, 2.4, 0.05)),
+            "gate",
+        );
     }
 
     #[test]
