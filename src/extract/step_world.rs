@@ -355,7 +355,9 @@ pub fn update_step_world(
                 .triangle_vertices(triangle as usize)
                 .map(|v| Vec3::from(to_world.transform_point3a(v)));
             // A mirrored placement turns the winding: keep the front the front.
-            world.mirrors.push(if mirrored { [a, c, b] } else { [a, b, c] });
+            world
+                .mirrors
+                .push(if mirrored { [a, c, b] } else { [a, b, c] });
         }
     }
     world.sky = level.map_or(Vec3::ZERO, |l| l.environment.sky);
@@ -408,7 +410,9 @@ fn assemble(
             triangle += count;
         }
         if !mirror.is_empty() {
-            world.mirror_triangles.push((instances.len() as u32, mirror));
+            world
+                .mirror_triangles
+                .push((instances.len() as u32, mirror));
         }
         // Its emissive triangles, by the materials as the entity has them.
         if let Ok((_, asset_instance, switched)) = roots.get(node.root)

@@ -263,7 +263,8 @@ mod tests {
     ];
 
     impl WorldQuery for MirrorRoom {
-        fn sphere_contacts(&self, _: Vec3, _: f32, _: &mut Vec<crate::game::world_query::Contact>) {}
+        fn sphere_contacts(&self, _: Vec3, _: f32, _: &mut Vec<crate::game::world_query::Contact>) {
+        }
 
         fn raycast(
             &self,
@@ -321,7 +322,10 @@ mod tests {
             .iter()
             .map(|point| point.distance(image))
             .fold(f32::INFINITY, f32::min);
-        assert!((mirrored.distance - shortest).abs() < 1e-4, "{mirrored:?} {shortest}");
+        assert!(
+            (mirrored.distance - shortest).abs() < 1e-4,
+            "{mirrored:?} {shortest}"
+        );
         assert!(mirrored.visibility > 0.0 && mirrored.visibility < 1.0);
     }
 
