@@ -29,7 +29,12 @@ pub fn level_from_world(world: &mut World) -> Level {
         Option<&PlayerStart>,
         Option<&AnimationSource>,
         Option<&DeformerSource>,
-        (Option<&Shard>, Option<&Exit>, Option<&Warden>),
+        (
+            Option<&Shard>,
+            Option<&Exit>,
+            Option<&Warden>,
+            Option<&super::noise::Knockable>,
+        ),
     )>();
     let mut entities: Vec<(LevelEntity, EntityDef)> = query
         .iter(world)
@@ -45,7 +50,7 @@ pub fn level_from_world(world: &mut World) -> Level {
                 spawn,
                 animation,
                 deformer,
-                (shard, exit, warden),
+                (shard, exit, warden, knock),
             )| {
                 let def = EntityDef {
                     name: name.as_str().to_owned(),
@@ -69,6 +74,10 @@ pub fn level_from_world(world: &mut World) -> Level {
                     shard: shard.map(|s| ShardDef { radius: s.radius }),
                     exit: exit.map(|e| ExitDef { radius: e.radius }),
                     warden: warden.map(|w| w.def.clone()),
+                    knock: knock.map(|k| crate::scene::level::KnockDef {
+                        radius: k.radius,
+                        noise: k.noise,
+                    }),
                 };
                 (*order, def)
             },

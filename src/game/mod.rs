@@ -14,7 +14,7 @@
 //!    rendering), then `fly_camera` (levels played without a player);
 //! 2. `Stage::Gameplay`: lamps doused and relit (`douse_lamps`), the player's body
 //!    (`move_player`: look, walk, jump, crouch,
-//!    collide with the level through `WorldGeometry`), the noise it makes (`make_noise`),
+//!    collide with the level through `WorldGeometry`), the noise it makes (`make_noise`, `knock_over`),
 //!    its light gem (`measure_exposure`), the goal (`collect_shards`, `reach_exit`), the
 //!    wardens (`watch_for_player`: sight, suspicion, state; `hear_noises`;
 //!    `relight_lamps`; `walk_wardens`: their feet, on the `nav::NavGrid` built at load),
@@ -62,7 +62,7 @@ pub use input::{Action, Input, fly_camera};
 pub use lamps::{douse_lamps, relight_lamps};
 pub use level_io::level_from_world;
 pub use nav::NavGrid;
-pub use noise::{Footfalls, Noises, hear_noises, make_noise};
+pub use noise::{Footfalls, Knockable, Noises, hear_noises, knock_over, make_noise};
 pub use patrol::{Patrol, patrol};
 pub use player::{
     ActiveCamera, Player, PlayerBody, PlayerEye, animate_player_body, move_player, spawn_player,
@@ -200,6 +200,7 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                             douse_lamps,
                             move_player,
                             make_noise,
+                            knock_over,
                             measure_exposure,
                             collect_shards,
                             reach_exit,

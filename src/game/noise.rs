@@ -6,6 +6,10 @@
 //!    (a drop of about 0.8 m; a jump on the flat lands softer) is heard out to
 //!    `LANDING_RADIUS`. Walking and crouching are quiet. Each noise is kept in `Noises`
 //!    for `RING_SECONDS`, the time the HUD shows its ring.
+//!    `knock_over` (after it): a standing player whose body walks into a knockable thing
+//!    (the level's `knock`) topples it about its base, away from them, over
+//!    `TOPPLE_SECONDS`, with a crash heard out to its `noise`; crouched, the player steps
+//!    round it.
 //! 2. `hear_noises` (after the wardens look): a warden hears a noise made this step when
 //!    its ears are within the noise's radius, halved when anything stands between (a ray
 //!    from the noise to the ears through the level as of this step). A warden that hears
@@ -17,7 +21,7 @@
 //! Fair by construction: every noise a warden hears is a ring on the HUD.
 
 use bevy_ecs::prelude::*;
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 use super::goal::{Outcome, Progress};
 use super::nav::NavGrid;
@@ -41,6 +45,8 @@ pub mod tuning {
     pub const EAR_HEIGHT: f32 = 1.6;
     /// How long the HUD shows a noise's ring.
     pub const RING_SECONDS: f32 = 1.0;
+    /// How long a knocked thing takes to fall flat.
+    pub const TOPPLE_SECONDS: f32 = 0.4;
 }
 
 use tuning::*;
@@ -70,6 +76,61 @@ pub struct Footfalls {
 }
 
 const STEP: f32 = 1.0 / SIMULATION_HZ as f32;
+
+/// A thing that falls over when walked into (the level's `knock`).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Knockable {
+    pub radius: f32,
+    pub noise: f32,
+    /// Its rotation as placed.
+    pub upright: Quat,
+    /// Once knocked: seconds since, and the horizontal axis it falls about.
+    pub fallen: Option<(f32, Vec3)>,
+}
+
+/// Fixed step: a standing player walking into a knockable thing topples it and makes a
+/// noise there; fallen things go on falling until flat (see the module doc).
+pub fn knock_over(
+    noises: Option<ResMut<Noises>>,
+    players: Query<(&Player, &Transform), Without<Knockable>>,
+    mut things: Query<(&mut Knockable, &mut Transform)>,
+) {
+    let Some(mut noises) = noises else { return };
+    let player = players.iter().next();
+    for (mut thing, mut placed) in &mut things {
+        if thing.fallen.is_none()
+            && let Some((player, body)) = player
+            && !player.crouched
+            && !player.noclip
+        {
+            let away = (placed.translation - body.translation) * Vec3::new(1.0, 0.0, 1.0);
+            let reach = thing.radius + super::player::tuning::RADIUS;
+            let moving = Vec3::new(player.velocity.x, 0.0, player.velocity.z).length() > 0.1;
+            let beside = (placed.translation.y - body.translation.y).abs()
+                < super::player::tuning::STANDING_HEIGHT;
+            if moving && beside && away.length() < reach {
+                let facing = Vec3::new(-player.yaw.sin(), 0.0, -player.yaw.cos());
+                let away = away.try_normalize().unwrap_or(facing);
+                thing.fallen = Some((0.0, Vec3::Y.cross(away).normalize()));
+                noises.0.push(Noise {
+                    at: placed.translation,
+                    radius: thing.noise,
+                    age: 0.0,
+                });
+            }
+        }
+        // A thing lying flat is left alone: its transform unchanged, nothing to rebuild.
+        if let Some((since, axis)) = &mut thing.fallen
+            && *since < TOPPLE_SECONDS
+        {
+            *since = (*since + STEP).min(TOPPLE_SECONDS);
+            // Falling faster as it goes, as a thing tipping over its edge does.
+            let share = (*since / TOPPLE_SECONDS).powi(2);
+            let angle = share * std::f32::consts::FRAC_PI_2;
+            placed.rotation = Quat::from_axis_angle(*axis, angle) * thing.upright;
+        }
+    }
+}
 
 /// Fixed step: the player's sprinting footfalls and hard landings become noises, and old
 /// noises fade (see the module doc).
@@ -285,6 +346,51 @@ mod tests {
             if hears {
                 assert_eq!(warden.last_seen, Some(Vec3::ZERO));
                 assert!(warden.suspicion >= NOTICE);
+            }
+        }
+    }
+
+    #[test]
+    fn walking_into_a_bottle_knocks_it_over_loudly_and_a_crouched_player_steps_round() {
+        for (crouched, knocked) in [(false, true), (true, false)] {
+            let (mut world, body, warden) =
+                world_with(Vec3::new(0.0, 0.0, -1.4), 6.0, Box::new(EmptyWorld));
+            world.get_mut::<Player>(body).unwrap().crouched = crouched;
+            let bottle = world
+                .spawn((
+                    Knockable {
+                        radius: 0.25,
+                        noise: 10.0,
+                        upright: Quat::IDENTITY,
+                        fallen: None,
+                    },
+                    Transform {
+                        translation: Vec3::new(0.0, 0.0, -0.4),
+                        ..Transform::default()
+                    },
+                ))
+                .id();
+            let mut schedule = Schedule::default();
+            schedule.add_systems((make_noise, knock_over, hear_noises).chain());
+            schedule.run(&mut world);
+            let heard = world.get::<Warden>(warden).unwrap().state;
+            if knocked {
+                assert_eq!(world.resource::<Noises>().0.len(), 1);
+                assert_eq!(world.resource::<Noises>().0[0].radius, 10.0);
+                assert_eq!(heard, WardenState::Suspicious, "6 m off, within 10 m");
+            } else {
+                assert!(world.resource::<Noises>().0.is_empty());
+                assert_eq!(heard, WardenState::Patrol);
+            }
+            // It falls flat, away from the player (towards -Z), in TOPPLE_SECONDS.
+            for _ in 0..(TOPPLE_SECONDS * SIMULATION_HZ as f32) as usize + 2 {
+                schedule.run(&mut world);
+            }
+            let up = world.get::<Transform>(bottle).unwrap().rotation * Vec3::Y;
+            if knocked {
+                assert!(up.dot(Vec3::NEG_Z) > 0.999, "{up}");
+            } else {
+                assert_eq!(up, Vec3::Y);
             }
         }
     }

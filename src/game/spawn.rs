@@ -231,6 +231,14 @@ pub fn spawn_entity(
             radius: exit.radius,
         });
     }
+    if let Some(knock) = &def.knock {
+        root.insert(super::noise::Knockable {
+            radius: knock.radius,
+            noise: knock.noise,
+            upright: transform.rotation,
+            fallen: None,
+        });
+    }
     let root = root.id();
     if let Some(warden) = &def.warden {
         // The warden, and its lamp as a child light that moves with it.

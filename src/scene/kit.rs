@@ -8,8 +8,8 @@
 //!   2.2 m doorway or a 1.2 x 1 m window), `floor` (4 x 4 m tile), `pillar`, `stairs`
 //!   (15 steps, 3 m up over 5 m), `door` (fills the doorway) and `gate` (an iron
 //!   portcullis);
-//! - furniture: `crate`, `table`, `bookcase` (with books), `mirror` (its reflecting face is
-//!   the z = 0.03 plane over x -0.6..0.6, y 0..2);
+//! - furniture: `crate`, `table`, `bookcase` (with books), `bottle` (to knock over),
+//!   `mirror` (its reflecting face is the z = 0.03 plane over x -0.6..0.6, y 0..2);
 //! - lights: `lamp-bracket` (a wall lantern) and `candle`, whose emissive glass and flame
 //!   are closed solids: their punctual lights go just outside them ([`LAMP_BRACKET_LIGHT`],
 //!   [`CANDLE_LIGHT`]);
@@ -835,6 +835,25 @@ fn candle() -> anyhow::Result<Piece> {
     Ok(piece)
 }
 
+/// `bottle`: a dark green bottle standing on its base at the origin: a body of radius
+/// 0.07 m and 0.24 m tall, then a neck of radius 0.022 m to y = 0.34 (16 segments each).
+/// Levels make it knockable: it topples about its base with a crash.
+fn bottle() -> Piece {
+    let glass = MaterialData {
+        roughness: 0.25,
+        ..MaterialData::lambertian("bottle green", Vec3::new(0.06, 0.16, 0.08))
+    };
+    let mut piece = Piece::new(vec![glass]);
+    piece
+        .solids
+        .push(MeshData::cylinder("bottle", 0.07, 0.24, 16, 0));
+    piece.solids.push(translated(
+        MeshData::cylinder("bottle", 0.022, 0.1, 16, 0),
+        Vec3::new(0.0, 0.24, 0.0),
+    ));
+    piece
+}
+
 /// `table`: a `wood` table (as `crate`), origin at the floor under its centre. Top 1.6 x
 /// 0.8 m (x -0.8..0.8, z -0.4..0.4), 0.05 m thick, its top surface at y = 0.75; four legs
 /// 0.07 m square, 5 cm in from the edges (x +-0.68..+-0.75, z +-0.28..+-0.35), and 0.1 m
@@ -1034,6 +1053,7 @@ fn kit_pieces() -> anyhow::Result<Vec<(&'static str, Piece)>> {
         ("stairs", stairs()),
         ("lamp-bracket", lamp_bracket()?),
         ("candle", candle()?),
+        ("bottle", bottle()),
         ("table", table()),
         ("bookcase", bookcase()),
         ("mirror", mirror()),
@@ -1838,6 +1858,7 @@ mod tests {
             "cornell/cornell-box.gltf",
             "kit/banner.glb",
             "kit/bookcase.glb",
+            "kit/bottle.glb",
             "kit/candle.glb",
             "kit/crate.glb",
             "kit/door.glb",
@@ -1862,7 +1883,7 @@ mod tests {
             "the shipped warden has {warden_triangles} triangles"
         );
         // (file, triangles, material names)
-        let expectations: [(&str, usize, &[&str]); 18] = [
+        let expectations: [(&str, usize, &[&str]); 19] = [
             (
                 "kit/warden.glb",
                 warden_triangles,
@@ -1894,6 +1915,7 @@ mod tests {
                 (2 * 16 + 2 * 14) + (2 * 12 + 2 * 10) + 12,
                 &["brass", "wax", "candle flame"],
             ),
+            ("kit/bottle.glb", 2 * (2 * 16 + 2 * 14), &["bottle green"]),
             ("kit/table.glb", 9 * 12, &["wood"]),
             ("kit/mirror.glb", 5 * 12, &["mirror", "dark wood"]),
             ("kit/gate.glb", 10 * (12 + 6) + 3 * 12, &["iron"]),

@@ -95,6 +95,51 @@ pub struct EntityDef {
     /// A warden: walks its route, carrying a lamp.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub warden: Option<WardenDef>,
+    /// Something that falls over, loudly, when the player walks into it standing.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub knock: Option<KnockDef>,
+}
+
+/// A thing that topples about its base, away from the player, and makes a noise when the
+/// player's body comes within `radius` of its origin (horizontally) while standing;
+/// crouched, the player steps round it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KnockDef {
+    /// Metres from the entity's origin to the player's body surface.
+    #[serde(
+        default = "default_knock_radius",
+        skip_serializing_if = "is_default_knock_radius"
+    )]
+    pub radius: f32,
+    /// How far the crash carries in the open (metres).
+    #[serde(
+        default = "default_knock_noise",
+        skip_serializing_if = "is_default_knock_noise"
+    )]
+    pub noise: f32,
+}
+
+impl Default for KnockDef {
+    fn default() -> Self {
+        KnockDef {
+            radius: default_knock_radius(),
+            noise: default_knock_noise(),
+        }
+    }
+}
+
+fn default_knock_radius() -> f32 {
+    0.25
+}
+fn is_default_knock_radius(value: &f32) -> bool {
+    *value == default_knock_radius()
+}
+fn default_knock_noise() -> f32 {
+    10.0
+}
+fn is_default_knock_noise(value: &f32) -> bool {
+    *value == default_knock_noise()
 }
 
 /// A warden's beat and the lamp it carries.
@@ -200,6 +245,7 @@ impl EntityDef {
             shard: None,
             exit: None,
             warden: None,
+            knock: None,
         }
     }
 }
@@ -731,6 +777,7 @@ pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
         for (field, radius) in [
             ("shard", entity.shard.as_ref().map(|s| s.radius)),
             ("exit", entity.exit.as_ref().map(|e| e.radius)),
+            ("knock", entity.knock.as_ref().map(|k| k.radius)),
         ] {
             if let Some(radius) = radius
                 && !(radius.is_finite() && radius > 0.0)
@@ -740,6 +787,18 @@ pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
                     format!("{field} radius must be positive (found {radius})"),
                 );
             }
+        }
+
+        if let Some(knock) = &entity.knock
+            && !(knock.noise.is_finite() && knock.noise >= 0.0)
+        {
+            report(
+                at.key("knock").key("noise"),
+                format!(
+                    "knock noise must be a distance of 0 or more (found {})",
+                    knock.noise
+                ),
+            );
         }
 
         if let Some(warden) = &entity.warden {
