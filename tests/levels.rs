@@ -93,7 +93,10 @@ fn the_gallery_s_mirror_is_what_shows_the_player_to_the_warden() {
     let caught = recording("the-gallery-caught.json");
     assert_eq!(outcome_without(&caught, &[]), Outcome::Caught);
     // The same inputs with the glass gone: the corridor is out of the hall's straight sight.
-    assert_eq!(outcome_without(&caught, &["corner mirror"]), Outcome::Running);
+    assert_eq!(
+        outcome_without(&caught, &["corner mirror"]),
+        Outcome::Running
+    );
 }
 
 #[test]
@@ -121,7 +124,10 @@ fn the_gallery_s_gate_shuts_and_opens_the_vault_on_its_cycle() {
     assert!(blocked(&mut engine), "shut at the start");
     advance_to(&mut engine, shut + rising + open * 0.5);
     assert!(!blocked(&mut engine), "open in the middle of its open time");
-    assert!(GATE_RISE > 1.8, "a standing player passes under the open gate");
+    assert!(
+        GATE_RISE > 1.8,
+        "a standing player passes under the open gate"
+    );
     advance_to(&mut engine, GATE_CYCLE.iter().sum::<f32>() + shut * 0.5);
     assert!(blocked(&mut engine), "shut again on the next cycle");
 }
