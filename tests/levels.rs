@@ -2,7 +2,8 @@
 //! shard taken and one that gets caught, both replayed here, and no warden in them grew
 //! more suspicious while the light gem showed the player hidden. Level 2's own devices are
 //! checked too: its mirror is what gets the player caught (with the glass taken away the
-//! same inputs go unseen), and its gate shuts and opens the vault on its cycle.
+//! same inputs go unseen), and its gate shuts and opens the vault on its cycle; level 3's
+//! lantern runs on its rail, its pool with it, and its balcony is a second storey.
 
 mod common;
 
@@ -62,9 +63,9 @@ fn every_campaign_level_is_won_and_lost_by_its_recordings() {
         assert_eq!(caught["outcome"], "caught", "{stem}");
         assert_fair(&caught, &format!("{stem}-caught"));
     }
-    // Campaign order: first light, then the gallery.
+    // Campaign order.
     let names: Vec<&str> = levels.iter().map(|level| level.name.as_str()).collect();
-    assert_eq!(&names[..2], ["First light", "The gallery"]);
+    assert_eq!(names, ["First light", "The gallery", "The keep"]);
 }
 
 /// The outcome of `recording`'s inputs on its level with the entities named in `without`
@@ -130,4 +131,51 @@ fn the_gallery_s_gate_shuts_and_opens_the_vault_on_its_cycle() {
     );
     advance_to(&mut engine, GATE_CYCLE.iter().sum::<f32>() + shut * 0.5);
     assert!(blocked(&mut engine), "shut again on the next cycle");
+}
+
+#[test]
+fn the_keep_s_rail_lantern_carries_its_pool_along_the_hall() {
+    let scene = Scene::load(&common::repo().join("levels").join("the-keep.ron")).unwrap();
+    let mut engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
+    // Light arriving by the hall's west wall at the rail's south end (on the floor) and
+    // north end (over the stairs' fourth step, 0.8 m up).
+    let (south, north) = (Vec3::new(-4.0, 0.3, 5.0), Vec3::new(-4.0, 1.0, -5.0));
+    let light_at = |engine: &mut Engine, at: Vec3| {
+        engine.update_step_world();
+        let light = engine
+            .world
+            .resource::<WorldGeometry>()
+            .0
+            .light_arriving(at);
+        light.x + light.y + light.z
+    };
+    // The rail: 5.5 m either way over 16 s, south (+z) a quarter period in.
+    for _ in 0..4 * 60 {
+        engine.step();
+    }
+    let (lit_south, dark_north) = (light_at(&mut engine, south), light_at(&mut engine, north));
+    for _ in 0..8 * 60 {
+        engine.step();
+    }
+    let (dark_south, lit_north) = (light_at(&mut engine, south), light_at(&mut engine, north));
+    assert!(lit_south > 5.0 * dark_south, "{lit_south} vs {dark_south}");
+    assert!(lit_north > 5.0 * dark_north, "{lit_north} vs {dark_north}");
+}
+
+#[test]
+fn the_keep_s_balcony_is_a_second_storey_reached_by_its_stairs() {
+    let scene = Scene::load(&common::repo().join("levels").join("the-keep.ron")).unwrap();
+    let engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
+    let grid = engine.world.resource::<gloam::game::NavGrid>();
+    // Under the balcony the hall floor, and the balcony 3 m above it.
+    let floors = grid.floors_at(3.0, -5.0);
+    assert!(floors.iter().any(|y| y.abs() < 0.01), "{floors:?}");
+    assert!(floors.iter().any(|y| (y - 3.0).abs() < 0.01), "{floors:?}");
+    let path = grid
+        .path(Vec3::new(-10.5, 0.0, 6.5), Vec3::new(3.0, 3.0, -5.0))
+        .expect("the stairs lead up");
+    assert!(
+        path.iter().any(|p| p.y > 1.0 && p.y < 2.5),
+        "climbs: {path:?}"
+    );
 }

@@ -34,6 +34,7 @@ pub fn level_from_world(world: &mut World) -> Level {
             Option<&Exit>,
             Option<&Warden>,
             Option<&super::noise::Knockable>,
+            Option<&super::patrol::Patrol>,
         ),
     )>();
     let mut entities: Vec<(LevelEntity, EntityDef)> = query
@@ -50,8 +51,15 @@ pub fn level_from_world(world: &mut World) -> Level {
                 spawn,
                 animation,
                 deformer,
-                (shard, exit, warden, knock),
+                (shard, exit, warden, knock, mover),
             )| {
+                // A mover is saved at its place, not where its swing has taken it.
+                let transform = mover.map_or(*transform, |m| m.origin);
+                // A knocked thing is saved standing.
+                let transform = knock.map_or(transform, |k| Transform {
+                    rotation: k.upright,
+                    ..transform
+                });
                 let def = EntityDef {
                     name: name.as_str().to_owned(),
                     transform: TransformDef {
@@ -77,6 +85,10 @@ pub fn level_from_world(world: &mut World) -> Level {
                     knock: knock.map(|k| crate::scene::level::KnockDef {
                         radius: k.radius,
                         noise: k.noise,
+                    }),
+                    mover: mover.map(|m| crate::scene::level::MoverDef {
+                        offset: m.offset,
+                        period: m.period as f32,
                     }),
                 };
                 (*order, def)

@@ -1,19 +1,20 @@
-//! Game schedule, fixed step "gameplay": scripted movers. A `Patrol` walks its entity back
-//! and forth along its own forward axis, a warden's beat in its simplest form; `gloam
-//! flythrough` uses one to measure how the film copes with a moving lamp-carrier.
+//! Game schedule, fixed step "gameplay": scripted movers. A `Patrol` swings its entity back
+//! and forth along a line through its place, a sine by the simulation clock: a level's
+//! `mover` (a lantern running on a rail), and the lamp-carrier `gloam flythrough` uses to
+//! measure how the film copes with a moving light.
 
 use bevy_ecs::prelude::*;
 use glam::Vec3;
 
 use super::{SIMULATION_HZ, Transform};
 
-/// Moves the entity `amplitude` metres either side of `origin` along the origin's local
-/// +Z, a sine over `period` seconds, by the simulation clock.
+/// Moves the entity up to `offset` (world metres) either side of `origin`, a sine over
+/// `period` seconds, by the simulation clock.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct Patrol {
     /// Where the beat is centred (the entity's transform when the patrol was given).
     pub origin: Transform,
-    pub amplitude: f32,
+    pub offset: Vec3,
     /// Seconds for one round trip.
     pub period: f64,
     /// Seconds walked so far.
@@ -21,11 +22,12 @@ pub struct Patrol {
 }
 
 impl Patrol {
-    /// A patrol centred on `origin`, starting there.
+    /// A patrol centred on `origin`, starting there, `amplitude` metres either way along
+    /// the origin's local +Z.
     pub fn new(origin: Transform, amplitude: f32, period: f64) -> Patrol {
         Patrol {
             origin,
-            amplitude,
+            offset: origin.rotation * Vec3::Z * amplitude,
             period,
             elapsed: 0.0,
         }
@@ -34,10 +36,8 @@ impl Patrol {
     /// Where the patrol puts its entity `seconds` in.
     pub fn at(&self, seconds: f64) -> Transform {
         let phase = std::f64::consts::TAU * seconds / self.period;
-        let offset = self.amplitude * phase.sin() as f32;
         Transform {
-            translation: self.origin.translation
-                + self.origin.rotation * Vec3::new(0.0, 0.0, offset),
+            translation: self.origin.translation + self.offset * phase.sin() as f32,
             ..self.origin
         }
     }

@@ -231,6 +231,14 @@ pub fn spawn_entity(
             radius: exit.radius,
         });
     }
+    if let Some(mover) = &def.mover {
+        root.insert(super::patrol::Patrol {
+            origin: transform,
+            offset: mover.offset,
+            period: f64::from(mover.period),
+            elapsed: 0.0,
+        });
+    }
     if let Some(knock) = &def.knock {
         root.insert(super::noise::Knockable {
             radius: knock.radius,

@@ -98,6 +98,19 @@ pub struct EntityDef {
     /// Something that falls over, loudly, when the player walks into it standing.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub knock: Option<KnockDef>,
+    /// Swing back and forth along a line through the entity's place (a lantern on a rail).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mover: Option<MoverDef>,
+}
+
+/// Moves the entity up to `offset` (world metres) either side of its place, a sine over
+/// `period` seconds by the simulation clock: at the place at 0 s, at +offset a quarter
+/// period in. Entities with the same mover move as one.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MoverDef {
+    pub offset: Vec3,
+    pub period: f32,
 }
 
 /// A thing that topples about its base, away from the player, and makes a noise when the
@@ -246,6 +259,7 @@ impl EntityDef {
             exit: None,
             warden: None,
             knock: None,
+            mover: None,
         }
     }
 }
@@ -785,6 +799,24 @@ pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
                 report(
                     at.key(field).key("radius"),
                     format!("{field} radius must be positive (found {radius})"),
+                );
+            }
+        }
+
+        if let Some(mover) = &entity.mover {
+            if !(mover.period.is_finite() && mover.period > 0.0) {
+                report(
+                    at.key("mover").key("period"),
+                    format!(
+                        "a mover's period must be positive seconds (found {})",
+                        mover.period
+                    ),
+                );
+            }
+            if !mover.offset.is_finite() {
+                report(
+                    at.key("mover").key("offset"),
+                    "a mover's offset must be finite".into(),
                 );
             }
         }
