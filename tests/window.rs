@@ -36,6 +36,7 @@ impl Drop for Reaped {
     fn drop(&mut self) {
         let _ = Command::new("kill")
             .args(["-TERM", &self.0.id().to_string()])
+            .stderr(Stdio::null())
             .status();
         for _ in 0..50 {
             if matches!(self.0.try_wait(), Ok(Some(_))) {
@@ -67,8 +68,9 @@ fn play_without_a_display_is_one_line_pointing_to_headless_commands() {
     assert!(stderr.contains("gloam render"), "{stderr}");
 }
 
-#[test]
-fn the_window_shows_the_headless_frame() {
+/// A virtual X display for one test: Xvfb (reaped when dropped), its name, and a private
+/// runtime folder; None (after a notice) when the tools are missing outside CI.
+fn x_display(test: &str) -> Option<(Reaped, String, std::path::PathBuf)> {
     let missing: Vec<&str> = ["Xvfb", "import", "xdotool"]
         .into_iter()
         .filter(|p| !have(p))
@@ -79,9 +81,9 @@ fn the_window_shows_the_headless_frame() {
             "CI must install {missing:?} (.ci/run does)"
         );
         println!("notice: skipping the window test, {missing:?} not installed");
-        return;
+        return None;
     }
-    let dir = common::scratch_dir("window");
+    let dir = common::scratch_dir(test);
     let runtime = dir.join("runtime");
     std::fs::create_dir_all(&runtime).unwrap();
     std::fs::set_permissions(
@@ -109,12 +111,64 @@ fn the_window_shows_the_headless_frame() {
     BufReader::new(xvfb.stdout.take().unwrap())
         .read_line(&mut announced)
         .expect("Xvfb display number");
-    let _xvfb = Reaped(xvfb);
+    let xvfb = Reaped(xvfb);
     let display = format!(":{}", announced.trim());
     assert!(display.len() > 1, "Xvfb did not announce a display");
+    Some((xvfb, display, dir))
+}
 
+/// `gloam` on `display`, with its own config folder under `dir`.
+fn windowed(display: &str, dir: &std::path::Path) -> Command {
+    let mut command = gloam();
+    command
+        .env("DISPLAY", display)
+        .env("XDG_RUNTIME_DIR", dir.join("runtime"))
+        .env("GLOAM_CONFIG_DIR", dir.join("config"))
+        .env_remove("WAYLAND_DISPLAY")
+        .current_dir(common::repo());
+    command
+}
+
+/// Lines of a child's output, as they come.
+fn lines_of(output: impl std::io::Read + Send + 'static) -> std::sync::mpsc::Receiver<String> {
+    let (sender, receiver) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(output).lines().map_while(Result::ok) {
+            let _ = sender.send(line);
+        }
+    });
+    receiver
+}
+
+/// The window named Gloam on `display`.
+fn gloam_window(display: &str) -> String {
+    for _ in 0..600 {
+        let found = Command::new("xdotool")
+            .args(["search", "--name", "Gloam"])
+            .env("DISPLAY", display)
+            .output()
+            .unwrap();
+        let id = String::from_utf8_lossy(&found.stdout)
+            .lines()
+            .next()
+            .unwrap_or_default()
+            .trim()
+            .to_owned();
+        if !id.is_empty() {
+            return id;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    panic!("no window named Gloam on the display");
+}
+
+#[test]
+fn the_window_shows_the_headless_frame() {
+    let Some((_xvfb, display, dir)) = x_display("window") else {
+        return;
+    };
     let mut window = Reaped(
-        gloam()
+        windowed(&display, &dir)
             .args([
                 "play",
                 "levels/cornell.ron",
@@ -127,23 +181,13 @@ fn the_window_shows_the_headless_frame() {
             // The raw, progressively accumulated film at a fixed resolution: what the
             // headless render below computes exactly.
             .args(["--filter", "raw", "--fixed-resolution"])
-            .env("DISPLAY", &display)
-            .env("XDG_RUNTIME_DIR", &runtime)
-            .env_remove("WAYLAND_DISPLAY")
-            .current_dir(common::repo())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
             .expect("start gloam play"),
     );
     // Wait for `ready` (the frames are rendered and on screen).
-    let stdout = window.0.stdout.take().unwrap();
-    let (sender, receiver) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            let _ = sender.send(line);
-        }
-    });
+    let receiver = lines_of(window.0.stdout.take().unwrap());
     let ready = receiver.recv_timeout(Duration::from_secs(180));
     if !matches!(&ready, Ok(line) if line.starts_with("ready")) {
         let _ = window.0.kill();
@@ -152,18 +196,7 @@ fn the_window_shows_the_headless_frame() {
     }
     // Let the compositor-less X server catch the latest present, then take the shot.
     std::thread::sleep(Duration::from_millis(500));
-    let id = Command::new("xdotool")
-        .args(["search", "--name", "Gloam"])
-        .env("DISPLAY", &display)
-        .output()
-        .unwrap();
-    let id = String::from_utf8_lossy(&id.stdout)
-        .lines()
-        .next()
-        .unwrap_or_default()
-        .trim()
-        .to_owned();
-    assert!(!id.is_empty(), "no window named Gloam on the display");
+    let id = gloam_window(&display);
     let shot = dir.join("window.png");
     let status = Command::new("import")
         .args(["-window", &id, shot.to_str().unwrap()])
@@ -224,6 +257,91 @@ fn the_window_shows_the_headless_frame() {
         difference < 4.0,
         "the window differs from the headless frame by {difference} of 255 on average"
     );
+}
+
+/// Bare `gloam` opens the main menu: a broken settings file is named in one line with its
+/// place and kept aside, the defaults are used; the keyboard drives the menu to the
+/// settings page, a change is written to the settings file, and Quit (a row to reach and
+/// choose, never one key) ends the program cleanly.
+#[test]
+fn the_main_menu_names_a_broken_settings_file_saves_a_change_and_quits_from_its_row() {
+    let Some((_xvfb, display, dir)) = x_display("menu") else {
+        return;
+    };
+    let config = dir.join("config");
+    std::fs::create_dir_all(&config).unwrap();
+    let settings = config.join("settings.ron");
+    std::fs::write(
+        &settings,
+        "(\n    field_of_view: 70.0,\n    brightnes: 2.0,\n)\n",
+    )
+    .unwrap();
+    let mut menu = Reaped(
+        windowed(&display, &dir)
+            .args(["play", "--width", "160", "--height", "90"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start gloam"),
+    );
+    let stderr = lines_of(menu.0.stderr.take().unwrap());
+    let warning = stderr
+        .recv_timeout(Duration::from_secs(60))
+        .expect("a line about the settings file");
+    assert!(
+        warning.starts_with(&format!("gloam: {}:3:", settings.display())),
+        "{warning}"
+    );
+    assert!(warning.contains("brightnes"), "{warning}");
+    assert!(!settings.exists(), "the broken file is moved aside");
+    assert!(config.join("settings.ron.broken").exists());
+
+    let id = gloam_window(&display);
+    // Real key presses (XTEST) to the focused window: winit ignores synthetic events.
+    let xdotool = |args: &[&str]| {
+        let status = Command::new("xdotool")
+            .args(args)
+            .env("DISPLAY", &display)
+            .status()
+            .unwrap();
+        assert!(status.success(), "xdotool {args:?}");
+    };
+    let keys = |keys: &[&str]| {
+        for key in keys {
+            xdotool(&["windowfocus", "--sync", &id]);
+            xdotool(&["key", key]);
+            std::thread::sleep(Duration::from_millis(300));
+        }
+    };
+    // Main menu: Play, Choose a level, Settings, Quit. Settings' first row is the mouse
+    // sensitivity; Right steps it up and saves.
+    keys(&["Down", "Down", "Return", "Right"]);
+    let mut saved = String::new();
+    for _ in 0..100 {
+        saved = std::fs::read_to_string(&settings).unwrap_or_default();
+        if saved.contains("mouse_sensitivity") {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let written: gloam::app::settings::Settings =
+        ron::from_str(&saved).unwrap_or_else(|error| panic!("{error}: {saved}"));
+    assert!((written.mouse_sensitivity - 1.1).abs() < 1e-4, "{saved}");
+    assert_eq!(
+        written.brightness, 1.0,
+        "the defaults replaced the broken file"
+    );
+    // Esc back to the main menu (Settings still chosen), Down to Quit, Enter chooses it.
+    keys(&["Escape", "Down", "Return"]);
+    let mut exited = None;
+    for _ in 0..100 {
+        if let Ok(Some(status)) = menu.0.try_wait() {
+            exited = Some(status);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(exited.is_some_and(|s| s.success()), "{exited:?}");
 }
 
 trait WaitOutput {

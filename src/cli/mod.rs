@@ -19,7 +19,7 @@ use crate::scene::world::Scene;
     about = "A first-person stealth game path traced on the CPU, and its engine"
 )]
 pub struct Cli {
-    /// Without a command, `gloam` plays the default level (levels/first-light.ron).
+    /// Without a command, `gloam` is `gloam play`: the main menu.
     #[command(subcommand)]
     pub command: Option<Command>,
 }
