@@ -125,9 +125,18 @@ fn the_gallery_s_gate_shuts_and_opens_the_vault_on_its_cycle() {
     assert!(blocked(&mut engine), "shut at the start");
     advance_to(&mut engine, shut + rising + open * 0.5);
     assert!(!blocked(&mut engine), "open in the middle of its open time");
+    // Open, the gate's lowest rail has risen over a standing player's head.
+    engine.update_step_world();
+    let rail = Vec3::new(9.05, 0.38 + GATE_RISE, 4.0);
+    let geometry = &engine.world.resource::<WorldGeometry>().0;
     assert!(
-        GATE_RISE > 1.8,
-        "a standing player passes under the open gate"
+        geometry.raycast(rail, Vec3::Z, 2.0).is_some(),
+        "the rail, up"
+    );
+    let head = Vec3::new(9.05, 1.8, 4.0);
+    assert!(
+        geometry.raycast(head, Vec3::Z, 2.0).is_none(),
+        "a head passes under"
     );
     advance_to(&mut engine, GATE_CYCLE.iter().sum::<f32>() + shut * 0.5);
     assert!(blocked(&mut engine), "shut again on the next cycle");
