@@ -96,6 +96,103 @@ fn bad_flags_are_one_line_and_exit_1() {
 }
 
 #[test]
+fn numbers_out_of_range_name_the_flag_and_the_range() {
+    for (args, flag, range) in [
+        (
+            &[
+                "render",
+                "levels/cornell.ron",
+                "--out",
+                "x.png",
+                "--spp",
+                "-3",
+            ][..],
+            "--spp",
+            "1..=",
+        ),
+        (&["bench", "--width", "0"], "--width", "1..="),
+        (&["play", "--target-ms", "-1"], "--target-ms", "above 0"),
+        (
+            &[
+                "exposure",
+                "levels/first-light.ron",
+                "--threshold",
+                "2",
+                "--out",
+                "x.png",
+                "--json",
+                "x.json",
+            ],
+            "--threshold",
+            "between 0 and 1",
+        ),
+        (
+            &["raybench", "levels/cornell.ron", "--threads", "0"],
+            "--threads",
+            "1..",
+        ),
+    ] {
+        let output = gloam(args);
+        assert_eq!(output.status.code(), Some(1), "{args:?}");
+        let stderr = text(&output.stderr);
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(flag) && stderr.contains(range),
+            "{args:?}: {stderr}"
+        );
+    }
+}
+
+#[test]
+fn a_level_alone_is_played_and_a_misspelt_command_is_named() {
+    let output = gloam(&["rendr"]);
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = text(&output.stderr);
+    assert_eq!(
+        stderr.trim_end(),
+        "gloam: 'rendr' is neither a command nor a level file (see `gloam --help`)"
+    );
+    // `gloam LEVEL` is `gloam play LEVEL`: without a display it says so, as play does.
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .arg("levels/first-light.ron")
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .current_dir(common::repo())
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    assert!(
+        text(&output.stderr).contains("no display"),
+        "{}",
+        text(&output.stderr)
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt as _;
+    let dir = common::scratch_dir("cli-pipe");
+    // The reader is gone before the first line is written.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .args(["generate", "assets", "--out"])
+        .arg(&dir)
+        .stdout(writer)
+        .current_dir(common::repo())
+        .output()
+        .unwrap();
+    let stderr = text(&output.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(
+        output.status.signal(),
+        Some(13),
+        "SIGPIPE, as any Unix tool"
+    );
+}
+
+#[test]
 fn stress_mesh_generates_and_checks() {
     let dir = common::scratch_dir("cli-stress");
     let out = dir.join("stress.glb");

@@ -17,17 +17,17 @@ use crate::scene::world::Scene;
 pub struct Options {
     /// Level or glTF/GLB file.
     pub scene: PathBuf,
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = 128, value_parser = crate::cli::values::count())]
     pub width: u32,
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = 128, value_parser = crate::cli::values::count())]
     pub height: u32,
     /// Samples per pixel of the converged image.
-    #[arg(long, default_value_t = 4096)]
+    #[arg(long, default_value_t = 4096, value_parser = crate::cli::values::count())]
     pub reference_spp: u32,
     /// Seeds each RMSE is averaged over.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::cli::values::count())]
     pub seeds: u32,
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::cli::values::count_or_zero())]
     pub max_depth: u32,
 }
 

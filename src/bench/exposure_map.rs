@@ -29,13 +29,13 @@ pub struct Options {
     /// The level.
     pub level: PathBuf,
     /// Seconds of the wardens' beats before the map is taken (their lamps move with them).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::non_negative)]
     pub time: f64,
     /// The side of a cell in metres.
-    #[arg(long, default_value_t = crate::game::nav::CELL)]
+    #[arg(long, default_value_t = crate::game::nav::CELL, value_parser = crate::cli::values::positive_f32)]
     pub cell: f32,
     /// The gem a route may not rise above.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = crate::cli::values::unit)]
     pub threshold: f32,
     /// The map as a PNG.
     #[arg(long, value_name = "MAP.png")]

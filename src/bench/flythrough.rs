@@ -35,20 +35,20 @@ pub struct Options {
     /// The level to fly through; levels/first-light.ron when omitted.
     pub level: Option<PathBuf>,
     /// Frames rendered (one 60 Hz step each).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 64, value_parser = crate::cli::values::count())]
     pub frames: u32,
     /// Frames before the first comparison (the histories fill).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = crate::cli::values::count_or_zero())]
     pub warmup: u32,
     /// Compare against a reference every this many frames.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::cli::values::count())]
     pub every: u32,
-    #[arg(long, default_value_t = 320)]
+    #[arg(long, default_value_t = 320, value_parser = crate::cli::values::count())]
     pub width: u32,
-    #[arg(long, default_value_t = 180)]
+    #[arg(long, default_value_t = 180, value_parser = crate::cli::values::count())]
     pub height: u32,
     /// Samples per pixel of each reference.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 256, value_parser = crate::cli::values::count())]
     pub reference_spp: u32,
     /// The level entity that patrols across the view (by name); "warden 1" when omitted.
     #[arg(long)]
@@ -63,10 +63,10 @@ pub struct Options {
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=8))]
     pub iterations: Option<u32>,
     /// Tuning: the newest frame's least weight in the temporal average, in (0, 1].
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::values::unit)]
     pub alpha_min: Option<f32>,
     /// Tuning: the a-trous luminance edge's width, in standard deviations.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::values::positive_f32)]
     pub sigma_luminance: Option<f32>,
 }
 

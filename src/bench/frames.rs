@@ -31,17 +31,17 @@ pub struct Options {
     /// The level (or glTF) to profile; levels/first-light.ron when omitted.
     pub level: Option<PathBuf>,
     /// Frames measured (after the warm-up).
-    #[arg(long, default_value_t = 240)]
+    #[arg(long, default_value_t = 240, value_parser = crate::cli::values::count())]
     pub frames: u32,
     /// Frames run first and not measured (caches, page faults, the first BLAS refits).
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = 30, value_parser = crate::cli::values::count_or_zero())]
     pub warmup: u32,
-    #[arg(long, default_value_t = 480)]
+    #[arg(long, default_value_t = 480, value_parser = crate::cli::values::count())]
     pub width: u32,
-    #[arg(long, default_value_t = 270)]
+    #[arg(long, default_value_t = 270, value_parser = crate::cli::values::count())]
     pub height: u32,
     /// Worker threads (default: all cores), for scaling studies.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::values::size())]
     pub threads: Option<usize>,
     /// Write the JSON report here (its fields: README, `gloam bench`).
     #[arg(long)]
@@ -62,10 +62,10 @@ pub struct Options {
     /// of the level's first asset (in a grid on the floor) and the frame after despawns
     /// them; the table then splits extract + accel by spawning, despawning and quiet
     /// frames.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::count_or_zero())]
     pub churn_instances: u32,
     /// ... and this many point lights with them.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::count_or_zero())]
     pub churn_lights: u32,
     /// Profile a real play-through: the player at the recording's level start, fed one
     /// recorded step's input a frame, seen through its eyes (the measured frames end

@@ -8,6 +8,8 @@ use std::time::Instant;
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 
+pub(crate) mod values;
+
 use crate::bench::{FilterArg, convergence, exposure_map, flythrough, frames, raybench};
 use crate::scene::files::default_level;
 use crate::scene::world::Scene;
@@ -16,10 +18,13 @@ use crate::scene::world::Scene;
 #[command(
     name = "gloam",
     version,
-    about = "A first-person stealth game path traced on the CPU, and its engine"
+    about = "A first-person stealth game path traced on the CPU, and its engine",
+    args_conflicts_with_subcommands = true
 )]
 pub struct Cli {
-    /// Without a command, `gloam` is `gloam play`: the main menu.
+    /// A level to play at once, as `gloam play LEVEL`.
+    pub level: Option<PathBuf>,
+    /// Without a command or a level, `gloam` is `gloam play`: the main menu.
     #[command(subcommand)]
     pub command: Option<Command>,
 }
@@ -32,18 +37,19 @@ pub enum Command {
     /// click; Esc pauses (resume, restart, settings, main menu, quit), F11 fullscreen, V
     /// vsync, F3 profiler, F4 film filters. Settings and best times live in the user's
     /// config folder (~/.config/gloam, or $GLOAM_CONFIG_DIR).
+    #[command(allow_negative_numbers = true)]
     Play {
         level: Option<PathBuf>,
         /// Internal render resolution; the window scales it.
-        #[arg(long, default_value_t = 480)]
+        #[arg(long, default_value_t = 480, value_parser = crate::cli::values::count())]
         width: u32,
-        #[arg(long, default_value_t = 270)]
+        #[arg(long, default_value_t = 270, value_parser = crate::cli::values::count())]
         height: u32,
         /// Render this many frames, then keep showing the image and print `ready`.
-        #[arg(long)]
+        #[arg(long, value_parser = crate::cli::values::count())]
         frames: Option<u32>,
         /// With --frames: quit this many seconds after the last frame.
-        #[arg(long, default_value_t = 0.0)]
+        #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::non_negative)]
         linger_seconds: f64,
         /// The same frame loop without a window (for --frames frames, default 60); prints
         /// the per-stage table `bench` prints.
@@ -60,7 +66,7 @@ pub enum Command {
         fixed_resolution: bool,
         /// The frame time the adaptive resolution holds, in milliseconds (default: the
         /// settings' frame-time target, 33.3 until changed).
-        #[arg(long)]
+        #[arg(long, value_parser = crate::cli::values::positive)]
         target_ms: Option<f64>,
         /// Record every step's input of this attempt to FILE (JSON), written when it is
         /// won, caught or quit.
@@ -74,11 +80,12 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         json: Option<PathBuf>,
         /// With --replay: worker threads (the result is the same on any count).
-        #[arg(long)]
+        #[arg(long, value_parser = crate::cli::values::size())]
         threads: Option<usize>,
     },
     /// Validate a level (.ron) or glTF file: prints `file:line:column: message` per problem,
     /// exit 1 when there are any; otherwise a summary and the load time.
+    #[command(allow_negative_numbers = true)]
     Check {
         /// Level or glTF/GLB file.
         path: PathBuf,
@@ -88,24 +95,30 @@ pub enum Command {
     Generate(Generate),
     /// Render a level or glTF file to .exr (linear mean radiance per pixel) or .png (tone
     /// mapped), from the level's camera, the file's first camera, or a view framing it.
+    #[command(allow_negative_numbers = true)]
     Render(RenderCommand),
     /// RMSE against a converged render at 1/4/16 spp for the white, stratified and blue
     /// samplers, and path against reference integrator at equal time.
+    #[command(allow_negative_numbers = true)]
     Convergence(convergence::Options),
     /// Headless frame-time profile along a fixed camera path: per-stage mean, p50, p95,
     /// p99 and max; JSON, CSV, Chrome trace and PNG chart reports.
+    #[command(allow_negative_numbers = true)]
     Bench(frames::Options),
     /// Fly through a level at 1 spp with a warden patrolling, and print each frame's RMSE
     /// against converged references for the raw frame, temporal filtering, and temporal +
     /// spatial filtering, plus a ghosting measure over the warden's trail.
+    #[command(allow_negative_numbers = true)]
     Flythrough(flythrough::Options),
     /// The exposure map: the light gem a player would have standing and crouching on each
     /// floor cell (the game's own exposure rays, lights and wardens' lamps at --time), and
     /// whether a walkable route from the spawn through every shard to the exit stays at or
     /// below --threshold. Writes MAP.png and MAP.json.
+    #[command(allow_negative_numbers = true)]
     Exposure(exposure_map::Options),
     /// Compare two .exr renders of the same size: mean radiance of each, RMSE, and the
     /// ratio of their means over a 4 x 4 grid of regions (a local bias shows there).
+    #[command(allow_negative_numbers = true)]
     Compare {
         /// The image to judge.
         image: PathBuf,
@@ -114,6 +127,7 @@ pub enum Command {
     },
     /// Ray throughput (primary, shadow, diffuse bounce) through gloam's TLAS -> BLAS and
     /// through obvhs's flat BVH2 and CWBVH on the same rays; BLAS, TLAS and refit times.
+    #[command(allow_negative_numbers = true)]
     Raybench(raybench::Options),
 }
 
@@ -140,9 +154,10 @@ pub enum Generate {
     },
     /// Write a wavy-grid mesh with at least N triangles, for import timing (or, with
     /// --skinned, a walking warden of at least N triangles, for skinning timing).
+    #[command(allow_negative_numbers = true)]
     Stress {
         /// Minimum number of triangles.
-        #[arg(long, default_value_t = 1_000_000)]
+        #[arg(long, default_value_t = 1_000_000, value_parser = crate::cli::values::size())]
         triangles: usize,
         /// A skinned, animated warden instead of a static grid.
         #[arg(long)]
@@ -155,6 +170,14 @@ pub enum Generate {
 
 /// Runs the command line; the binary's whole `main`.
 pub fn main() -> ExitCode {
+    // Output piped into a reader that stops early (`gloam check x.ron | head -1`) ends
+    // the process quietly, as it does any Unix tool, instead of a panic in `println!`:
+    // Rust ignores SIGPIPE by default, which turns the closed pipe into an error there.
+    #[cfg(unix)]
+    // SAFETY: called first, before any thread is started; SIG_DFL is always valid.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(error) if !error.use_stderr() => {
@@ -172,13 +195,27 @@ pub fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    // Bare `gloam` is `gloam play`, with `play`'s own defaults.
-    let command = match cli.command {
-        Some(command) => command,
-        None => match Cli::try_parse_from(["gloam", "play"]).map(|cli| cli.command) {
-            Ok(Some(command)) => command,
-            _ => return ExitCode::FAILURE,
-        },
+    // Bare `gloam` is `gloam play` and `gloam LEVEL` is `gloam play LEVEL`, with `play`'s
+    // own defaults.
+    let command = match (cli.command, cli.level) {
+        (Some(command), _) => command,
+        (None, level) => {
+            let mut args = vec!["gloam".into(), "play".into()];
+            if let Some(level) = level {
+                if !level.is_file() {
+                    eprintln!(
+                        "gloam: '{}' is neither a command nor a level file (see `gloam --help`)",
+                        level.display()
+                    );
+                    return ExitCode::FAILURE;
+                }
+                args.push(level.into_os_string());
+            }
+            match Cli::try_parse_from(args).map(|cli| cli.command) {
+                Ok(Some(command)) => command,
+                _ => return ExitCode::FAILURE,
+            }
+        }
     };
     match run(command) {
         Ok(code) => code,
@@ -240,14 +277,6 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             }
             if json.is_some() || threads.is_some() {
                 anyhow::bail!("--json and --threads go with --headless --replay FILE");
-            }
-            if width == 0 || height == 0 {
-                anyhow::bail!("--width and --height must be at least 1");
-            }
-            if let Some(target_ms) = target_ms
-                && !(target_ms.is_finite() && target_ms > 0.0)
-            {
-                anyhow::bail!("--target-ms must be a positive number of milliseconds");
             }
             // Only a bare window opens on the menu: scripted runs play the default level.
             let menu = !headless && frames.is_none() && record.is_none();
@@ -411,14 +440,14 @@ pub struct RenderCommand {
     /// Output .exr or .png.
     #[arg(long)]
     pub out: PathBuf,
-    #[arg(long, default_value_t = 640)]
+    #[arg(long, default_value_t = 640, value_parser = crate::cli::values::count())]
     pub width: u32,
-    #[arg(long, default_value_t = 360)]
+    #[arg(long, default_value_t = 360, value_parser = crate::cli::values::count())]
     pub height: u32,
     /// Samples per pixel.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 64, value_parser = crate::cli::values::count())]
     pub spp: u32,
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::count_or_zero())]
     pub seed: u32,
     #[arg(long, value_enum, default_value_t = IntegratorArg::Path)]
     pub integrator: IntegratorArg,
@@ -427,13 +456,13 @@ pub struct RenderCommand {
     #[arg(long, value_enum, default_value_t = SamplerArg::Stratified)]
     pub sampler: SamplerArg,
     /// Bounces at most (0: emitters only, 1: direct lighting, ...).
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::cli::values::count_or_zero())]
     pub max_depth: u32,
     /// Exposure multiplier for .png output (ignored for .exr).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::cli::values::positive_f32)]
     pub exposure: f32,
     /// Seconds after level start: animation clips and deformers are posed there.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::non_negative)]
     pub time: f64,
 }
 
