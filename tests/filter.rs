@@ -83,7 +83,7 @@ fn flythrough_and_play_reject_bad_flags_in_one_line() {
         ),
         (
             vec!["play", "--headless", "--target-ms=0"],
-            "--target-ms must be a positive",
+            "'--target-ms <TARGET_MS>': must be a number above 0",
         ),
         (
             vec!["flythrough", "--alpha-min", "0"],
@@ -91,7 +91,7 @@ fn flythrough_and_play_reject_bad_flags_in_one_line() {
         ),
         (
             vec!["flythrough", "--sigma-luminance=-1"],
-            "--sigma-luminance -1: must be positive",
+            "'--sigma-luminance <SIGMA_LUMINANCE>': must be a number above 0",
         ),
     ] {
         let output = gloam(&args);

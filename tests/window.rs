@@ -144,7 +144,7 @@ fn lines_of(output: impl std::io::Read + Send + 'static) -> std::sync::mpsc::Rec
 fn gloam_window(display: &str) -> String {
     for _ in 0..600 {
         let found = Command::new("xdotool")
-            .args(["search", "--name", "Gloam"])
+            .args(["search", "--onlyvisible", "--name", "Gloam"])
             .env("DISPLAY", display)
             .output()
             .unwrap();
@@ -306,9 +306,25 @@ fn the_main_menu_names_a_broken_settings_file_saves_a_change_and_quits_from_its_
             .unwrap();
         assert!(status.success(), "xdotool {args:?}");
     };
+    let focus = || {
+        // The window may still be settling on the display: try again for a while.
+        for _ in 0..50 {
+            let focused = Command::new("xdotool")
+                .args(["windowfocus", "--sync", &id])
+                .env("DISPLAY", &display)
+                .stderr(Stdio::null())
+                .status()
+                .unwrap();
+            if focused.success() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        panic!("the window never took the focus");
+    };
     let keys = |keys: &[&str]| {
         for key in keys {
-            xdotool(&["windowfocus", "--sync", &id]);
+            focus();
             xdotool(&["key", key]);
             std::thread::sleep(Duration::from_millis(300));
         }

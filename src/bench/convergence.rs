@@ -41,8 +41,15 @@ fn mean_rmse(seeds: u32, rmse_of_seed: impl Fn(u32) -> f32) -> f32 {
         .sqrt() as f32
 }
 
-fn timed(scene: &RenderScene, camera: &Camera, settings: &RenderSettings) -> (Film, f64, f64) {
+/// Renders, timed; `bar` counts the samples per pixel rendered.
+fn timed(
+    scene: &RenderScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    bar: &indicatif::ProgressBar,
+) -> (Film, f64, f64) {
     let output = render(scene, camera, settings, &|_| {});
+    bar.inc(u64::from(settings.spp));
     let mrays = output.mrays_per_second();
     (output.film, output.seconds, mrays)
 }
@@ -65,6 +72,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             sampler,
             max_depth: options.max_depth,
         };
+    // Samples per pixel of every render below (the equal-time references are added when
+    // their counts are known).
+    let planned =
+        options.reference_spp + 3 * 21 * options.seeds + 16 + 2 * 16 * (1 + options.seeds);
+    let bar = super::progress::bar(u64::from(planned), "spp rendered");
     let (converged, seconds, _) = timed(
         &render_scene,
         &camera,
@@ -74,6 +86,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             SamplerKind::BlueNoise,
             1000,
         ),
+        &bar,
     );
     println!(
         "gloam convergence {}: {}x{}, max depth {}; converged image: path, blue, {} spp ({seconds:.1} s)",
@@ -104,7 +117,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
                     mean_rmse(options.seeds, |seed| timed(
                         &render_scene,
                         &camera,
-                        &settings(spp, IntegratorKind::Path, sampler, seed)
+                        &settings(spp, IntegratorKind::Path, sampler, seed),
+                        &bar
                     )
                     .0
                     .rmse(&converged))
@@ -120,6 +134,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         &render_scene,
         &camera,
         &settings(16, IntegratorKind::Reference, SamplerKind::White, 1),
+        &bar,
     );
     println!("equal time (path at 16 spp against the reference given the same seconds):");
     for sampler in [SamplerKind::Stratified, SamplerKind::BlueNoise] {
@@ -127,8 +142,10 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             &render_scene,
             &camera,
             &settings(16, IntegratorKind::Path, sampler, 1),
+            &bar,
         );
         let reference_spp = ((16.0 * path_seconds / trial_seconds.max(1e-9)).round() as u32).max(1);
+        bar.inc_length(u64::from(reference_spp * (1 + options.seeds)));
         let (_, reference_seconds, reference_mrays) = timed(
             &render_scene,
             &camera,
@@ -138,12 +155,14 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
                 SamplerKind::White,
                 1,
             ),
+            &bar,
         );
         let path_rmse = mean_rmse(options.seeds, |seed| {
             timed(
                 &render_scene,
                 &camera,
                 &settings(16, IntegratorKind::Path, sampler, seed),
+                &bar,
             )
             .0
             .rmse(&converged)
@@ -158,6 +177,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
                     SamplerKind::White,
                     seed,
                 ),
+                &bar,
             )
             .0
             .rmse(&converged)
@@ -168,5 +188,6 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             path_rmse / reference_rmse.max(1e-12)
         );
     }
+    bar.finish_and_clear();
     Ok(())
 }

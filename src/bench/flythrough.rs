@@ -186,7 +186,9 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         "{:>5}{:>10}{:>10}{:>10}{:>12}{:>12}{:>12}",
         "frame", "raw", "temporal", "full", "trail raw", "trail temp", "trail full"
     );
+    let bar = super::progress::bar(u64::from(options.frames), "frames");
     for frame in 0..options.frames {
+        bar.inc(1);
         let seconds = frame as f64 * step;
         if let Some(mut transform) = engine.world.get_mut::<Transform>(view.0) {
             *transform = camera_path(&view.1, seconds);
@@ -233,18 +235,21 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         let raw = errors(&output.film, &reference, &trail);
         let temporal_errors = errors(&temporal_image, &reference, &trail);
         let full_errors = errors(&full_image, &reference, &trail);
-        println!(
-            "{frame:>5}{:>10.4}{:>10.4}{:>10.4}{:>12.4}{:>12.4}{:>12.4}",
-            raw.display,
-            temporal_errors.display,
-            full_errors.display,
-            raw.trail,
-            temporal_errors.trail,
-            full_errors.trail
-        );
+        bar.suspend(|| {
+            println!(
+                "{frame:>5}{:>10.4}{:>10.4}{:>10.4}{:>12.4}{:>12.4}{:>12.4}",
+                raw.display,
+                temporal_errors.display,
+                full_errors.display,
+                raw.trail,
+                temporal_errors.trail,
+                full_errors.trail
+            )
+        });
         rows.push((frame, raw, temporal_errors, full_errors));
         last_images = Some((output.film, temporal_image, full_image, reference));
     }
+    bar.finish_and_clear();
 
     let median = |values: Vec<f64>| {
         let mut sorted = values;

@@ -259,7 +259,9 @@ fn measure(
     let mut churn: Vec<(Churn, f64)> = Vec::with_capacity(options.frames as usize);
     let mut spawned: Vec<Entity> = Vec::new();
     let step = 1.0 / crate::game::SIMULATION_HZ;
+    let bar = super::progress::bar(u64::from(options.warmup + options.frames), "frames");
     for frame in 0..options.warmup + options.frames {
+        bar.inc(1);
         if let Some(recording) = recording {
             let Some(input) = recording.steps.get(frame as usize) else {
                 break; // the play-through ends here
@@ -295,6 +297,7 @@ fn measure(
             churn.push((kind, edit_ms));
         }
     }
+    bar.finish_and_clear();
     Ok((profile, churn))
 }
 

@@ -7,6 +7,7 @@ pub mod convergence;
 pub mod exposure_map;
 pub mod flythrough;
 pub mod frames;
+pub mod progress;
 pub mod raybench;
 
 /// `--filter`: which of the film's real-time filters run.

@@ -126,6 +126,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     if options.size == 0 || options.repeats == 0 || options.threads == 0 {
         bail!("--size, --repeats and --threads must be at least 1");
     }
+    let phase = super::progress::spinner("loading");
     // 1. Load and extract.
     let scene = Scene::load(&options.scene)?;
     let start = Instant::now();
@@ -148,6 +149,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     }
     let bounds = accel.bounds();
 
+    phase.set_message("building replicas");
     // 2. Replicas and the deforming grid.
     if let Some(wanted) = options.instances {
         replicate_instances(&mut accel, scene_instances, wanted);
@@ -179,6 +181,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     };
     accel.rebuild_tlas();
 
+    phase.set_message("making rays");
     // 3. Rays.
     let rays = make_rays(&accel, &camera, &emitters, options.size);
     println!(
@@ -194,6 +197,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         options.repeats
     );
 
+    phase.set_message("measuring throughput");
     // 4. Throughput. Every layout is built first, then measured in interleaved rounds (each
     //    round times every layout once), so the machine's slow and fast spells fall on all
     //    of them alike and the ratios of medians compare like with like.
@@ -441,9 +445,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
                 .then_some(hit.t)
         }));
     } else {
-        println!(
-            "(baseline skipped: flattening {flat_count} triangles would exceed {MAX_FLAT_TRIANGLES})"
-        );
+        phase.suspend(|| {
+            println!(
+                "(baseline skipped: flattening {flat_count} triangles would exceed {MAX_FLAT_TRIANGLES})"
+            )
+        });
     }
     let mut per_threads = Vec::new();
     for &threads in &thread_counts {
@@ -466,6 +472,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     // The contenders borrow `accel`; step 5 changes it.
     drop(contenders);
 
+    phase.set_message("TLAS rebuilds and refits");
     // 5. TLAS rebuilds and deforming refits, on `threads` (as in a frame).
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(options.threads)
@@ -487,6 +494,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     });
 
     // Report.
+    phase.finish_and_clear();
     print_table(&layouts, &thread_counts);
     println!(
         "builds: scene extraction with static BLASes {blas_build_ms:.1} ms (all meshes, parallel); TLAS rebuild {tlas_build_ms:.3} ms for {} instances ({} threads)",

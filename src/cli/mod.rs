@@ -178,6 +178,11 @@ pub fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // What wgpu and winit report (a missing Vulkan driver, a lost surface) goes to stderr:
+    // warnings and errors unless RUST_LOG says otherwise (`RUST_LOG=info`, `RUST_LOG=wgpu=debug`).
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
+        .format_timestamp(None)
+        .init();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(error) if !error.use_stderr() => {
@@ -469,12 +474,7 @@ pub struct RenderCommand {
 /// `gloam render`: load, extract, render with a progress bar on a terminal, write.
 fn render_command(command: RenderCommand) -> anyhow::Result<()> {
     use crate::render::{Camera, IntegratorKind, RenderSettings, SamplerKind, render};
-    use std::io::IsTerminal as _;
-    use std::sync::atomic::{AtomicU32, Ordering};
 
-    if command.width == 0 || command.height == 0 || command.spp == 0 {
-        anyhow::bail!("--width, --height and --spp must be at least 1");
-    }
     // Refuse a bad output name before spending minutes rendering.
     let extension = command
         .out
@@ -513,18 +513,11 @@ fn render_command(command: RenderCommand) -> anyhow::Result<()> {
     engine.pose_at(command.time);
     let render_scene = engine.render_scene();
     let camera = Camera::new(&render_scene.camera, settings.width, settings.height);
-    let show_progress = std::io::stderr().is_terminal();
-    let last_percent = AtomicU32::new(0);
-    let progress = |fraction: f32| {
-        let percent = (fraction * 100.0) as u32;
-        if show_progress && last_percent.fetch_max(percent, Ordering::Relaxed) < percent {
-            eprint!("\rrendering {percent:3}%");
-        }
-    };
+    // Per mille of the image's samples.
+    let bar = crate::bench::progress::bar(1000, "rendering");
+    let progress = |fraction: f32| bar.set_position((fraction * 1000.0) as u64);
     let output = render(render_scene, &camera, &settings, &progress);
-    if show_progress {
-        eprintln!();
-    }
+    bar.finish_and_clear();
     output.film.write(&command.out, command.exposure)?;
     println!(
         "wrote {}: {}x{}, {} spp, {:?} integrator, {} sampler, camera '{}'; {:.2} s, {:.2} Mrays/s ({} camera, {} bounce, {} shadow rays){}",
