@@ -4,7 +4,7 @@
 //! 1. load the scene and extract its static BLASes and instances (BLAS build timed);
 //! 2. optionally repeat the instances in a grid (`--instances N`) and add a deforming
 //!    wavy grid (`--deforming-triangles M`) placed below the scene;
-//! 3. make the rays once, by the rule of ../shared/scenes/SOURCES.md: size x size primary
+//! 3. make the rays once, by one rule for every scene: size x size primary
 //!    rays from the camera; per primary hit, one shadow ray to a uniform point on the
 //!    emissive triangles and one cosine-weighted diffuse bounce;
 //! 4. time each ray type through gloam's TLAS -> BLAS traversal, and through obvhs's own

@@ -17,7 +17,7 @@
 //!    goes there instead; an alert one runs there if it has lost sight of the player.
 //!    Hearing is not seeing: it does not count as a time seen.
 //!
-//! The numbers are GAME.md's starting points, as the stealth games players love use them.
+//! The numbers are the genre's starting points, as the stealth games players love use them.
 //! Fair by construction: every noise a warden hears is a ring on the HUD.
 
 use bevy_ecs::prelude::*;

@@ -1,7 +1,7 @@
 //! Game schedule, fixed step "gameplay": the player's body. Per step (`move_player`):
 //! 1. look: mouse look turns the body (yaw) and the eye (pitch, within 89 degrees);
 //! 2. stance: crouch while the crouch action is held, stand again when there is head room;
-//! 3. walk: the wished direction at walking, sprinting or crouching speed (GAME.md's
+//! 3. walk: the wished direction at walking, sprinting or crouching speed (the genre's
 //!    numbers: 1.4, 3.5 and 0.9 m/s), gravity and jumps (0.5 m high) on the vertical;
 //! 4. move the capsule (radius 0.3 m, 1.8 m tall, 1.1 m crouched) through the level by
 //!    collide and slide: in pieces shorter than half its radius (nothing is passed
@@ -25,7 +25,7 @@ use super::{
     ViewCamera,
 };
 
-/// The body's tuning, in one place (metres, seconds; GAME.md's starting numbers).
+/// The body's tuning, in one place (metres, seconds; the genre's starting numbers).
 pub mod tuning {
     /// Walking speed (quiet).
     pub const WALK: f32 = 1.4;

@@ -1,7 +1,7 @@
 //! Game schedule, fixed step "gameplay": what a warden sees of the player this step.
 //!
-//! A warden looks from its eyes along its facing with two cones (GAME.md's numbers from
-//! the stealth games players love): a narrow far one (`FAR_HALF_ANGLE` either side, out
+//! A warden looks from its eyes along its facing with two cones (the starting numbers
+//! of the stealth games players love, tuned by playing): a narrow far one (`FAR_HALF_ANGLE` either side, out
 //! to `FAR_RANGE`) and a wide near one (`NEAR_HALF_ANGLE`, out to `NEAR_RANGE`); behind
 //! it, nothing but what is within `TOUCH_RANGE`. For each of the player's body points
 //! (`exposure::body_points`, the same ones the light gem is measured at) inside a cone, a

@@ -40,7 +40,7 @@ use crate::profile::{GameplayPhase, StageTimes, since};
 use crate::scene::animation::Playback;
 use crate::scene::level::{WardenDef, WardenLamp};
 
-/// The wardens' minds and legs, in one place (seconds, metres, 0..1 suspicion; GAME.md's
+/// The wardens' minds and legs, in one place (seconds, metres, 0..1 suspicion; the genre's
 /// starting numbers, tuned by playing level 1).
 pub mod tuning {
     /// Suspicion gained a second per unit of visibility: at visibility 1 (close, lit,
