@@ -55,17 +55,20 @@ fn gloam() -> Command {
 
 #[test]
 fn play_without_a_display_is_one_line_pointing_to_headless_commands() {
-    let output = gloam()
-        .arg("play")
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .current_dir(common::repo())
-        .output()
-        .unwrap();
-    assert_eq!(output.status.code(), Some(1));
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("gloam render"), "{stderr}");
+    // `gloam play`, and `gloam LEVEL`, which is `gloam play LEVEL`.
+    for args in [&["play"][..], &["levels/first-light.ron"]] {
+        let output = gloam()
+            .args(args)
+            .env_remove("DISPLAY")
+            .env_remove("WAYLAND_DISPLAY")
+            .current_dir(common::repo())
+            .output()
+            .unwrap();
+        assert_eq!(output.status.code(), Some(1), "{args:?}");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        assert!(stderr.contains("gloam render"), "{stderr}");
+    }
 }
 
 /// A virtual X display for one test: Xvfb (reaped when dropped), its name, and a private
