@@ -655,3 +655,26 @@ fn broken_skins_and_channels_are_reported_at_their_place() {
         &["skins this mesh", "JOINTS_0"],
     );
 }
+
+#[test]
+fn bad_knock_and_mover_values_are_reported_at_their_place() {
+    let (path, text) = broken_level(
+        "knock",
+        "instance: (asset: \"triangle.gltf\", material_overrides: {\"white\": (roughness: 0.5)}),",
+        "instance: (asset: \"triangle.gltf\"), knock: (radius: 0.0, noise: -1.0), mover: (offset: (0.0, 1.0, 0.0), period: 0.0),",
+    );
+    let line = Some(line_of(&text, "knock:"));
+    assert_reported(&path, "level.ron", line, &["knock radius must be positive"]);
+    assert_reported(
+        &path,
+        "level.ron",
+        line,
+        &["knock noise must be a distance of 0 or more"],
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        line,
+        &["a mover's period must be positive"],
+    );
+}
