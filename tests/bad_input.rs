@@ -678,3 +678,33 @@ fn bad_knock_and_mover_values_are_reported_at_their_place() {
         &["a mover's period must be positive"],
     );
 }
+
+/// Found by fuzzing import -> scene -> BLAS build: one NaN in a vertex passed `check` and
+/// then panicked the BVH build. Non-finite floats are now refused at the accessor.
+#[test]
+fn a_nan_vertex_is_refused_at_its_accessor() {
+    let dir = common::scratch_dir("gltf-nan");
+    let text = triangle_gltf(|json| {
+        let mut bytes = Vec::new();
+        for v in [0.0f32, 0.0, 0.0, f32::NAN, 0.0, 0.0, 0.0, 1.0, 0.0] {
+            bytes.extend(v.to_le_bytes());
+        }
+        for i in [0u16, 1, 2, 0] {
+            bytes.extend(i.to_le_bytes());
+        }
+        json["buffers"][0]["uri"] = serde_json::json!(format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&bytes)
+        ));
+    });
+    let path = common::write(&dir, "nan.gltf", &text);
+    assert_reported(
+        &path,
+        "nan.gltf",
+        None,
+        &[
+            "POSITION element 1 holds NaN (values must be finite)",
+            "/accessors/0",
+        ],
+    );
+}

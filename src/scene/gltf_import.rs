@@ -572,7 +572,21 @@ impl Importer<'_> {
                 ),
             ));
         }
-        Ok(self.read_accessor::<f32>(accessor)?.0)
+        let values = self.read_accessor::<f32>(accessor)?.0;
+        // As the Khronos validator does (ACCESSOR_INVALID_FLOAT): a NaN or an infinity
+        // would pass import and break the BVH build, the renderer or the simulation later.
+        if let Some(at) = values.iter().position(|v| !v.is_finite()) {
+            let components = expected.multiplicity();
+            return Err(self.error(
+                Pointer::root().key("accessors").index(accessor.index()),
+                format!(
+                    "{what} element {} holds {} (values must be finite)",
+                    at / components,
+                    values[at]
+                ),
+            ));
+        }
+        Ok(values)
     }
 
     fn read_vec3s(&self, accessor: &gltf::Accessor, what: &str) -> Checked<Vec<Vec3>> {

@@ -208,9 +208,13 @@ impl Cursor<'_> {
             if self.peek().is_none() || self.eat(close) {
                 break;
             }
+            let before = self.pos;
             self.skip_value();
             count += 1;
-            self.eat(b',');
+            // A byte no value starts with (a stray closer) still moves the walk on.
+            if !self.eat(b',') && self.pos == before {
+                self.pos += 1;
+            }
         }
         self.pos = save;
         count
@@ -290,7 +294,9 @@ impl Cursor<'_> {
                             self.pos += 1;
                             return;
                         }
-                        Some(b',' | b':') => self.pos += 1,
+                        // Separators, and a closer that does not match (`( ]`): step over
+                        // them, or the walk would stand still on a broken file forever.
+                        Some(b',' | b':' | b')' | b']' | b'}') => self.pos += 1,
                         Some(_) => self.skip_value(),
                     }
                 }
@@ -357,6 +363,22 @@ mod tests {
             "\u{1F600}",
         ] {
             let _ = at(text, "/a/0/b");
+        }
+    }
+
+    /// Found by fuzzing levels: a stray closer inside a group (`( ]`) stood the walk still
+    /// and `check` (and so the editor's reload) never returned.
+    #[test]
+    fn a_stray_closer_cannot_stall_the_walk() {
+        for text in [
+            "(a: ( ] ), b: 1)",
+            "(a: [ ) ], b: 1)",
+            "(a: { ] }, b: 1)",
+            "( ] ] ] )",
+            "(a: (}), b: (]), c: 3)",
+        ] {
+            let position = locate(text, &Pointer::parse("/b"));
+            assert!(position.line >= 1, "{text}");
         }
     }
 }
