@@ -679,14 +679,11 @@ fn bad_knock_and_mover_values_are_reported_at_their_place() {
     );
 }
 
-/// Found by fuzzing import -> scene -> BLAS build: one NaN in a vertex passed `check` and
-/// then panicked the BVH build. Non-finite floats are now refused at the accessor.
-#[test]
-fn a_nan_vertex_is_refused_at_its_accessor() {
-    let dir = common::scratch_dir("gltf-nan");
-    let text = triangle_gltf(|json| {
+/// A triangle whose second vertex's x is `x`.
+fn triangle_with_x(x: f32) -> String {
+    triangle_gltf(|json| {
         let mut bytes = Vec::new();
-        for v in [0.0f32, 0.0, 0.0, f32::NAN, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        for v in [0.0f32, 0.0, 0.0, x, 0.0, 0.0, 0.0, 1.0, 0.0] {
             bytes.extend(v.to_le_bytes());
         }
         for i in [0u16, 1, 2, 0] {
@@ -696,14 +693,39 @@ fn a_nan_vertex_is_refused_at_its_accessor() {
             "data:application/octet-stream;base64,{}",
             base64::engine::general_purpose::STANDARD.encode(&bytes)
         ));
-    });
-    let path = common::write(&dir, "nan.gltf", &text);
+    })
+}
+
+/// Found by fuzzing import -> scene -> BLAS build: one NaN in a vertex passed `check` and
+/// then panicked the BVH build. Non-finite floats are now refused at the accessor.
+#[test]
+fn a_nan_vertex_is_refused_at_its_accessor() {
+    let dir = common::scratch_dir("gltf-nan");
+    let path = common::write(&dir, "nan.gltf", &triangle_with_x(f32::NAN));
     assert_reported(
         &path,
         "nan.gltf",
         None,
         &[
             "POSITION element 1 holds NaN (values must be finite)",
+            "/accessors/0",
+        ],
+    );
+}
+
+/// Found by fuzzing: a finite but enormous coordinate (-4.8e32 m in a mutated mirror.glb)
+/// passed `check` and panicked the wide BVH's traversal in `render`.
+#[test]
+fn an_enormous_vertex_is_refused_at_its_accessor() {
+    let dir = common::scratch_dir("gltf-huge");
+    let path = common::write(&dir, "huge.gltf", &triangle_with_x(-4.8e32));
+    assert_reported(
+        &path,
+        "huge.gltf",
+        None,
+        &[
+            "POSITION element 1 is",
+            "must lie within 1000000 m",
             "/accessors/0",
         ],
     );

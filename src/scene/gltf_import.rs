@@ -32,6 +32,10 @@ pub const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
     "KHR_mesh_quantization",
 ];
 
+/// How far from its own origin a vertex may lie (metres): past it, f32 bounds arithmetic
+/// in the BVH build overflows.
+pub const MAX_COORDINATE: f32 = 1.0e6;
+
 /// Imports the glTF or GLB file at `path`.
 pub fn import_gltf(path: &Path) -> Result<Asset, LoadError> {
     let bytes = std::fs::read(path)
@@ -645,6 +649,22 @@ impl Importer<'_> {
             ));
         };
         let positions = self.read_vec3s(&position_accessor, "POSITION")?;
+        // A finite but enormous coordinate (1e32 m) overflows the BVH's bounds arithmetic
+        // in f32 and breaks its build; nothing a level needs is a thousand kilometres out.
+        if let Some(at) = positions
+            .iter()
+            .position(|p| p.abs().max_element() > MAX_COORDINATE)
+        {
+            return Err(self.error(
+                Pointer::root()
+                    .key("accessors")
+                    .index(position_accessor.index()),
+                format!(
+                    "POSITION element {at} is {} (coordinates must lie within {MAX_COORDINATE} m of the origin)",
+                    positions[at]
+                ),
+            ));
+        }
         let vertex_count = positions.len();
         let attribute_pointer = |name: &str| pointer.key("attributes").key(name);
         let check_count = |len: usize, name: &str| -> Checked<()> {
