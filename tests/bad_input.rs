@@ -730,3 +730,22 @@ fn an_enormous_vertex_is_refused_at_its_accessor() {
         ],
     );
 }
+
+/// Found by fuzzing: a GLB header declaring fewer bytes than the header itself overflowed
+/// a subtraction inside the gltf crate (a panic in any build with overflow checks).
+#[test]
+fn a_glb_shorter_than_its_own_header_is_refused() {
+    let dir = common::scratch_dir("glb-short");
+    let mut bytes = b"glTF".to_vec();
+    bytes.extend(2u32.to_le_bytes());
+    bytes.extend(0u32.to_le_bytes());
+    bytes.extend(b"\x10\x00\x00\x00JSON{}      ");
+    let path = dir.join("short.glb");
+    std::fs::write(&path, &bytes).unwrap();
+    assert_reported(
+        &path,
+        "short.glb",
+        Some(1),
+        &["its header says 0 bytes, less than the 12-byte header itself"],
+    );
+}

@@ -47,6 +47,18 @@ pub fn import_gltf(path: &Path) -> Result<Asset, LoadError> {
 pub fn import_gltf_bytes(path: &Path, bytes: &[u8]) -> Result<Asset, LoadError> {
     // 1. Split a GLB into its JSON and BIN chunks; a .gltf is all JSON.
     let (json_bytes, glb_bin): (Cow<[u8]>, Option<Cow<[u8]>>) = if bytes.starts_with(b"glTF") {
+        // gltf 1.4.1 subtracts the 12-byte header from the declared length unchecked: a
+        // length below 12 overflows there (a panic wherever overflow checks are on).
+        if let Some(length) = bytes.get(8..12)
+            && let Ok(length) = <[u8; 4]>::try_from(length).map(u32::from_le_bytes)
+            && length < 12
+        {
+            return Err(Diagnostic::whole_file(
+                path,
+                format!("not a valid GLB file: its header says {length} bytes, less than the 12-byte header itself"),
+            )
+            .into());
+        }
         let glb = gltf::binary::Glb::from_slice(bytes).map_err(|error| {
             Diagnostic::whole_file(
                 path,
