@@ -9,17 +9,24 @@
 //! linear/repeat sampler), perspective cameras, a TRS node tree, skins (joints, inverse bind
 //! matrices, skeleton root) and animations (one sampler per channel: translation, rotation,
 //! scale or morph weights with LINEAR, STEP or CUBICSPLINE interpolation). Everything is
-//! validated before anything is written; output is byte-for-byte deterministic and every
+//! validated before anything is written; the JSON is built from gltf-json's own types and the
+//! GLB container by the gltf crate's binary writer, so every shipped asset passes the Khronos
+//! glTF Validator (`tests/gltf_validator.rs`). Output is byte-for-byte deterministic and every
 //! file is written atomically (temporary file in the same folder, then rename).
 //! `MeshData` also carries the shape builders the generators use (quad, box, cylinder,
 //! flat-shaded convex solid).
 
-use std::collections::BTreeSet;
+use std::borrow::Cow;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use anyhow::{Context as _, bail, ensure};
 use glam::{Mat4, Quat, Vec2, Vec3, Vec4};
-use serde_json::{Map, Value, json};
+use gltf::binary::Glb;
+use gltf::json::accessor::{self, Accessor, ComponentType};
+use gltf::json::validation::Checked::Valid;
+use gltf::json::{self, Index, Root, animation, buffer, mesh, texture};
+use serde_json::{Value, json};
 
 pub use super::files::write_atomically;
 use super::model::{AnimatedProperty, Interpolation};
@@ -422,27 +429,51 @@ pub fn write_gltf(document: &GltfDocument, path: &Path) -> anyhow::Result<()> {
         ),
     };
     validate(document).with_context(|| format!("cannot write '{}'", path.display()))?;
-    let (mut json, buffer) = build_json_and_buffer(document)?;
+    let (mut root, buffer) = build_root_and_buffer(document)?;
+    let mut buffer_entry = |uri: Option<String>| {
+        if !buffer.is_empty() {
+            root.push(json::Buffer {
+                byte_length: buffer.len().into(),
+                name: None,
+                uri,
+                extensions: None,
+                extras: None,
+            });
+        }
+    };
     match container {
         Container::Binary => {
-            if !buffer.is_empty() {
-                json["buffers"] = json!([{ "byteLength": buffer.len() }]);
-            }
-            let text = serde_json::to_string(&json)?;
-            write_atomically(path, &glb_bytes(text.as_bytes(), &buffer)?)
+            buffer_entry(None);
+            let glb = Glb {
+                header: gltf::binary::Header {
+                    magic: *b"glTF",
+                    version: 2,
+                    // Glb::to_writer computes the length from the chunks it pads.
+                    length: 0,
+                },
+                json: Cow::Owned(root.to_vec()?),
+                bin: (!buffer.is_empty()).then_some(Cow::Borrowed(&buffer[..])),
+            };
+            let bytes = glb.to_vec()?;
+            // Glb::to_writer truncates the lengths it writes to u32.
+            ensure!(
+                u32::try_from(bytes.len()).is_ok(),
+                "cannot write '{}': GLB files are limited to 4 GiB",
+                path.display()
+            );
+            write_atomically(path, &bytes)
         }
         Container::Text => {
+            let stem = path
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("buffer");
+            let bin_name = format!("{stem}.bin");
             if !buffer.is_empty() {
-                let stem = path
-                    .file_stem()
-                    .and_then(|s| s.to_str())
-                    .unwrap_or("buffer");
-                let bin_name = format!("{stem}.bin");
                 write_atomically(&path.with_file_name(&bin_name), &buffer)?;
-                json["buffers"] =
-                    json!([{ "byteLength": buffer.len(), "uri": percent_encode(&bin_name) }]);
             }
-            let mut text = serde_json::to_string_pretty(&json)?;
+            buffer_entry(Some(percent_encode(&bin_name)));
+            let mut text = root.to_string_pretty()?;
             text.push('\n');
             write_atomically(path, text.as_bytes())
         }
@@ -855,72 +886,101 @@ fn validate_animation(document: &GltfDocument, animation: &AnimationData) -> any
     Ok(())
 }
 
-/// A JSON number that reads back as exactly `x` (shortest f32 decimal, not the f64 widening).
-fn number(x: f32) -> Value {
-    // Display prints the shortest decimal that round-trips as f32; callers validated finiteness.
-    x.to_string()
-        .parse::<f64>()
-        .ok()
-        .and_then(serde_json::Number::from_f64)
-        .map_or(Value::Null, Value::Number)
+/// An accessor's `min`/`max`: serde_json widens an `f32` inside a `Value` to `f64`
+/// (0.1 would be written 0.10000000149011612), so each bound goes through its shortest f32
+/// decimal, which reads back as exactly the bound.
+fn bound_values(values: &[f32]) -> Value {
+    Value::Array(
+        values
+            .iter()
+            .map(|x| {
+                x.to_string()
+                    .parse::<f64>()
+                    .ok()
+                    .and_then(serde_json::Number::from_f64)
+                    .map_or(Value::Null, Value::Number)
+            })
+            .collect(),
+    )
 }
 
-fn numbers(values: &[f32]) -> Value {
-    Value::Array(values.iter().map(|&x| number(x)).collect())
+/// A glTF index for position `i` of one of the document's vectors.
+fn index<T>(i: usize) -> Index<T> {
+    // Rule: validate() has checked every reference against the length of a Vec in memory,
+    // and no Vec of meshes, nodes or accessors comes near 2^32 entries.
+    Index::new(u32::try_from(i).expect("a glTF index fits in u32"))
 }
 
-/// The binary buffer under construction, its buffer views and the accessors into them.
-#[derive(Default)]
-struct BufferBuilder {
+/// The document's JSON root under construction and the one binary buffer its buffer views
+/// cut up.
+struct Builder {
+    root: Root,
     bytes: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
 }
 
-const ARRAY_BUFFER: u32 = 34962;
-const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-const FLOAT: u32 = 5126;
-const UNSIGNED_SHORT: u32 = 5123;
-const UNSIGNED_INT: u32 = 5125;
-
-impl BufferBuilder {
-    /// Appends `data` at a 4-byte aligned offset as a new buffer view; returns its index.
-    fn push_view(&mut self, data: &[u8], target: Option<u32>) -> usize {
+impl Builder {
+    /// Appends `data` at a 4-byte aligned offset as a new buffer view.
+    fn push_view(&mut self, data: &[u8], target: Option<buffer::Target>) -> Index<buffer::View> {
         self.pad();
-        let mut view = Map::new();
-        view.insert("buffer".into(), json!(0));
-        view.insert("byteOffset".into(), json!(self.bytes.len()));
-        view.insert("byteLength".into(), json!(data.len()));
-        if let Some(target) = target {
-            view.insert("target".into(), json!(target));
-        }
+        let view = buffer::View {
+            buffer: Index::new(0),
+            byte_length: data.len().into(),
+            byte_offset: Some(self.bytes.len().into()),
+            byte_stride: None,
+            name: None,
+            target: target.map(Valid),
+            extensions: None,
+            extras: None,
+        };
         self.bytes.extend_from_slice(data);
-        self.views.push(Value::Object(view));
-        self.views.len() - 1
+        self.root.push(view)
+    }
+
+    /// Appends `bytes` as a view and an accessor reading `count` elements of `type_` from it.
+    fn push_accessor(
+        &mut self,
+        bytes: &[u8],
+        count: usize,
+        (component_type, type_): (ComponentType, accessor::Type),
+        target: Option<buffer::Target>,
+        bounds: Option<(Value, Value)>,
+    ) -> Index<Accessor> {
+        let view = self.push_view(bytes, target);
+        let (min, max) = bounds.unzip();
+        self.root.push(Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: count.into(),
+            component_type: Valid(accessor::GenericComponentType(component_type)),
+            extensions: None,
+            extras: None,
+            type_: Valid(type_),
+            min,
+            max,
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
     }
 
     /// Appends tightly packed floats, `components` per element (1 SCALAR, 2 VEC2, 3 VEC3,
-    /// 4 VEC4, 16 MAT4), as a new buffer view with `target`; the accessor gets per-component
-    /// `min`/`max` when `bounds` is set. Returns the accessor.
+    /// 4 VEC4, 16 MAT4), with per-component `min`/`max` when `bounds` is set.
     fn push_floats(
         &mut self,
         flat: &[f32],
         components: usize,
-        target: Option<u32>,
+        target: Option<buffer::Target>,
         bounds: bool,
-    ) -> usize {
-        let kind = match components {
-            1 => "SCALAR",
-            2 => "VEC2",
-            3 => "VEC3",
-            4 => "VEC4",
-            16 => "MAT4",
+    ) -> Index<Accessor> {
+        let type_ = match components {
+            1 => accessor::Type::Scalar,
+            2 => accessor::Type::Vec2,
+            3 => accessor::Type::Vec3,
+            4 => accessor::Type::Vec4,
+            16 => accessor::Type::Mat4,
             _ => unreachable!("no glTF float accessor has {components} components"),
         };
-        let bytes: Vec<u8> = flat.iter().flat_map(|x| x.to_le_bytes()).collect();
-        let view = self.push_view(&bytes, target);
-        let mut accessor = json!({ "bufferView": view, "componentType": FLOAT, "count": flat.len() / components, "type": kind });
-        if bounds {
+        let bounds = bounds.then(|| {
             let mut min = vec![f32::INFINITY; components];
             let mut max = vec![f32::NEG_INFINITY; components];
             for element in flat.chunks_exact(components) {
@@ -929,41 +989,17 @@ impl BufferBuilder {
                     max[i] = max[i].max(x);
                 }
             }
-            accessor["min"] = numbers(&min);
-            accessor["max"] = numbers(&max);
-        }
-        self.accessors.push(accessor);
-        self.accessors.len() - 1
+            (bound_values(&min), bound_values(&max))
+        });
+        let bytes: Vec<u8> = flat.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let count = flat.len() / components;
+        self.push_accessor(&bytes, count, (ComponentType::F32, type_), target, bounds)
     }
 
-    /// Appends a VEC3 vertex attribute (with bounds for POSITION); returns the accessor.
-    fn push_vec3s(&mut self, vectors: &[Vec3], bounds: bool) -> usize {
+    /// Appends a VEC3 vertex attribute (with bounds for POSITION, which glTF requires).
+    fn push_vec3s(&mut self, vectors: &[Vec3], bounds: bool) -> Index<Accessor> {
         let flat: Vec<f32> = vectors.iter().flat_map(|v| v.to_array()).collect();
-        self.push_floats(&flat, 3, Some(ARRAY_BUFFER), bounds)
-    }
-
-    /// Appends a JOINTS_0 attribute (unsigned short VEC4); returns the accessor.
-    fn push_joints(&mut self, joints: &[[u16; 4]]) -> usize {
-        let bytes: Vec<u8> = joints
-            .iter()
-            .flatten()
-            .flat_map(|j| j.to_le_bytes())
-            .collect();
-        let view = self.push_view(&bytes, Some(ARRAY_BUFFER));
-        self.accessors.push(json!({ "bufferView": view, "componentType": UNSIGNED_SHORT, "count": joints.len(), "type": "VEC4" }));
-        self.accessors.len() - 1
-    }
-
-    /// Appends a u32 triangle index list; returns the accessor.
-    fn push_indices(&mut self, triangles: &[[u32; 3]]) -> usize {
-        let bytes: Vec<u8> = triangles
-            .iter()
-            .flatten()
-            .flat_map(|i| i.to_le_bytes())
-            .collect();
-        let view = self.push_view(&bytes, Some(ELEMENT_ARRAY_BUFFER));
-        self.accessors.push(json!({ "bufferView": view, "componentType": UNSIGNED_INT, "count": triangles.len() * 3, "type": "SCALAR" }));
-        self.accessors.len() - 1
+        self.push_floats(&flat, 3, Some(buffer::Target::ArrayBuffer), bounds)
     }
 
     fn pad(&mut self) {
@@ -971,274 +1007,307 @@ impl BufferBuilder {
     }
 }
 
-fn build_json_and_buffer(document: &GltfDocument) -> anyhow::Result<(Value, Vec<u8>)> {
-    let mut buffer = BufferBuilder::default();
-    let mut extensions_used = BTreeSet::new();
-    let mut meshes = Vec::new();
+/// The glTF JSON root of `document` and its binary buffer (without a `buffers` entry: the
+/// container decides where the buffer lives).
+fn build_root_and_buffer(document: &GltfDocument) -> anyhow::Result<(Root, Vec<u8>)> {
+    let mut builder = Builder {
+        root: Root::default(),
+        bytes: Vec::new(),
+    };
     for mesh in &document.meshes {
-        let mut attributes = Map::new();
-        attributes.insert(
-            "POSITION".into(),
-            json!(buffer.push_vec3s(&mesh.positions, true)),
-        );
-        attributes.insert(
-            "NORMAL".into(),
-            json!(buffer.push_vec3s(&mesh.normals, false)),
-        );
-        if !mesh.uvs.is_empty() {
-            let uvs: Vec<f32> = mesh.uvs.iter().flat_map(|uv| uv.to_array()).collect();
-            attributes.insert(
-                "TEXCOORD_0".into(),
-                json!(buffer.push_floats(&uvs, 2, Some(ARRAY_BUFFER), false)),
-            );
-        }
-        if !mesh.joints.is_empty() {
-            attributes.insert("JOINTS_0".into(), json!(buffer.push_joints(&mesh.joints)));
-            let weights: Vec<f32> = mesh.weights.iter().flatten().copied().collect();
-            attributes.insert(
-                "WEIGHTS_0".into(),
-                json!(buffer.push_floats(&weights, 4, Some(ARRAY_BUFFER), false)),
-            );
-        }
-        let indices = buffer.push_indices(&mesh.indices);
-        let mut primitive = json!({ "attributes": attributes, "indices": indices, "material": mesh.material, "mode": 4 });
-        let mut value = json!({ "name": mesh.name });
-        if !mesh.morph_targets.is_empty() {
-            // Morph deltas are per-vertex data like the attributes, so their views are ARRAY_BUFFERs too.
-            let targets: Vec<Value> = mesh
-                .morph_targets
-                .iter()
-                .map(|target| {
-                    let mut attributes = Map::new();
-                    attributes.insert(
-                        "POSITION".into(),
-                        json!(buffer.push_vec3s(&target.positions, true)),
-                    );
-                    if !target.normals.is_empty() {
-                        attributes.insert(
-                            "NORMAL".into(),
-                            json!(buffer.push_vec3s(&target.normals, false)),
-                        );
-                    }
-                    Value::Object(attributes)
-                })
-                .collect();
-            primitive["targets"] = Value::Array(targets);
-            value["weights"] = numbers(&mesh.morph_weights);
+        let primitive = build_primitive(&mut builder, mesh);
+        let (weights, extras) = if mesh.morph_targets.is_empty() {
+            (None, None)
+        } else {
+            // glTF has no field for target names; `extras.targetNames` is the convention
+            // Blender and three.js read.
             let names: Vec<&str> = mesh.morph_targets.iter().map(|t| t.name.as_str()).collect();
-            value["extras"] = json!({ "targetNames": names });
-        }
-        value["primitives"] = json!([primitive]);
-        meshes.push(value);
+            let extras = serde_json::value::to_raw_value(&json!({ "targetNames": names }))?;
+            (Some(mesh.morph_weights.clone()), Some(extras))
+        };
+        builder.root.push(json::Mesh {
+            extensions: None,
+            extras,
+            name: Some(mesh.name.clone()),
+            primitives: vec![primitive],
+            weights,
+        });
     }
 
-    let images: Vec<Value> = document
-        .images
-        .iter()
-        .map(|image| {
-            let view = buffer.push_view(&image.png, None);
-            json!({ "name": image.name, "bufferView": view, "mimeType": "image/png" })
-        })
-        .collect();
-    let textures: Vec<Value> = (0..document.images.len())
-        .map(|image| json!({ "sampler": 0, "source": image }))
-        .collect();
+    for image in &document.images {
+        let view = builder.push_view(&image.png, None);
+        let image = builder.root.push(json::Image {
+            buffer_view: Some(view),
+            mime_type: Some(json::image::MimeType("image/png".into())),
+            name: Some(image.name.clone()),
+            uri: None,
+            extensions: None,
+            extras: None,
+        });
+        builder.root.push(json::Texture {
+            name: None,
+            sampler: Some(Index::new(0)),
+            source: image,
+            extensions: None,
+            extras: None,
+        });
+    }
+    if !document.images.is_empty() {
+        builder.root.push(texture::Sampler {
+            mag_filter: Some(Valid(texture::MagFilter::Linear)),
+            min_filter: Some(Valid(texture::MinFilter::Linear)),
+            wrap_s: Valid(texture::WrappingMode::Repeat),
+            wrap_t: Valid(texture::WrappingMode::Repeat),
+            ..Default::default()
+        });
+    }
 
-    let skins: Vec<Value> = document
-        .skins
-        .iter()
-        .map(|skin| {
-            let matrices: Vec<f32> = skin
-                .inverse_bind_matrices
-                .iter()
-                .flat_map(|m| m.to_cols_array())
-                .collect();
-            let accessor = buffer.push_floats(&matrices, 16, None, false);
-            let mut value = json!({ "name": skin.name, "joints": skin.joints, "inverseBindMatrices": accessor });
-            if let Some(skeleton) = skin.skeleton {
-                value["skeleton"] = json!(skeleton);
-            }
-            value
-        })
-        .collect();
+    for skin in &document.skins {
+        let matrices: Vec<f32> = skin
+            .inverse_bind_matrices
+            .iter()
+            .flat_map(|m| m.to_cols_array())
+            .collect();
+        let inverse_bind_matrices = builder.push_floats(&matrices, 16, None, false);
+        builder.root.push(json::Skin {
+            extensions: None,
+            extras: None,
+            inverse_bind_matrices: Some(inverse_bind_matrices),
+            joints: skin.joints.iter().map(|&joint| index(joint)).collect(),
+            name: Some(skin.name.clone()),
+            skeleton: skin.skeleton.map(index),
+        });
+    }
 
-    let mut animations = Vec::new();
     for animation in &document.animations {
         let mut channels = Vec::new();
         let mut samplers = Vec::new();
         for channel in &animation.channels {
-            let input = buffer.push_floats(&channel.times, 1, None, true);
+            let input = builder.push_floats(&channel.times, 1, None, true);
             // Weights outputs are scalars (targets x keyframes of them); the rest are vectors.
             let components = match channel.property {
                 AnimatedProperty::MorphWeights => 1,
                 _ => channel_components(document, channel)?,
             };
-            let output = buffer.push_floats(&channel.values, components, None, false);
-            let interpolation = match channel.interpolation {
-                Interpolation::Linear => "LINEAR",
-                Interpolation::Step => "STEP",
-                Interpolation::CubicSpline => "CUBICSPLINE",
-            };
-            channels.push(json!({
-                "sampler": samplers.len(),
-                "target": { "node": channel.node, "path": property_path(channel.property) },
-            }));
-            samplers
-                .push(json!({ "input": input, "interpolation": interpolation, "output": output }));
+            let output = builder.push_floats(&channel.values, components, None, false);
+            channels.push(animation::Channel {
+                sampler: index(samplers.len()),
+                target: animation::Target {
+                    extensions: None,
+                    extras: None,
+                    node: index(channel.node),
+                    path: Valid(animation_property(channel.property)),
+                },
+                extensions: None,
+                extras: None,
+            });
+            samplers.push(animation::Sampler {
+                extensions: None,
+                extras: None,
+                input,
+                interpolation: Valid(match channel.interpolation {
+                    Interpolation::Linear => animation::Interpolation::Linear,
+                    Interpolation::Step => animation::Interpolation::Step,
+                    Interpolation::CubicSpline => animation::Interpolation::CubicSpline,
+                }),
+                output,
+            });
         }
-        animations
-            .push(json!({ "name": animation.name, "channels": channels, "samplers": samplers }));
+        builder.root.push(json::Animation {
+            extensions: None,
+            extras: None,
+            channels,
+            name: Some(animation.name.clone()),
+            samplers,
+        });
     }
-    buffer.pad();
+    builder.pad();
 
-    let materials: Vec<Value> = document
-        .materials
-        .iter()
-        .map(|material| material_json(material, &mut extensions_used))
-        .collect();
-
-    let cameras: Vec<Value> = document
-        .cameras
-        .iter()
-        .map(|camera| json!({ "name": camera.name, "type": "perspective", "perspective": { "yfov": number(camera.yfov), "znear": number(camera.znear) } }))
-        .collect();
-
-    let nodes: Vec<Value> = document.nodes.iter().map(node_json).collect();
-
-    let mut root = Map::new();
-    root.insert(
-        "asset".into(),
-        json!({ "version": "2.0", "generator": "gloam gltf_export" }),
-    );
-    if !extensions_used.is_empty() {
-        root.insert("extensionsUsed".into(), json!(extensions_used));
+    let mut extensions_used = BTreeSet::new();
+    for material in &document.materials {
+        let material = build_material(material, &mut extensions_used);
+        builder.root.push(material);
     }
-    root.insert("scene".into(), json!(0));
-    root.insert("scenes".into(), json!([{ "nodes": document.roots }]));
-    let mut insert_nonempty = |key: &str, values: Vec<Value>| {
-        if !values.is_empty() {
-            root.insert(key.into(), Value::Array(values));
-        }
+    for camera in &document.cameras {
+        builder.root.push(json::Camera {
+            name: Some(camera.name.clone()),
+            orthographic: None,
+            perspective: Some(json::camera::Perspective {
+                aspect_ratio: None,
+                yfov: camera.yfov,
+                zfar: None,
+                znear: camera.znear,
+                extensions: None,
+                extras: None,
+            }),
+            type_: Valid(json::camera::Type::Perspective),
+            extensions: None,
+            extras: None,
+        });
+    }
+    for node in &document.nodes {
+        builder.root.push(build_node(node));
+    }
+
+    let root = &mut builder.root;
+    root.asset = json::Asset {
+        generator: Some("gloam gltf_export".into()),
+        ..Default::default()
     };
-    insert_nonempty("nodes", nodes);
-    insert_nonempty("meshes", meshes);
-    insert_nonempty("materials", materials);
-    insert_nonempty("cameras", cameras);
-    insert_nonempty("images", images);
-    if !textures.is_empty() {
-        insert_nonempty(
-            "samplers",
-            vec![json!({ "magFilter": 9729, "minFilter": 9729, "wrapS": 10497, "wrapT": 10497 })],
-        );
-    }
-    insert_nonempty("textures", textures);
-    insert_nonempty("skins", skins);
-    insert_nonempty("animations", animations);
-    insert_nonempty("accessors", buffer.accessors);
-    insert_nonempty("bufferViews", buffer.views);
-    Ok((Value::Object(root), buffer.bytes))
+    root.extensions_used = extensions_used.into_iter().map(str::to_owned).collect();
+    let scene = root.push(json::Scene {
+        extensions: None,
+        extras: None,
+        name: None,
+        nodes: document.roots.iter().map(|&node| index(node)).collect(),
+    });
+    root.scene = Some(scene);
+    Ok((builder.root, builder.bytes))
 }
 
-fn material_json(material: &MaterialData, extensions_used: &mut BTreeSet<&'static str>) -> Value {
-    let mut pbr = json!({
-        "baseColorFactor": numbers(&material.base_color.to_array()),
-        "metallicFactor": number(material.metallic),
-        "roughnessFactor": number(material.roughness),
-    });
-    if let Some(image) = material.base_color_texture {
-        pbr["baseColorTexture"] = json!({ "index": image });
+/// The mesh's one triangle-list primitive, its attributes, indices and morph targets
+/// appended to the buffer.
+fn build_primitive(builder: &mut Builder, mesh: &MeshData) -> mesh::Primitive {
+    use mesh::Semantic;
+    let vertex_data = Some(buffer::Target::ArrayBuffer);
+    let mut attributes = BTreeMap::new();
+    attributes.insert(
+        Valid(Semantic::Positions),
+        builder.push_vec3s(&mesh.positions, true),
+    );
+    attributes.insert(
+        Valid(Semantic::Normals),
+        builder.push_vec3s(&mesh.normals, false),
+    );
+    if !mesh.uvs.is_empty() {
+        let uvs: Vec<f32> = mesh.uvs.iter().flat_map(|uv| uv.to_array()).collect();
+        let accessor = builder.push_floats(&uvs, 2, vertex_data, false);
+        attributes.insert(Valid(Semantic::TexCoords(0)), accessor);
     }
-    let mut value = json!({ "name": material.name, "pbrMetallicRoughness": pbr });
-    let mut extensions = Map::new();
+    if !mesh.joints.is_empty() {
+        let bytes: Vec<u8> = mesh.joints.iter().flatten().flat_map(|j| j.to_le_bytes()).collect();
+        let format = (ComponentType::U16, accessor::Type::Vec4);
+        let joints = builder.push_accessor(&bytes, mesh.joints.len(), format, vertex_data, None);
+        attributes.insert(Valid(Semantic::Joints(0)), joints);
+        let weights: Vec<f32> = mesh.weights.iter().flatten().copied().collect();
+        let weights = builder.push_floats(&weights, 4, vertex_data, false);
+        attributes.insert(Valid(Semantic::Weights(0)), weights);
+    }
+    let bytes: Vec<u8> = mesh.indices.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+    let indices = builder.push_accessor(
+        &bytes,
+        mesh.indices.len() * 3,
+        (ComponentType::U32, accessor::Type::Scalar),
+        Some(buffer::Target::ElementArrayBuffer),
+        None,
+    );
+    // Morph deltas are per-vertex data like the attributes, so their views are ARRAY_BUFFERs
+    // too; a target's POSITION needs its bounds like the base attribute.
+    let targets = (!mesh.morph_targets.is_empty()).then(|| {
+        mesh.morph_targets
+            .iter()
+            .map(|target| mesh::MorphTarget {
+                positions: Some(builder.push_vec3s(&target.positions, true)),
+                normals: (!target.normals.is_empty())
+                    .then(|| builder.push_vec3s(&target.normals, false)),
+                tangents: None,
+            })
+            .collect()
+    });
+    mesh::Primitive {
+        attributes,
+        extensions: None,
+        extras: None,
+        indices: Some(indices),
+        material: Some(index(mesh.material)),
+        mode: Valid(mesh::Mode::Triangles),
+        targets,
+    }
+}
+
+/// A metallic-roughness material, with the KHR extensions it needs named in `extensions_used`.
+fn build_material(
+    material: &MaterialData,
+    extensions_used: &mut BTreeSet<&'static str>,
+) -> json::Material {
+    use json::extensions::material as khr;
+    use json::material::{EmissiveFactor, PbrBaseColorFactor, StrengthFactor};
+    let mut extensions = khr::Material::default();
+    let mut emissive_factor = [0.0; 3];
     let strength = material.emissive.max_element();
     if strength > 0.0 {
         // emissiveFactor must lie in [0, 1]; the brightest channel's radiance moves to the strength.
-        value["emissiveFactor"] =
-            numbers(&(material.emissive / strength).min(Vec3::ONE).to_array());
+        emissive_factor = (material.emissive / strength).min(Vec3::ONE).to_array();
         if strength > 1.0 {
-            extensions.insert(
-                "KHR_materials_emissive_strength".into(),
-                json!({ "emissiveStrength": number(strength) }),
-            );
+            extensions.emissive_strength = Some(khr::EmissiveStrength {
+                emissive_strength: khr::EmissiveStrengthFactor(strength),
+            });
+            extensions_used.insert("KHR_materials_emissive_strength");
         }
     }
     if material.transmission != 0.0 {
-        extensions.insert(
-            "KHR_materials_transmission".into(),
-            json!({ "transmissionFactor": number(material.transmission) }),
-        );
+        extensions.transmission = Some(khr::Transmission {
+            transmission_factor: khr::TransmissionFactor(material.transmission),
+            transmission_texture: None,
+            extras: None,
+        });
+        extensions_used.insert("KHR_materials_transmission");
     }
     if material.ior != 1.5 {
-        extensions.insert(
-            "KHR_materials_ior".into(),
-            json!({ "ior": number(material.ior) }),
-        );
+        extensions.ior = Some(khr::Ior {
+            ior: khr::IndexOfRefraction(material.ior),
+            extras: None,
+        });
+        extensions_used.insert("KHR_materials_ior");
     }
-    if material.double_sided {
-        value["doubleSided"] = json!(true);
+    let any_extension = extensions.emissive_strength.is_some()
+        || extensions.transmission.is_some()
+        || extensions.ior.is_some();
+    json::Material {
+        name: Some(material.name.clone()),
+        double_sided: material.double_sided,
+        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+            base_color_factor: PbrBaseColorFactor(material.base_color.to_array()),
+            base_color_texture: material.base_color_texture.map(|image| texture::Info {
+                index: index(image),
+                tex_coord: 0,
+                extensions: None,
+                extras: None,
+            }),
+            metallic_factor: StrengthFactor(material.metallic),
+            roughness_factor: StrengthFactor(material.roughness),
+            ..Default::default()
+        },
+        emissive_factor: EmissiveFactor(emissive_factor),
+        extensions: any_extension.then_some(extensions),
+        ..Default::default()
     }
-    for name in [
-        "KHR_materials_emissive_strength",
-        "KHR_materials_ior",
-        "KHR_materials_transmission",
-    ] {
-        if extensions.contains_key(name) {
-            extensions_used.insert(name);
-        }
-    }
-    if !extensions.is_empty() {
-        value["extensions"] = Value::Object(extensions);
-    }
-    value
 }
 
-fn node_json(node: &NodeData) -> Value {
-    let mut value = json!({ "name": node.name });
-    if node.translation != Vec3::ZERO {
-        value["translation"] = numbers(&node.translation.to_array());
+fn build_node(node: &NodeData) -> json::Node {
+    json::Node {
+        name: Some(node.name.clone()),
+        translation: (node.translation != Vec3::ZERO).then(|| node.translation.to_array()),
+        rotation: (node.rotation != Quat::IDENTITY)
+            .then(|| json::scene::UnitQuaternion(node.rotation.to_array())),
+        scale: (node.scale != Vec3::ONE).then(|| node.scale.to_array()),
+        mesh: node.mesh.map(index),
+        camera: node.camera.map(index),
+        skin: node.skin.map(index),
+        children: (!node.children.is_empty())
+            .then(|| node.children.iter().map(|&child| index(child)).collect()),
+        ..Default::default()
     }
-    if node.rotation != Quat::IDENTITY {
-        value["rotation"] = numbers(&node.rotation.to_array());
-    }
-    if node.scale != Vec3::ONE {
-        value["scale"] = numbers(&node.scale.to_array());
-    }
-    if let Some(mesh) = node.mesh {
-        value["mesh"] = json!(mesh);
-    }
-    if let Some(camera) = node.camera {
-        value["camera"] = json!(camera);
-    }
-    if let Some(skin) = node.skin {
-        value["skin"] = json!(skin);
-    }
-    if !node.children.is_empty() {
-        value["children"] = json!(node.children);
-    }
-    value
 }
 
-/// A GLB container: 12-byte header, JSON chunk padded with spaces, BIN chunk padded with zeros.
-fn glb_bytes(json: &[u8], bin: &[u8]) -> anyhow::Result<Vec<u8>> {
-    let json_length = json.len().next_multiple_of(4);
-    let bin_length = bin.len().next_multiple_of(4);
-    let total = 12 + 8 + json_length + if bin.is_empty() { 0 } else { 8 + bin_length };
-    let as_u32 = |n: usize| u32::try_from(n).context("GLB files are limited to 4 GiB");
-    let mut bytes = Vec::with_capacity(total);
-    bytes.extend_from_slice(b"glTF");
-    bytes.extend_from_slice(&2u32.to_le_bytes());
-    bytes.extend_from_slice(&as_u32(total)?.to_le_bytes());
-    bytes.extend_from_slice(&as_u32(json_length)?.to_le_bytes());
-    bytes.extend_from_slice(b"JSON");
-    bytes.extend_from_slice(json);
-    bytes.resize(20 + json_length, b' ');
-    if !bin.is_empty() {
-        bytes.extend_from_slice(&as_u32(bin_length)?.to_le_bytes());
-        bytes.extend_from_slice(b"BIN\0");
-        bytes.extend_from_slice(bin);
-        bytes.resize(total, 0);
+/// glTF's `target.path` for an animated property.
+fn animation_property(property: AnimatedProperty) -> animation::Property {
+    match property {
+        AnimatedProperty::Translation => animation::Property::Translation,
+        AnimatedProperty::Rotation => animation::Property::Rotation,
+        AnimatedProperty::Scale => animation::Property::Scale,
+        AnimatedProperty::MorphWeights => animation::Property::MorphTargetWeights,
     }
-    Ok(bytes)
 }
 
 /// Escapes everything but RFC 3986 unreserved characters, for a relative `uri`.
