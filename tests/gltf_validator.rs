@@ -54,7 +54,10 @@ fn validator_module() -> Option<PathBuf> {
         return Some(module);
     }
     let missing = if node {
-        format!("the npm package gltf-validator (looked in {})", folder.display())
+        format!(
+            "the npm package gltf-validator (looked in {})",
+            folder.display()
+        )
     } else {
         "Node.js".to_owned()
     };
@@ -126,9 +129,11 @@ fn every_shipped_asset_passes_the_khronos_validator() {
 /// and a buffer whose file name needs percent-encoding.
 fn every_feature_document() -> GltfDocument {
     let mut png = Vec::new();
-    image::RgbImage::from_fn(4, 4, |x, y| image::Rgb([(x * 60) as u8, (y * 60) as u8, 128]))
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .unwrap();
+    image::RgbImage::from_fn(4, 4, |x, y| {
+        image::Rgb([(x * 60) as u8, (y * 60) as u8, 128])
+    })
+    .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+    .unwrap();
     let corners = [
         Vec3::new(0.0, 0.0, 0.0),
         Vec3::new(1.0, 0.0, 0.0),

@@ -143,6 +143,24 @@ fn lines_of(output: impl std::io::Read + Send + 'static) -> std::sync::mpsc::Rec
     receiver
 }
 
+/// Gives window `id` the keyboard focus (real key presses go to the focused window: winit
+/// ignores synthetic events), trying again while it settles on the display.
+fn focus_window(display: &str, id: &str) {
+    for _ in 0..50 {
+        let focused = Command::new("xdotool")
+            .args(["windowfocus", "--sync", id])
+            .env("DISPLAY", display)
+            .stderr(Stdio::null())
+            .status()
+            .unwrap();
+        if focused.success() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    panic!("the window never took the focus");
+}
+
 /// The window named Gloam on `display`.
 fn gloam_window(display: &str) -> String {
     for _ in 0..600 {
@@ -170,8 +188,12 @@ fn the_window_shows_the_headless_frame() {
     let Some((_xvfb, display, dir)) = x_display("window") else {
         return;
     };
+    // No pictures folder in this home: F12's screenshots go to the data folder.
+    let data = dir.join("data");
     let mut window = Reaped(
         windowed(&display, &dir)
+            .env("HOME", dir.join("home"))
+            .env("XDG_DATA_HOME", &data)
             .args([
                 "play",
                 "levels/cornell.ron",
@@ -207,6 +229,25 @@ fn the_window_shows_the_headless_frame() {
         .status()
         .unwrap();
     assert!(status.success(), "import failed");
+
+    // F12 writes what the window shows and the linear film under it, and says where.
+    focus_window(&display, &id);
+    let pressed = Command::new("xdotool")
+        .args(["key", "F12"])
+        .env("DISPLAY", &display)
+        .status()
+        .unwrap();
+    assert!(pressed.success(), "xdotool key F12");
+    let said = receiver
+        .recv_timeout(Duration::from_secs(60))
+        .expect("a line saying where the screenshot went");
+    let folder = data.join("gloam/screenshots");
+    let png = folder.join("cornell-001.png");
+    let exr = folder.join("cornell-001.exr");
+    assert_eq!(
+        said,
+        format!("screenshot: {} and {}", png.display(), exr.display())
+    );
     drop(window);
 
     // The same frames, headless.
@@ -260,6 +301,26 @@ fn the_window_shows_the_headless_frame() {
         difference < 4.0,
         "the window differs from the headless frame by {difference} of 255 on average"
     );
+
+    // The screenshot's PNG is the frame buffer itself (HUD and all), the EXR the film's
+    // radiance: below the HUD both are the headless frame, the EXR exactly.
+    let png = image::open(&png).unwrap().into_rgb8();
+    assert_eq!(png.dimensions(), (WIDTH, HEIGHT));
+    for y in 20..HEIGHT {
+        for x in 0..WIDTH {
+            assert_eq!(
+                png.get_pixel(x, y).0,
+                expected[(y * WIDTH + x) as usize],
+                "screenshot pixel ({x}, {y})"
+            );
+        }
+    }
+    let film = gloam::render::film::Film::read_exr(&exr).unwrap();
+    assert_eq!(
+        film.pixels,
+        engine.image().pixels,
+        "the EXR is the linear film"
+    );
 }
 
 /// Bare `gloam` opens the main menu: a broken settings file is named in one line with its
@@ -309,25 +370,9 @@ fn the_main_menu_names_a_broken_settings_file_saves_a_change_and_quits_from_its_
             .unwrap();
         assert!(status.success(), "xdotool {args:?}");
     };
-    let focus = || {
-        // The window may still be settling on the display: try again for a while.
-        for _ in 0..50 {
-            let focused = Command::new("xdotool")
-                .args(["windowfocus", "--sync", &id])
-                .env("DISPLAY", &display)
-                .stderr(Stdio::null())
-                .status()
-                .unwrap();
-            if focused.success() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        panic!("the window never took the focus");
-    };
     let keys = |keys: &[&str]| {
         for key in keys {
-            focus();
+            focus_window(&display, &id);
             xdotool(&["key", key]);
             std::thread::sleep(Duration::from_millis(300));
         }

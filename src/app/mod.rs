@@ -21,13 +21,15 @@
 //! douses or relights the lamp looked at, N toggles noclip (fly through walls: Space and C
 //! rise and sink), mouse looks once captured (click). Fixed: Esc pauses (the pause page:
 //! resume, restart, settings, main menu, quit), F11 toggles fullscreen, V vsync, F3 the
-//! profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw). No
+//! profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw), F12
+//! writes a screenshot (`screenshot`: the frame as PNG and the linear film as EXR). No
 //! single key quits. A level without a player start is flown through with the same keys.
 
 mod hud;
 pub mod menu;
 pub mod replay;
 pub mod resolution;
+pub mod screenshot;
 pub mod settings;
 
 use std::path::{Path, PathBuf};
@@ -149,14 +151,16 @@ enum Binding {
     Profiler,
     Filter,
     Vsync,
+    Screenshot,
 }
 
 /// The window's own keys (`settings::RESERVED_KEYS`, which no game action may take).
-const WINDOW_KEYS: [(KeyCode, Binding); 5] = [
+const WINDOW_KEYS: [(KeyCode, Binding); 6] = [
     (KeyCode::Escape, Binding::Pause),
     (KeyCode::F11, Binding::Fullscreen),
     (KeyCode::F3, Binding::Profiler),
     (KeyCode::F4, Binding::Filter),
+    (KeyCode::F12, Binding::Screenshot),
     (KeyCode::KeyV, Binding::Vsync),
 ];
 
@@ -235,6 +239,7 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         frame_ms: Vec::new(),
         vsync: true,
         overlay,
+        screenshot: false,
         captured: false,
         rendered: 0,
         done_at: None,
@@ -415,6 +420,8 @@ struct App {
     vsync: bool,
     /// The profiler overlay (F3) is shown.
     overlay: bool,
+    /// F12 was pressed: the next frame shown is written to the screenshot folder.
+    screenshot: bool,
     captured: bool,
     /// Frames rendered (not counting repeats of a held image).
     rendered: u32,
@@ -710,7 +717,7 @@ impl App {
         self.window_key(binding);
     }
 
-    /// F11, F3, F4 and V, in play and in menus alike.
+    /// F11, F3, F4, F12 and V, in play and in menus alike.
     fn window_key(&mut self, binding: Binding) {
         match binding {
             Binding::Fullscreen => {
@@ -737,7 +744,56 @@ impl App {
                     pixels.enable_vsync(self.vsync);
                 }
             }
+            Binding::Screenshot => self.screenshot = true,
             Binding::Pause => {}
+        }
+    }
+
+    /// Writes the frame just composed (and the film under it) to the screenshot folder, and
+    /// says where, or why not.
+    fn save_screenshot(&mut self) {
+        let (width, height) = (self.options.width, self.options.height);
+        let Some(pixels) = &self.pixels else {
+            return;
+        };
+        let stem = match &self.game {
+            Some(game) => game
+                .level
+                .file_stem()
+                .map(|stem| stem.to_string_lossy().into_owned()),
+            None => None,
+        }
+        .unwrap_or_else(|| "menu".to_owned());
+        let film = self
+            .game
+            .as_ref()
+            .map(|game| &game.engine)
+            .or(self.backdrop.as_ref());
+        let film = film.map(|engine| engine.film.image());
+        let result = settings::screenshot_dir()
+            .context("no pictures or data folder (is $HOME set?)")
+            .and_then(|folder| {
+                screenshot::save(
+                    &folder,
+                    &stem,
+                    pixels.frame(),
+                    (width, height),
+                    film.as_ref(),
+                )
+            });
+        match result {
+            Ok(written) => {
+                let exr = match &written.exr {
+                    Some(exr) => format!(" and {}", exr.display()),
+                    None => String::new(),
+                };
+                println!("screenshot: {}{exr}", written.png.display());
+                self.notice = Some((
+                    Instant::now(),
+                    format!("screenshot: {}", written.png.display()),
+                ));
+            }
+            Err(error) => self.notify(format!("screenshot not saved: {error:#}")),
         }
     }
 
@@ -868,14 +924,18 @@ impl App {
             let view = menu.view(&self.context);
             menu::draw(frame, width, height, &view);
         }
-        if let Some((at, line)) = &self.notice {
-            if at.elapsed().as_secs_f32() < NOTICE_SECONDS {
-                hud::draw_text(frame, width, height, 2, 20, line);
-            }
+        // The screenshot is what the player saw, without the notice that reports it.
+        if std::mem::take(&mut self.screenshot) {
+            self.save_screenshot();
         }
         let Some(pixels) = &mut self.pixels else {
             return;
         };
+        if let Some((at, line)) = &self.notice {
+            if at.elapsed().as_secs_f32() < NOTICE_SECONDS {
+                hud::draw_text(pixels.frame_mut(), width, height, 2, 20, line);
+            }
+        }
         if let Err(error) = pixels.render() {
             return self.fail(event_loop, anyhow!("presenting the frame: {error}"));
         }

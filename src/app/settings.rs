@@ -101,7 +101,8 @@ impl Settings {
 }
 
 /// The keys bound to each game action, by winit key code name (`"KeyW"`, `"ShiftLeft"`,
-/// `"Space"`, `"ArrowUp"`...). Esc (pause and menus), F3, F4, F11 and V are fixed.
+/// `"Space"`, `"ArrowUp"`...). The window's own keys (`RESERVED_KEYS`: Esc, F3, F4, F11,
+/// F12 and V) are fixed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct KeyBindings {
@@ -148,13 +149,15 @@ pub const ACTION_NAMES: [(Action, &str); 9] = [
 
 /// Keys no game action may take: the window's own (pause and menus, fullscreen, profiler,
 /// filters, vsync).
-pub const RESERVED_KEYS: [KeyCode; 5] = [
-    KeyCode::Escape,
-    KeyCode::F11,
-    KeyCode::F3,
-    KeyCode::F4,
-    KeyCode::KeyV,
-];
+pub const RESERVED_KEYS: [KeyCode; super::WINDOW_KEYS.len()] = {
+    let mut keys = [KeyCode::Escape; super::WINDOW_KEYS.len()];
+    let mut i = 0;
+    while i < keys.len() {
+        keys[i] = super::WINDOW_KEYS[i].0;
+        i += 1;
+    }
+    keys
+};
 
 impl KeyBindings {
     pub fn keys(&self, action: Action) -> &Vec<Key> {
@@ -305,6 +308,7 @@ const BINDABLE: &[KeyCode] = &[
     KeyCode::F3,
     KeyCode::F4,
     KeyCode::F11,
+    KeyCode::F12,
     KeyCode::KeyV,
 ];
 
@@ -387,22 +391,23 @@ impl BestTimes {
     }
 }
 
-/// The folder the settings and best times live in.
+/// The folder the settings and best times live in: `$GLOAM_CONFIG_DIR`, else `gloam` in the
+/// platform's config folder (`$XDG_CONFIG_HOME` or `~/.config`, `%APPDATA%`,
+/// `~/Library/Application Support`).
 pub fn config_dir() -> Option<PathBuf> {
-    let env = |name: &str| std::env::var_os(name).filter(|value| !value.is_empty());
-    if let Some(dir) = env("GLOAM_CONFIG_DIR") {
+    if let Some(dir) = std::env::var_os("GLOAM_CONFIG_DIR").filter(|dir| !dir.is_empty()) {
         return Some(PathBuf::from(dir));
     }
-    let base = if cfg!(windows) {
-        env("APPDATA").map(PathBuf::from)
-    } else if cfg!(target_os = "macos") {
-        env("HOME").map(|home| PathBuf::from(home).join("Library/Application Support"))
-    } else {
-        env("XDG_CONFIG_HOME")
-            .map(PathBuf::from)
-            .or_else(|| env("HOME").map(|home| PathBuf::from(home).join(".config")))
-    };
-    base.map(|base| base.join("gloam"))
+    dirs::config_dir().map(|base| base.join("gloam"))
+}
+
+/// The folder F12 writes screenshots to: `Gloam` in the user's pictures folder
+/// (`XDG_PICTURES_DIR`, `~/Pictures` on Windows and macOS), else `gloam/screenshots` in the
+/// data folder (`$XDG_DATA_HOME` or `~/.local/share`) where there is no pictures folder.
+pub fn screenshot_dir() -> Option<PathBuf> {
+    dirs::picture_dir()
+        .map(|pictures| pictures.join("Gloam"))
+        .or_else(|| dirs::data_dir().map(|data| data.join("gloam").join("screenshots")))
 }
 
 pub const SETTINGS_FILE: &str = "settings.ron";

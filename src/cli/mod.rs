@@ -35,8 +35,9 @@ pub enum Command {
     /// best times). Default keys: W A S D walk, Shift sprints, Space jumps, C crouches, E
     /// douses or relights the lamp you look at, N toggles noclip, mouse looks after a
     /// click; Esc pauses (resume, restart, settings, main menu, quit), F11 fullscreen, V
-    /// vsync, F3 profiler, F4 film filters. Settings and best times live in the user's
-    /// config folder (~/.config/gloam, or $GLOAM_CONFIG_DIR).
+    /// vsync, F3 profiler, F4 film filters, F12 screenshot (PNG and EXR into the pictures
+    /// folder's Gloam/, else ~/.local/share/gloam/screenshots). Settings and best times
+    /// live in the user's config folder (~/.config/gloam, or $GLOAM_CONFIG_DIR).
     #[command(allow_negative_numbers = true)]
     Play {
         level: Option<PathBuf>,

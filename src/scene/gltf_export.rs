@@ -1185,7 +1185,12 @@ fn build_primitive(builder: &mut Builder, mesh: &MeshData) -> mesh::Primitive {
         attributes.insert(Valid(Semantic::TexCoords(0)), accessor);
     }
     if !mesh.joints.is_empty() {
-        let bytes: Vec<u8> = mesh.joints.iter().flatten().flat_map(|j| j.to_le_bytes()).collect();
+        let bytes: Vec<u8> = mesh
+            .joints
+            .iter()
+            .flatten()
+            .flat_map(|j| j.to_le_bytes())
+            .collect();
         let format = (ComponentType::U16, accessor::Type::Vec4);
         let joints = builder.push_accessor(&bytes, mesh.joints.len(), format, vertex_data, None);
         attributes.insert(Valid(Semantic::Joints(0)), joints);
@@ -1193,7 +1198,12 @@ fn build_primitive(builder: &mut Builder, mesh: &MeshData) -> mesh::Primitive {
         let weights = builder.push_floats(&weights, 4, vertex_data, false);
         attributes.insert(Valid(Semantic::Weights(0)), weights);
     }
-    let bytes: Vec<u8> = mesh.indices.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+    let bytes: Vec<u8> = mesh
+        .indices
+        .iter()
+        .flatten()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
     let indices = builder.push_accessor(
         &bytes,
         mesh.indices.len() * 3,
