@@ -167,7 +167,18 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
     let trace: Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("first.trace.json")).unwrap())
             .unwrap();
-    let events = trace["traceEvents"].as_array().expect("traceEvents");
+    let all_events = trace["traceEvents"].as_array().expect("traceEvents");
+    // Metadata events name the tracks: frames, stages, and one per render thread.
+    let track_names: Vec<&str> = all_events
+        .iter()
+        .filter(|e| e["ph"] == "M" && e["name"] == "thread_name")
+        .filter_map(|e| e["args"]["name"].as_str())
+        .collect();
+    assert_eq!(
+        track_names,
+        ["frames", "stages", "render thread 0", "render thread 1"]
+    );
+    let events: Vec<&Value> = all_events.iter().filter(|e| e["ph"] != "M").collect();
     assert!(events.iter().all(|e| e["ph"] == "X"
         && e["ts"].as_f64().is_some_and(|t| t >= 0.0)
         && e["dur"].as_f64().is_some_and(|d| d >= 0.0)
@@ -187,9 +198,33 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
             "no {stage} event"
         );
     }
+    // Each render thread's track holds its tiles: every tile of every frame (96 x 54 is
+    // 6 x 4 tiles of 16), each inside its frame's render stage.
+    let renders: Vec<(f64, f64)> = events
+        .iter()
+        .filter(|e| e["name"] == "render")
+        .map(|e| (e["ts"].as_f64().unwrap(), e["dur"].as_f64().unwrap()))
+        .collect();
+    let tiles: Vec<&&Value> = events.iter().filter(|e| e["cat"] == "tile").collect();
+    assert_eq!(tiles.len(), 24 * 24);
+    for tile in &tiles {
+        let (ts, dur) = (tile["ts"].as_f64().unwrap(), tile["dur"].as_f64().unwrap());
+        assert!(
+            tile["tid"]
+                .as_u64()
+                .is_some_and(|tid| tid == 100 || tid == 101),
+            "{tile}"
+        );
+        assert!(
+            renders
+                .iter()
+                .any(|&(start, length)| ts >= start && ts + dur <= start + length + 1.0),
+            "tile {tile} lies in no render"
+        );
+    }
     // The chart is a PNG.
     let chart = image::open(dir.join("first.png")).expect("chart decodes");
-    assert_eq!((chart.width(), chart.height()), (960, 540));
+    assert_eq!((chart.width(), chart.height()), (1280, 720));
 }
 
 #[test]

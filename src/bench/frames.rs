@@ -291,9 +291,9 @@ fn measure(
         engine.advance(step);
         let frame_ms = started.elapsed().as_secs_f64() * 1e3;
         if frame >= options.warmup {
-            profile
-                .frames
-                .push(engine.stage_times().sample(0.0, frame_ms));
+            let mut sample = engine.stage_times().sample(0.0, frame_ms);
+            sample.tiles = engine.film.tile_spans().to_vec();
+            profile.frames.push(sample);
             churn.push((kind, edit_ms));
         }
     }

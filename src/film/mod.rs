@@ -20,7 +20,7 @@ use glam::Vec3;
 
 pub use denoise::{FilmPhaseTimes, FilterMode, FrameFilter};
 
-use crate::profile::{Stage, StageTimes, since};
+use crate::profile::{Stage, StageTimes, TileSpan, since};
 use crate::render::scene::SceneChanges;
 use crate::render::{
     Camera, Film, RenderOutput, RenderScene, RenderSettings, render, render_guided,
@@ -43,6 +43,8 @@ pub struct Accumulation {
     pub reset: bool,
     /// The view the sum was rendered from.
     view: Option<glam::Mat4>,
+    /// The last render's tiles: which thread traced each, and when.
+    tile_spans: Vec<TileSpan>,
 }
 
 impl Accumulation {
@@ -57,6 +59,7 @@ impl Accumulation {
             rendered: None,
             reset: true,
             view: None,
+            tile_spans: Vec::new(),
         }
     }
 
@@ -104,6 +107,11 @@ impl Accumulation {
         }
     }
 
+    /// The last frame's render tiles: the thread that traced each, and when.
+    pub fn tile_spans(&self) -> &[TileSpan] {
+        &self.tile_spans
+    }
+
     /// Render and film: one frame of samples from `scene`'s camera, added to the running
     /// sum (or starting it again after a change), or through the filter; the stages'
     /// times go into `times`.
@@ -138,6 +146,7 @@ impl Accumulation {
         times.add(Stage::Render, render_ms);
         times.render_phases = output.phases.share_of(render_ms);
         times.rays = output.rays.total();
+        self.tile_spans.clone_from(&output.tiles);
         let start = std::time::Instant::now();
         profiling::scope!("film");
         if let Some(guides) = &output.guides {

@@ -190,6 +190,7 @@ impl StageTimes {
             gameplay_phases,
             frame_ms,
             rays: self.rays,
+            tiles: Vec::new(),
         }
     }
 }
@@ -253,7 +254,7 @@ pub const FILM_PHASES: [&str; 3] = ["temporal", "spatial", "remodulate"];
 type PhasesOf = fn(&FrameSample) -> &[f64];
 
 /// The stages timed in phases, with their phase names, in `STAGES` order.
-const NESTED: [(&str, &[&str], PhasesOf); 3] = [
+pub(crate) const NESTED: [(&str, &[&str], PhasesOf); 3] = [
     ("gameplay", &GAMEPLAY_PHASES, |frame| &frame.gameplay_phases),
     ("render", &RENDER_PHASES, |frame| &frame.render_phases),
     ("film", &FILM_PHASES, |frame| &frame.film_phases),
@@ -265,6 +266,22 @@ fn phases_of(stage: &str) -> Option<(&'static [&'static str], PhasesOf)> {
         .iter()
         .find(|(name, _, _)| *name == stage)
         .map(|&(_, names, times)| (names, times))
+}
+
+/// The frame budget the F3 overlay and the bench chart mark, in ms (30 fps).
+pub const BUDGET_MS: f64 = 1000.0 / 30.0;
+
+/// The trace holds the tiles of this many frames at most (the last ones): at 640 x 360 a
+/// frame has 900 tiles, and a trace of every frame of a long bench would not load.
+pub const TRACE_TILE_FRAMES: usize = 120;
+
+/// One tile of a render: the worker thread that traced it and when, in ms from the start of
+/// the render (the trace's per-thread tracks).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TileSpan {
+    pub thread: u16,
+    pub start_ms: f32,
+    pub end_ms: f32,
 }
 
 /// One frame: milliseconds per stage (in `STAGES` order), the whole frame, and rays traced.
@@ -281,6 +298,9 @@ pub struct FrameSample {
     pub gameplay_phases: [f64; GAMEPLAY_PHASES.len()],
     pub frame_ms: f64,
     pub rays: u64,
+    /// The render's tiles, as `Accumulation::tile_spans` gives them; `bench` keeps them,
+    /// the window's running profile does not (they would grow by 900 a frame).
+    pub tiles: Vec<TileSpan>,
 }
 
 /// Order statistics of one series, in milliseconds.
@@ -474,9 +494,36 @@ impl Profile {
     }
 
     /// Chrome's Trace Event Format: each frame's stages as consecutive complete events on
-    /// one track, frames end to end (with any untimed gap between stages left as a gap).
+    /// one track, frames end to end (with any untimed gap between stages left as a gap),
+    /// and under them a track per render thread holding the tiles it traced (for the last
+    /// `TRACE_TILE_FRAMES` frames that kept their tiles).
     pub fn to_trace(&self) -> Value {
-        let mut events = Vec::new();
+        const FRAMES_TRACK: u64 = 1;
+        const STAGES_TRACK: u64 = 2;
+        const FIRST_THREAD_TRACK: u64 = 100;
+        let track_name = |tid: u64, name: String| {
+            [
+                json!({ "name": "thread_name", "ph": "M", "pid": 1, "tid": tid, "args": { "name": name } }),
+                json!({ "name": "thread_sort_index", "ph": "M", "pid": 1, "tid": tid, "args": { "sort_index": tid } }),
+            ]
+        };
+        let mut events: Vec<Value> = [
+            track_name(FRAMES_TRACK, "frames".into()),
+            track_name(STAGES_TRACK, "stages".into()),
+        ]
+        .concat();
+        let threads = self
+            .frames
+            .iter()
+            .flat_map(|frame| &frame.tiles)
+            .map(|tile| tile.thread + 1)
+            .max()
+            .unwrap_or(0);
+        for thread in 0..threads {
+            let tid = FIRST_THREAD_TRACK + thread as u64;
+            events.extend(track_name(tid, format!("render thread {thread}")));
+        }
+        let tiles_from = self.frames.len().saturating_sub(TRACE_TILE_FRAMES);
         let mut frame_start_us = 0.0;
         for (index, frame) in self.frames.iter().enumerate() {
             events.push(json!({
@@ -504,6 +551,16 @@ impl Profile {
                             }));
                         }
                         phase_at += phase_ms * 1e3;
+                    }
+                }
+                if *name == Stage::Render.name() && index >= tiles_from {
+                    for tile in &frame.tiles {
+                        events.push(json!({
+                            "name": "tile", "cat": "tile", "ph": "X", "pid": 1,
+                            "tid": FIRST_THREAD_TRACK + tile.thread as u64,
+                            "ts": at + tile.start_ms as f64 * 1e3,
+                            "dur": (tile.end_ms - tile.start_ms).max(0.0) as f64 * 1e3,
+                        }));
                     }
                 }
                 at += ms * 1e3;
@@ -577,6 +634,23 @@ mod tests {
             gameplay_phases: [0.0, 0.0, 0.0, 0.0],
             frame_ms: render + 1.5,
             rays: 10,
+            tiles: vec![
+                TileSpan {
+                    thread: 0,
+                    start_ms: 0.0,
+                    end_ms: render as f32 * 0.5,
+                },
+                TileSpan {
+                    thread: 1,
+                    start_ms: 0.0,
+                    end_ms: render as f32 * 0.9,
+                },
+                TileSpan {
+                    thread: 0,
+                    start_ms: render as f32 * 0.5,
+                    end_ms: render as f32,
+                },
+            ],
         };
         let profile = Profile {
             frames: vec![frame(5.0), frame(7.0)],
@@ -617,6 +691,26 @@ mod tests {
                     .all(|&(ts, dur)| ts >= start && ts + dur <= start + length + 1e-6)
             );
             assert!((own.iter().map(|p| p.1).sum::<f64>() - length).abs() < 1e-6);
+        }
+        // Each render thread has its own named track, holding its tiles inside the render.
+        let track = |tid: u64| {
+            events
+                .iter()
+                .find(|e| e["ph"] == "M" && e["name"] == "thread_name" && e["tid"] == tid)
+                .map(|e| e["args"]["name"].clone())
+        };
+        assert_eq!(track(100), Some(json!("render thread 0")));
+        assert_eq!(track(101), Some(json!("render thread 1")));
+        assert_eq!(track(102), None);
+        let tiles: Vec<&Value> = events.iter().filter(|e| e["cat"] == "tile").collect();
+        assert_eq!(tiles.len(), 6);
+        assert_eq!(tiles.iter().filter(|e| e["tid"] == 101).count(), 2);
+        for (frame, &(start, length)) in renders.iter().enumerate() {
+            let own = &tiles[frame * 3..frame * 3 + 3];
+            assert!(own.iter().all(|e| {
+                let (ts, dur) = span(e);
+                ts >= start && ts + dur <= start + length + 1e-3
+            }));
         }
         // Empty stages leave no event.
         assert!(!events.iter().any(|e| e["name"] == "gameplay"));

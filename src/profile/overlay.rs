@@ -6,12 +6,10 @@
 //! this frame's BLAS refits and rebuilds, and the three costliest stages' p50.
 
 use super::chart::{COLOURS, draw_text};
-use super::{FrameSample, Profile, STAGES, Summary};
+use super::{BUDGET_MS, FrameSample, Profile, STAGES, Summary};
 
 /// Frames the overlay shows.
 pub const HISTORY: usize = 240;
-/// The frame budget the overlay marks, in ms (30 fps).
-pub const BUDGET_MS: f64 = 1000.0 / 30.0;
 
 /// Draws the overlay over an RGBA8 `frame` of `width` x `height` from `recent` (oldest
 /// first; only the last `HISTORY` are shown) and this frame's refit and rebuild counts.

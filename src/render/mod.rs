@@ -52,6 +52,7 @@ pub use sampler::SamplerKind;
 pub use scene::RenderScene;
 
 use crate::accel::{Hit, InstanceMask, Ray};
+use crate::profile::{TileSpan, since};
 use integrator::{
     NextHit, PathState, ShadowQuery, VertexOutcome, camera_sample, next_hit, next_hits,
     path_vertex, reference_radiance,
@@ -161,6 +162,8 @@ struct TileResult {
     counts: RayCounts,
     phases: PhaseTimes,
     invalid: u64,
+    /// The thread that traced the tile, and when.
+    span: TileSpan,
 }
 
 /// Per-thread buffers for a tile's paths, reused from tile to tile.
@@ -215,6 +218,8 @@ pub struct RenderOutput {
     pub guides: Option<Guides>,
     /// Samples whose estimate was NaN or infinite and were dropped (should be 0).
     pub invalid_samples: u64,
+    /// Each tile's thread and time, in ms from the render's start (the profiler's tracks).
+    pub tiles: Vec<TileSpan>,
 }
 
 impl RenderOutput {
@@ -283,9 +288,15 @@ fn render_tiles(
                 height,
                 want_guides,
             };
-            let result = match settings.integrator {
+            let begun = since(start) as f32;
+            let mut result = match settings.integrator {
                 IntegratorKind::Path => tile.path_traced(origin, scratch),
                 IntegratorKind::Reference => tile.reference(origin),
+            };
+            result.span = TileSpan {
+                thread: rayon::current_thread_index().map_or(0, |thread| thread as u16),
+                start_ms: begun,
+                end_ms: since(start) as f32,
             };
             let done = finished.fetch_add(1, Ordering::Relaxed) + 1;
             progress(done as f32 / tiles.len() as f32);
@@ -346,6 +357,7 @@ fn render_tiles(
         phases,
         guides,
         invalid_samples,
+        tiles: results.iter().map(|tile| tile.span).collect(),
     }
 }
 
@@ -515,6 +527,7 @@ impl Tile<'_> {
             counts,
             phases,
             invalid,
+            span: TileSpan::default(),
         }
     }
 
@@ -562,6 +575,7 @@ impl Tile<'_> {
                 ..PhaseTimes::default()
             },
             invalid,
+            span: TileSpan::default(),
         }
     }
 }
