@@ -967,3 +967,45 @@ fn a_sphere_resting_on_a_floor_touches_it_from_above() {
     );
     assert!(found.is_empty(), "out of reach");
 }
+
+/// Found by fuzzing: a pose out of f32's range reached the TLAS build as NaN boxes, which
+/// it asserts against. A transform that is not finite or not invertible leaves the instance
+/// where it was; one that is finite but flings a mesh past a million kilometres leaves it
+/// out of the TLAS; the rest of the scene is traced as before.
+#[test]
+fn instances_moved_out_of_range_neither_panic_nor_disturb_the_rest() {
+    let mut scene = random_scene(7, BlasKind::Static);
+    let rays = test_rays(&mut Rng(3), 200);
+    let before: Vec<Option<(f32, u32)>> = rays
+        .iter()
+        .map(|ray| {
+            scene
+                .intersect(ray, InstanceMask::ALL, &Opaque)
+                .map(|hit| (hit.t, hit.instance))
+        })
+        .collect();
+    let kept = scene.instances()[0].world_from_object();
+    scene.instances_mut()[0].set_transform(Affine3A::from_scale(Vec3::splat(f32::NAN)));
+    scene.instances_mut()[0].set_transform(Affine3A::from_scale(Vec3::ZERO));
+    assert_eq!(scene.instances()[0].world_from_object(), kept);
+    let flung = 1;
+    // Scaled 1e30 the inverse overflows: refused like NaN. Moved 1e20 m it is invertible.
+    let before_fling = scene.instances()[1].world_from_object();
+    scene.instances_mut()[1].set_transform(Affine3A::from_scale(Vec3::splat(1.0e30)));
+    assert_eq!(scene.instances()[1].world_from_object(), before_fling);
+    scene.instances_mut()[1].set_transform(Affine3A::from_translation(Vec3::splat(1.0e20)));
+    scene.rebuild_tlas();
+    for (ray, before) in rays.iter().zip(before) {
+        let after = scene
+            .intersect(ray, InstanceMask::ALL, &Opaque)
+            .map(|hit| (hit.t, hit.instance));
+        assert_ne!(
+            after.map(|(_, id)| id),
+            Some(flung),
+            "the flung instance is out"
+        );
+        if before.is_some_and(|(_, id)| id != flung) {
+            assert_eq!(after, before, "the rest of the scene is traced as before");
+        }
+    }
+}

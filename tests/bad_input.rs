@@ -749,3 +749,51 @@ fn a_glb_shorter_than_its_own_header_is_refused() {
         &["its header says 0 bytes, less than the 12-byte header itself"],
     );
 }
+
+/// Found by fuzzing (a mutated CesiumMan): keyframe translations of 2e36 m passed `check`,
+/// overflowed f32 when the skin's joints were multiplied down the tree, and the NaN pose
+/// panicked the deformed mesh's BVH rebuild. Animation outputs beyond 1e6 (or not numbers)
+/// are now refused at their accessor.
+#[test]
+fn an_animation_output_out_of_range_is_refused_at_its_accessor() {
+    let dir = common::scratch_dir("gltf-animation-huge");
+    let text = triangle_gltf(|json| {
+        let mut bytes = Vec::new();
+        for v in [0.0f32, 1.0, 0.0, 0.0, 0.0, 0.0, 2.0e36, 0.0] {
+            bytes.extend(v.to_le_bytes());
+        }
+        json["buffers"]
+            .as_array_mut()
+            .unwrap()
+            .push(serde_json::json!({
+                "byteLength": bytes.len(),
+                "uri": format!(
+                    "data:application/octet-stream;base64,{}",
+                    base64::engine::general_purpose::STANDARD.encode(&bytes)
+                ),
+            }));
+        let views = json["bufferViews"].as_array_mut().unwrap();
+        views.push(serde_json::json!({"buffer": 1, "byteOffset": 0, "byteLength": 8}));
+        views.push(serde_json::json!({"buffer": 1, "byteOffset": 8, "byteLength": 24}));
+        let accessors = json["accessors"].as_array_mut().unwrap();
+        accessors.push(serde_json::json!({"bufferView": 2, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0], "max": [1]}));
+        accessors.push(
+            serde_json::json!({"bufferView": 3, "componentType": 5126, "count": 2, "type": "VEC3"}),
+        );
+        json["animations"] = serde_json::json!([{
+            "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
+            "samplers": [{"input": 2, "output": 3}],
+        }]);
+    });
+    let path = common::write(&dir, "thrown.gltf", &text);
+    assert_reported(
+        &path,
+        "thrown.gltf",
+        None,
+        &[
+            "animation output value 4 is 2e36",
+            "within 1e6",
+            "/accessors/3",
+        ],
+    );
+}

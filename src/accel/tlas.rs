@@ -19,6 +19,10 @@ use super::stream::{Job, occluded_jobs};
 use super::wide::{Kernels, Portable, RayLanes, WideBvh, WideTlas};
 use super::{AlphaTest, Hit, InstanceMask, Ray, SurfaceHit};
 
+/// How far from the world's origin an instance's box may reach (metres) and still go into
+/// the TLAS; levels span tens of metres, a million kilometres is room to spare.
+const MAX_WORLD_EXTENT: f32 = 1.0e9;
+
 /// Whether an instance may move: `Static` ones are merged into world-space batches
 /// (`batch`), which is only worth it for things that never move.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -77,13 +81,19 @@ impl Instance {
         self
     }
 
+    /// Moves the instance. Rule: rays need the inverse and the TLAS build asserts every box
+    /// is a number, so a transform that is not finite or not invertible (an animation
+    /// scaled past f32's range, a zero scale) leaves the instance where it was.
     pub fn set_transform(&mut self, world_from_object: Affine3A) {
-        debug_assert!(
-            world_from_object.matrix3.determinant() != 0.0,
-            "instance transform is singular"
-        );
+        let object_from_world = world_from_object.inverse();
+        if !(world_from_object.is_finite()
+            && object_from_world.is_finite()
+            && world_from_object.matrix3.determinant() != 0.0)
+        {
+            return;
+        }
         self.world_from_object = world_from_object;
-        self.object_from_world = world_from_object.inverse();
+        self.object_from_world = object_from_world;
         self.normal_from_object = self.object_from_world.matrix3.transpose();
         self.is_identity = world_from_object == Affine3A::IDENTITY;
     }
@@ -324,10 +334,18 @@ impl AccelScene {
         self.box_codes.clear();
         for (index, instance) in self.instances.iter().enumerate() {
             if !self.batched[index] {
-                self.instance_boxes.push(transform_aabb(
+                let world_box = transform_aabb(
                     &self.blases[instance.blas as usize].bounds(),
                     &instance.world_from_object,
-                ));
+                );
+                // Rule: PLOC asserts its boxes are numbers and sorts their centres as
+                // integers: a box out of f32's comfortable range (a finite transform
+                // scaling a mesh a billion kilometres wide) is left out of the TLAS.
+                let reachable = |v: Vec3A| v.abs().max_element() <= MAX_WORLD_EXTENT;
+                if !(reachable(world_box.min) && reachable(world_box.max)) {
+                    continue;
+                }
+                self.instance_boxes.push(world_box);
                 self.box_codes.push(index as u32);
             }
         }

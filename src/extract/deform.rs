@@ -33,6 +33,7 @@ use crate::accel::{Blas, RefitOutcome};
 use crate::game::{Deformer, GlobalTransform, MeshNode, MorphWeights, Skin, Transform};
 use crate::profile::{Stage, StageTimes, since};
 use crate::scene::AssetKey;
+use crate::scene::gltf_import::MAX_COORDINATE;
 use crate::scene::level::DeformerDef;
 use crate::scene::model::Asset;
 
@@ -205,32 +206,59 @@ pub fn deform(source: &DeformSource, pose: &Pose, positions: &mut [Vec3], normal
 
     // 2. Linear blend skinning in place (or just renormalise morphed normals).
     for_each_vertex(positions, normals, |v, position, normal| {
-        if !skin {
-            *normal = normal.normalize_or(Vec3::Y);
-            return;
+        skin_vertex(
+            source,
+            &joints,
+            skin.then_some(per_vertex),
+            v,
+            position,
+            normal,
+        );
+        // Rule: what leaves here feeds the BVH refit, whose build asserts every box is a
+        // number: a pose that throws a vertex out of range (joints scaled 1e6 at every level
+        // of a chain overflow f32) leaves that vertex at rest instead.
+        if !(position.is_finite() && position.abs().max_element() <= MAX_COORDINATE) {
+            *position = source.positions[v];
+            *normal = source.normals[v];
         }
-        let range = v * per_vertex..(v + 1) * per_vertex;
-        let mut blended = [Vec3A::ZERO; 4];
-        for (&joint, &weight) in source.joints[range.clone()]
-            .iter()
-            .zip(&source.weights[range])
-        {
-            if weight != 0.0 {
-                let columns = &joints[joint as usize];
-                for (sum, column) in blended.iter_mut().zip(columns) {
-                    *sum += *column * weight;
-                }
+    });
+}
+
+/// Linear blend skinning of vertex `v` in place with `influences` joints a vertex (or,
+/// unskinned, just the renormalised normal).
+fn skin_vertex(
+    source: &DeformSource,
+    joints: &[[Vec3A; 4]],
+    influences: Option<usize>,
+    v: usize,
+    position: &mut Vec3,
+    normal: &mut Vec3,
+) {
+    let Some(per_vertex) = influences else {
+        *normal = normal.normalize_or(Vec3::Y);
+        return;
+    };
+    let range = v * per_vertex..(v + 1) * per_vertex;
+    let mut blended = [Vec3A::ZERO; 4];
+    for (&joint, &weight) in source.joints[range.clone()]
+        .iter()
+        .zip(&source.weights[range])
+    {
+        if weight != 0.0 {
+            let columns = &joints[joint as usize];
+            for (sum, column) in blended.iter_mut().zip(columns) {
+                *sum += *column * weight;
             }
         }
-        let [x, y, z, translation] = blended;
-        let p = Vec3A::from(*position);
-        *position = Vec3::from(x * p.x + y * p.y + z * p.z + translation);
-        *normal = Vec3::from(
-            normal_matrix(x, y, z)
-                .mul_vec3a(Vec3A::from(*normal))
-                .normalize_or(Vec3A::Y),
-        );
-    });
+    }
+    let [x, y, z, translation] = blended;
+    let p = Vec3A::from(*position);
+    *position = Vec3::from(x * p.x + y * p.y + z * p.z + translation);
+    *normal = Vec3::from(
+        normal_matrix(x, y, z)
+            .mul_vec3a(Vec3A::from(*normal))
+            .normalize_or(Vec3A::Y),
+    );
 }
 
 /// Calls `visit(vertex index, position, normal)` for every vertex, in parallel chunks.
@@ -533,4 +561,37 @@ pub fn deform_meshes(
         }
     }
     state.tlas_stale = true;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Found by fuzzing: a joint chain whose keyframes scale past f32's range gave NaN
+    /// positions, and the deformed mesh's BVH rebuild panicked on them. Such a vertex now
+    /// stays at rest; the others follow their joints.
+    #[test]
+    fn a_vertex_posed_out_of_range_stays_at_rest() {
+        let source = DeformSource {
+            positions: vec![Vec3::X, Vec3::Y],
+            normals: vec![Vec3::Z, Vec3::Z],
+            joints: vec![0, 1],
+            weights: vec![1.0, 1.0],
+            influences_per_vertex: 1,
+            ..DeformSource::default()
+        };
+        let joint_matrices = [
+            Mat4::from_translation(Vec3::new(0.0, 0.0, 2.0)),
+            Mat4::from_scale(Vec3::splat(f32::INFINITY)),
+        ];
+        let pose = Pose {
+            joint_matrices: &joint_matrices,
+            morph_weights: &[],
+            deformer: None,
+        };
+        let (mut positions, mut normals) = (vec![Vec3::ZERO; 2], vec![Vec3::ZERO; 2]);
+        deform(&source, &pose, &mut positions, &mut normals);
+        assert_eq!(positions, [Vec3::new(1.0, 0.0, 2.0), Vec3::Y]);
+        assert_eq!(normals, [Vec3::Z, Vec3::Z]);
+    }
 }

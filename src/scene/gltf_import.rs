@@ -1260,6 +1260,23 @@ impl Importer<'_> {
                             GltfInterpolation::CubicSpline => Interpolation::CubicSpline,
                         };
                         let (values, _) = self.read_accessor::<f32>(&sampler.output())?;
+                        // Rule: a pose is built by multiplying these down the node tree; a
+                        // value past MAX_COORDINATE (or not a number) overflows f32 there
+                        // and breaks the BVH builds that follow.
+                        if let Some(at) = values
+                            .iter()
+                            .position(|v| !(v.is_finite() && v.abs() <= MAX_COORDINATE))
+                        {
+                            return Err(self.error(
+                                Pointer::root()
+                                    .key("accessors")
+                                    .index(sampler.output().index()),
+                                format!(
+                                    "animation output value {at} is {:e} (outputs must be finite and within {MAX_COORDINATE:e})",
+                                    values[at]
+                                ),
+                            ));
+                        }
                         let per_key = if interpolation == Interpolation::CubicSpline {
                             3
                         } else {
