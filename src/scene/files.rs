@@ -7,8 +7,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::Context as _;
 
-/// Writes `bytes` to a temporary file beside `path`, then renames it over `path`, so a
-/// reader never sees a half-written file. Creates missing parent folders.
+/// Writes `bytes` to a temporary file beside `path`, flushes it to the disk, renames it over
+/// `path` and flushes the folder, so a reader never sees a half-written file and a power
+/// cut after this returns cannot lose the new one. Creates missing parent folders.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let folder = match path.parent() {
@@ -26,11 +27,16 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
         std::process::id(),
         COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
-    let result = (|| {
+    let result = (|| -> std::io::Result<()> {
         let mut file = std::fs::File::create(&temporary)?;
         file.write_all(bytes)?;
         file.sync_all()?;
-        std::fs::rename(&temporary, path)
+        std::fs::rename(&temporary, path)?;
+        // The rename lives in the folder's entries: without this a crash can bring back
+        // the old file (POSIX leaves it to the folder's own fsync).
+        #[cfg(unix)]
+        std::fs::File::open(&folder)?.sync_all()?;
+        Ok(())
     })();
     if let Err(error) = result {
         let _ = std::fs::remove_file(&temporary);
