@@ -750,16 +750,12 @@ fn a_glb_shorter_than_its_own_header_is_refused() {
     );
 }
 
-/// Found by fuzzing (a mutated CesiumMan): keyframe translations of 2e36 m passed `check`,
-/// overflowed f32 when the skin's joints were multiplied down the tree, and the NaN pose
-/// panicked the deformed mesh's BVH rebuild. Animation outputs beyond 1e6 (or not numbers)
-/// are now refused at their accessor.
-#[test]
-fn an_animation_output_out_of_range_is_refused_at_its_accessor() {
-    let dir = common::scratch_dir("gltf-animation-huge");
-    let text = triangle_gltf(|json| {
+/// The triangle with one translation clip of two keyframes, (0, 0, 0) then (0, `y`, 0),
+/// on the channel `channel` (sampler 0).
+fn triangle_with_clip(y: f32, channel: serde_json::Value) -> String {
+    triangle_gltf(|json| {
         let mut bytes = Vec::new();
-        for v in [0.0f32, 1.0, 0.0, 0.0, 0.0, 0.0, 2.0e36, 0.0] {
+        for v in [0.0f32, 1.0, 0.0, 0.0, 0.0, 0.0, y, 0.0] {
             bytes.extend(v.to_le_bytes());
         }
         json["buffers"]
@@ -781,11 +777,21 @@ fn an_animation_output_out_of_range_is_refused_at_its_accessor() {
             serde_json::json!({"bufferView": 3, "componentType": 5126, "count": 2, "type": "VEC3"}),
         );
         json["animations"] = serde_json::json!([{
-            "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
+            "channels": [channel],
             "samplers": [{"input": 2, "output": 3}],
         }]);
-    });
-    let path = common::write(&dir, "thrown.gltf", &text);
+    })
+}
+
+/// Found by fuzzing (a mutated CesiumMan): keyframe translations of 2e36 m passed `check`,
+/// overflowed f32 when the skin's joints were multiplied down the tree, and the NaN pose
+/// panicked the deformed mesh's BVH rebuild. Animation outputs beyond 1e6 (or not numbers)
+/// are now refused at their accessor.
+#[test]
+fn an_animation_output_out_of_range_is_refused_at_its_accessor() {
+    let dir = common::scratch_dir("gltf-animation-huge");
+    let channel = serde_json::json!({"sampler": 0, "target": {"node": 0, "path": "translation"}});
+    let path = common::write(&dir, "thrown.gltf", triangle_with_clip(2.0e36, channel));
     assert_reported(
         &path,
         "thrown.gltf",
@@ -794,6 +800,33 @@ fn an_animation_output_out_of_range_is_refused_at_its_accessor() {
             "animation output value 4 is 2e36",
             "within 1e6",
             "/accessors/3",
+        ],
+    );
+}
+
+/// Found by fuzzing: gltf-json does not validate an animation channel's target, and the
+/// gltf crate unwraps its path and indexes its node: `check` itself panicked on a path of
+/// "s&ale". Both are now diagnostics at the channel.
+#[test]
+fn an_animation_channel_with_an_unknown_path_or_node_is_refused() {
+    let dir = common::scratch_dir("gltf-animation-target");
+    let bad_path = serde_json::json!({"sampler": 0, "target": {"node": 0, "path": "s&ale"}});
+    let path = common::write(&dir, "path.gltf", triangle_with_clip(1.0, bad_path));
+    assert_reported(
+        &path,
+        "path.gltf",
+        None,
+        &["invalid value", "/animations/0/channels/0/target/path"],
+    );
+    let bad_node = serde_json::json!({"sampler": 0, "target": {"node": 7, "path": "scale"}});
+    let path = common::write(&dir, "node.gltf", triangle_with_clip(1.0, bad_node));
+    assert_reported(
+        &path,
+        "node.gltf",
+        None,
+        &[
+            "node 7 does not exist",
+            "/animations/0/channels/0/target/node",
         ],
     );
 }

@@ -174,6 +174,42 @@ fn validate_root(path: &Path, json_text: &str, root: &gltf::json::Root) -> Vec<D
             }
         }
     }
+    // Guard: gltf-json 1.4.1 validates an animation's samplers and its channels' sampler
+    // indices but not their targets, and the gltf crate unwraps a target's path and finds
+    // its node by index: an unknown path or a dangling node would panic there.
+    for (animation_index, animation) in root.animations.iter().enumerate() {
+        for (channel_index, channel) in animation.channels.iter().enumerate() {
+            let target = Pointer::root()
+                .key("animations")
+                .index(animation_index)
+                .key("channels")
+                .index(channel_index)
+                .key("target");
+            if !matches!(
+                channel.target.path,
+                gltf::json::validation::Checked::Valid(_)
+            ) {
+                diagnostics.push(Diagnostic::at_pointer(
+                    path,
+                    json_text,
+                    &target.key("path"),
+                    "invalid value: an animated property is \"translation\", \"rotation\", \"scale\" or \"weights\"".to_owned(),
+                ));
+            }
+            let node = channel.target.node.value();
+            if node >= root.nodes.len() {
+                diagnostics.push(Diagnostic::at_pointer(
+                    path,
+                    json_text,
+                    &target.key("node"),
+                    format!(
+                        "index out of range: node {node} does not exist ({} nodes)",
+                        root.nodes.len()
+                    ),
+                ));
+            }
+        }
+    }
     if !diagnostics.is_empty() {
         return diagnostics;
     }
