@@ -26,6 +26,7 @@ pub mod accel;
 pub mod app;
 pub mod bench;
 pub mod cli;
+pub mod edit;
 pub mod extract;
 pub mod film;
 pub mod frame;

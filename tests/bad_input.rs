@@ -701,7 +701,7 @@ fn triangle_with_x(x: f32) -> String {
 #[test]
 fn a_nan_vertex_is_refused_at_its_accessor() {
     let dir = common::scratch_dir("gltf-nan");
-    let path = common::write(&dir, "nan.gltf", &triangle_with_x(f32::NAN));
+    let path = common::write(&dir, "nan.gltf", triangle_with_x(f32::NAN));
     assert_reported(
         &path,
         "nan.gltf",
@@ -718,7 +718,7 @@ fn a_nan_vertex_is_refused_at_its_accessor() {
 #[test]
 fn an_enormous_vertex_is_refused_at_its_accessor() {
     let dir = common::scratch_dir("gltf-huge");
-    let path = common::write(&dir, "huge.gltf", &triangle_with_x(-4.8e32));
+    let path = common::write(&dir, "huge.gltf", triangle_with_x(-4.8e32));
     assert_reported(
         &path,
         "huge.gltf",

@@ -18,6 +18,28 @@ use crate::scene::level::{
 /// The level the world holds now.
 pub fn level_from_world(world: &mut World) -> Level {
     let info = world.get_resource::<LevelInfo>().cloned();
+    let entities = entity_defs(world);
+    let info = info.unwrap_or(LevelInfo {
+        source: Default::default(),
+        version: LEVEL_VERSION,
+        name: String::new(),
+        playable: true,
+        campaign: None,
+        environment: Default::default(),
+    });
+    Level {
+        version: info.version,
+        name: info.name,
+        playable: info.playable,
+        campaign: info.campaign,
+        environment: info.environment,
+        entities: entities.into_iter().map(|(_, def)| def).collect(),
+    }
+}
+
+/// Every level entity's place in the level and its definition as the world holds it now,
+/// in level order.
+pub fn entity_defs(world: &mut World) -> Vec<(LevelEntity, EntityDef)> {
     let mut query = world.query::<(
         &LevelEntity,
         &Name,
@@ -96,22 +118,7 @@ pub fn level_from_world(world: &mut World) -> Level {
         )
         .collect();
     entities.sort_by(|(a, x), (b, y)| a.cmp(b).then_with(|| x.name.cmp(&y.name)));
-    let info = info.unwrap_or(LevelInfo {
-        source: Default::default(),
-        version: LEVEL_VERSION,
-        name: String::new(),
-        playable: true,
-        campaign: None,
-        environment: Default::default(),
-    });
-    Level {
-        version: info.version,
-        name: info.name,
-        playable: info.playable,
-        campaign: info.campaign,
-        environment: info.environment,
-        entities: entities.into_iter().map(|(_, def)| def).collect(),
-    }
+    entities
 }
 
 /// The rotation in the level's degrees: the authored numbers while they still make

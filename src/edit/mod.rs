@@ -1,0 +1,364 @@
+//! The level editor's commands: plain functions on an `Engine`'s world, between frames, so
+//! the editor's window and the tests drive the same code.
+//!
+//! The editor edits the level as authored. Each level entity (a `LevelEntity` root) is read
+//! and written as its `EntityDef` (`game::level_io::entity_defs`), so a command is recorded
+//! as, for every entity it touched, its definition before and after (`None`: absent), and
+//! undo puts the befores back: a deleted entity returns with all its components at its old
+//! place in the level. Per command:
+//!
+//! 1. read the touched entities' definitions;
+//! 2. change the world: a change of transform alone moves the root, anything else despawns
+//!    it and spawns the new definition at the same place (`game::spawn_entity`);
+//! 3. pose the world at the editor's time and extract it (`Engine::pose_at`), so the next
+//!    frame and the next pick see the change;
+//! 4. push one step on the undo stack and clear the redo stack.
+//!
+//! Saving writes `level_from_world`: a level loaded and saved with no edit is the file it
+//! came from, byte for byte. The previous file is kept as `<file>.bak` (a name no reader
+//! of `levels/*.ron` picks up) and the new one is written atomically, so a failed save
+//! leaves the old file and the edits where they were.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use bevy_ecs::prelude::{ChildOf, Entity, World};
+use glam::Vec3;
+
+use crate::accel::{InstanceMask, Ray};
+use crate::extract::instance_entity;
+use crate::frame::Engine;
+use crate::game::level_io::entity_defs;
+use crate::game::spawn::{Assets, spawn_entity};
+use crate::game::{LevelEntity, Transform, level_from_world};
+use crate::scene::files::write_atomically;
+use crate::scene::level::{EntityDef, level_to_string};
+
+/// One entity's definition before and after a step (`None`: it did not exist).
+#[derive(Clone, Debug, PartialEq)]
+struct Change {
+    place: LevelEntity,
+    before: Option<EntityDef>,
+    after: Option<EntityDef>,
+}
+
+/// One undoable step: everything one command changed.
+#[derive(Clone, Debug)]
+struct Step {
+    /// Numbers steps so the dirty marker can tell the saved state from an edited one.
+    id: u64,
+    changes: Vec<Change>,
+}
+
+/// The editor's state beside the world: the selection and the history.
+#[derive(Debug, Default)]
+pub struct Editor {
+    /// The selected level entities, in the order they were picked.
+    pub selection: Vec<LevelEntity>,
+    /// The clock the world is posed at (clips, deformers, patrols scrubbed to it).
+    pub time: f64,
+    undo: Vec<Step>,
+    redo: Vec<Step>,
+    next_id: u64,
+    /// The id of the step on top of the undo stack when the file was last saved or loaded
+    /// (0: the loaded state).
+    saved: u64,
+}
+
+impl Editor {
+    pub fn new() -> Editor {
+        Editor {
+            next_id: 1,
+            ..Editor::default()
+        }
+    }
+
+    /// Whether the world differs from the file (the title's dirty marker).
+    pub fn is_dirty(&self) -> bool {
+        self.undo.last().map_or(0, |step| step.id) != self.saved
+    }
+
+    pub fn can_undo(&self) -> bool {
+        !self.undo.is_empty()
+    }
+
+    pub fn can_redo(&self) -> bool {
+        !self.redo.is_empty()
+    }
+
+    /// Picks the level entity a ray hits first among pickable instances: it becomes the
+    /// selection, or joins it (or leaves it, if already in) with `add` (Shift+click). A ray
+    /// that hits nothing clears the selection unless `add`. Returns what was hit.
+    pub fn select_by_ray(
+        &mut self,
+        engine: &mut Engine,
+        ray: &Ray,
+        add: bool,
+    ) -> Option<LevelEntity> {
+        let hit = {
+            let scene = engine.render_scene();
+            scene
+                .accel
+                .intersect(ray, InstanceMask::PICKABLE, &scene.alpha())
+                .map(|hit| scene.accel.instances()[hit.instance as usize].user_id)
+        };
+        let picked = hit
+            .and_then(instance_entity)
+            .and_then(|entity| level_root(&engine.world, entity));
+        match (picked, add) {
+            (Some(place), true) => {
+                if let Some(at) = self.selection.iter().position(|&p| p == place) {
+                    self.selection.remove(at);
+                } else {
+                    self.selection.push(place);
+                }
+            }
+            (Some(place), false) => self.selection = vec![place],
+            (None, true) => {}
+            (None, false) => self.selection.clear(),
+        }
+        picked
+    }
+
+    /// Changes every selected entity's definition with `edit`, as one step (a whole drag of
+    /// the gizmo, or one inspector field). Nothing is recorded when nothing changed.
+    pub fn modify(
+        &mut self,
+        engine: &mut Engine,
+        mut edit: impl FnMut(&mut EntityDef),
+    ) -> anyhow::Result<()> {
+        let defs = entity_defs(&mut engine.world);
+        let changes = self
+            .selection
+            .iter()
+            .filter_map(|place| defs.iter().find(|(p, _)| p == place))
+            .filter_map(|(place, before)| {
+                let mut after = before.clone();
+                edit(&mut after);
+                (after != *before).then(|| Change {
+                    place: *place,
+                    before: Some(before.clone()),
+                    after: Some(after),
+                })
+            })
+            .collect();
+        self.commit(engine, changes)
+    }
+
+    /// Moves the selection by `offset` metres (the gizmo's move handles, after snapping).
+    pub fn translate(&mut self, engine: &mut Engine, offset: Vec3) -> anyhow::Result<()> {
+        self.modify(engine, |def| def.transform.translation += offset)
+    }
+
+    /// Copies every selected entity with all its components, under a new unique name
+    /// (`lamp` -> `lamp 2`), at the level's next places; the copies become the selection.
+    pub fn duplicate(&mut self, engine: &mut Engine) -> anyhow::Result<()> {
+        let defs = entity_defs(&mut engine.world);
+        let mut names: Vec<String> = defs.iter().map(|(_, def)| def.name.clone()).collect();
+        let mut next = defs.iter().map(|(place, _)| place.0 + 1).max().unwrap_or(0);
+        let mut changes = Vec::new();
+        for place in &self.selection {
+            let Some((_, original)) = defs.iter().find(|(p, _)| p == place) else {
+                continue;
+            };
+            let mut copy = original.clone();
+            copy.name = unused_name(&original.name, &names);
+            names.push(copy.name.clone());
+            changes.push(Change {
+                place: LevelEntity(next),
+                before: None,
+                after: Some(copy),
+            });
+            next += 1;
+        }
+        let copies = changes.iter().map(|change| change.place).collect();
+        self.commit(engine, changes)?;
+        self.selection = copies;
+        Ok(())
+    }
+
+    /// Deletes the selected entities (their asset hierarchies with them).
+    pub fn delete(&mut self, engine: &mut Engine) -> anyhow::Result<()> {
+        let defs = entity_defs(&mut engine.world);
+        let changes = self
+            .selection
+            .iter()
+            .filter_map(|place| defs.iter().find(|(p, _)| p == place))
+            .map(|(place, before)| Change {
+                place: *place,
+                before: Some(before.clone()),
+                after: None,
+            })
+            .collect();
+        self.commit(engine, changes)?;
+        self.selection.clear();
+        Ok(())
+    }
+
+    /// Undoes the last step; false when there is none.
+    pub fn undo(&mut self, engine: &mut Engine) -> anyhow::Result<bool> {
+        let Some(step) = self.undo.pop() else {
+            return Ok(false);
+        };
+        let reverse: Vec<Change> = step
+            .changes
+            .iter()
+            .map(|change| Change {
+                place: change.place,
+                before: change.after.clone(),
+                after: change.before.clone(),
+            })
+            .collect();
+        if let Err(error) = apply(engine, &reverse, self.time) {
+            self.undo.push(step);
+            return Err(error);
+        }
+        self.selection = reverse
+            .iter()
+            .filter(|change| change.after.is_some())
+            .map(|change| change.place)
+            .collect();
+        self.redo.push(step);
+        Ok(true)
+    }
+
+    /// Redoes the last undone step; false when there is none.
+    pub fn redo(&mut self, engine: &mut Engine) -> anyhow::Result<bool> {
+        let Some(step) = self.redo.pop() else {
+            return Ok(false);
+        };
+        if let Err(error) = apply(engine, &step.changes, self.time) {
+            self.redo.push(step);
+            return Err(error);
+        }
+        self.selection = step
+            .changes
+            .iter()
+            .filter(|change| change.after.is_some())
+            .map(|change| change.place)
+            .collect();
+        self.undo.push(step);
+        Ok(true)
+    }
+
+    /// Writes the world's level to `path`: the file there now is kept as `<path>.bak`, the
+    /// new one written atomically. On failure the old file, the world and the history are
+    /// as they were, and the error says why.
+    pub fn save(&mut self, engine: &mut Engine, path: &Path) -> anyhow::Result<()> {
+        let text = level_to_string(&level_from_world(&mut engine.world));
+        match std::fs::read(path) {
+            Ok(previous) => write_atomically(&backup_path(path), &previous)
+                .with_context(|| format!("keeping the previous {}", path.display()))?,
+            Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
+            Err(error) => {
+                return Err(error).with_context(|| format!("reading {}", path.display()));
+            }
+        }
+        write_atomically(path, text.as_bytes())?;
+        self.saved = self.undo.last().map_or(0, |step| step.id);
+        Ok(())
+    }
+
+    /// Applies `changes` to the world and records them as one step.
+    fn commit(&mut self, engine: &mut Engine, changes: Vec<Change>) -> anyhow::Result<()> {
+        if changes.is_empty() {
+            return Ok(());
+        }
+        apply(engine, &changes, self.time)?;
+        self.undo.push(Step {
+            id: self.next_id,
+            changes,
+        });
+        self.next_id += 1;
+        self.redo.clear();
+        Ok(())
+    }
+}
+
+/// Where `path`'s previous contents are kept on save: `x.ron` -> `x.ron.bak`.
+pub fn backup_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_owned();
+    name.push(".bak");
+    path.with_file_name(name)
+}
+
+/// `base` with the first number from 2 up that no name in `taken` has.
+fn unused_name(base: &str, taken: &[String]) -> String {
+    (2..)
+        .map(|n| format!("{base} {n}"))
+        .find(|name| !taken.contains(name))
+        .unwrap_or_else(|| base.to_owned())
+}
+
+/// The level entity whose hierarchy `entity` belongs to.
+fn level_root(world: &World, mut entity: Entity) -> Option<LevelEntity> {
+    loop {
+        if let Some(place) = world.get::<LevelEntity>(entity) {
+            return Some(*place);
+        }
+        entity = world.get::<ChildOf>(entity)?.parent();
+    }
+}
+
+/// Puts each change's `after` into the world at its place, then poses the world at `time`.
+/// Every asset is loaded before anything changes, so a missing asset changes nothing.
+fn apply(engine: &mut Engine, changes: &[Change], time: f64) -> anyhow::Result<()> {
+    let world = &mut engine.world;
+    let mut assets = Vec::new();
+    for change in changes {
+        let asset = match change.after.as_ref().and_then(|def| def.instance.as_ref()) {
+            Some(instance) => Some(
+                world
+                    .get_resource_or_init::<Assets>()
+                    .0
+                    .load(&instance.asset)
+                    .map_err(|error| anyhow::anyhow!("{error}"))?,
+            ),
+            None => None,
+        };
+        assets.push(asset);
+    }
+    for (change, asset) in changes.iter().zip(assets) {
+        let root = world
+            .query::<(Entity, &LevelEntity)>()
+            .iter(world)
+            .find(|(_, place)| **place == change.place)
+            .map(|(entity, _)| entity);
+        // A mover's origin and a knockable's upright pose live in their own components:
+        // those are respawned like any other change.
+        let moved_only = match (&change.before, &change.after) {
+            (Some(before), Some(after)) => {
+                after.mover.is_none()
+                    && after.knock.is_none()
+                    && EntityDef {
+                        transform: after.transform.clone(),
+                        ..before.clone()
+                    } == *after
+            }
+            _ => false,
+        };
+        match (root, &change.after) {
+            (Some(root), Some(after)) if moved_only => {
+                let transform = Transform {
+                    translation: after.transform.translation,
+                    rotation: after.transform.rotation_quat(),
+                    scale: after.transform.scale,
+                };
+                world.entity_mut(root).insert((
+                    transform,
+                    crate::game::AuthoredRotation(after.transform.rotation),
+                ));
+            }
+            (root, after) => {
+                if let Some(root) = root {
+                    world.despawn(root);
+                }
+                if let Some(after) = after {
+                    spawn_entity(world, after, change.place, asset);
+                }
+            }
+        }
+    }
+    engine.pose_at(time);
+    Ok(())
+}

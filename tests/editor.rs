@@ -1,0 +1,186 @@
+//! The level editor's commands, headless, as the editor's window drives them: select by
+//! ray, move, duplicate, delete, undo and redo, save (byte-identical with no edit, the old
+//! file kept as .bak) and a failed save that loses nothing.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use glam::{Vec3, Vec3A};
+use gloam::accel::Ray;
+use gloam::edit::{Editor, backup_path};
+use gloam::frame::Engine;
+use gloam::game::level_io::entity_defs;
+use gloam::render::RenderSettings;
+use gloam::scene::Scene;
+use gloam::scene::level::EntityDef;
+
+/// first-light copied into a scratch `levels/` beside the real `assets/` (its asset paths
+/// are relative), loaded into an engine.
+fn open_first_light(test: &str) -> (PathBuf, String, Engine) {
+    let dir = common::scratch_dir(test);
+    let levels = dir.join("levels");
+    std::fs::create_dir_all(&levels).unwrap();
+    let original = std::fs::read_to_string(common::repo().join("levels/first-light.ron")).unwrap();
+    let text = original.replace(
+        "\"../assets/",
+        &format!("\"{}/assets/", common::repo().display()),
+    );
+    let path = levels.join("first-light.ron");
+    std::fs::write(&path, &text).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    let engine = Engine::new(&scene, RenderSettings::real_time(32, 18));
+    (path, text, engine)
+}
+
+fn defs(engine: &mut Engine) -> Vec<EntityDef> {
+    entity_defs(&mut engine.world)
+        .into_iter()
+        .map(|(_, def)| def)
+        .collect()
+}
+
+fn named(engine: &mut Engine, name: &str) -> Option<EntityDef> {
+    defs(engine).into_iter().find(|def| def.name == name)
+}
+
+/// A ray straight down onto the point (x, z) from `height` metres.
+fn down_onto(x: f32, z: f32, height: f32) -> Ray {
+    Ray::new(Vec3A::new(x, height, z), Vec3A::NEG_Y)
+}
+
+fn saved_text(editor: &mut Editor, engine: &mut Engine, path: &Path) -> String {
+    editor.save(engine, path).unwrap();
+    std::fs::read_to_string(path).unwrap()
+}
+
+#[test]
+fn select_move_duplicate_delete_and_undo_them_all() {
+    let (path, text, mut engine) = open_first_light("editor-commands");
+    let mut editor = Editor::new();
+    assert!(!editor.is_dirty());
+
+    // A click on "crate hall 1" (at -3.2, 0, -3.2) selects it.
+    let crate_ray = down_onto(-3.2, -3.2, 2.0);
+    let picked = editor.select_by_ray(&mut engine, &crate_ray, false);
+    assert!(picked.is_some());
+    assert_eq!(editor.selection.len(), 1);
+    // Shift+click on "crate hall 2" adds it; Shift+click on it again takes it out.
+    let other = editor.select_by_ray(&mut engine, &down_onto(3.2, 2.0, 2.0), true);
+    assert!(other.is_some() && other != picked);
+    assert_eq!(editor.selection, [picked.unwrap(), other.unwrap()]);
+    editor.select_by_ray(&mut engine, &down_onto(3.2, 2.0, 2.0), true);
+    assert_eq!(editor.selection, [picked.unwrap()]);
+    let before = named(&mut engine, "crate hall 1").unwrap();
+
+    // Move it one metre east: one step, dirty.
+    editor.translate(&mut engine, Vec3::X).unwrap();
+    let moved = named(&mut engine, "crate hall 1").unwrap();
+    assert_eq!(
+        moved.transform.translation,
+        before.transform.translation + Vec3::X
+    );
+    assert!(editor.is_dirty());
+    // The pick follows the crate: it is now under x = -2.2, not -3.2.
+    let mut probe = Editor::new();
+    assert_eq!(
+        probe.select_by_ray(&mut engine, &down_onto(-2.2, -3.2, 2.0), false),
+        picked
+    );
+
+    // Duplicate: a copy with every component under a new name, selected.
+    editor.duplicate(&mut engine).unwrap();
+    let copy = named(&mut engine, "crate hall 1 2").expect("the copy");
+    assert_eq!(
+        EntityDef {
+            name: moved.name.clone(),
+            ..copy.clone()
+        },
+        moved
+    );
+    assert_eq!(editor.selection.len(), 1);
+    assert_ne!(Some(editor.selection[0]), picked);
+
+    // Delete the copy, then the original.
+    editor.delete(&mut engine).unwrap();
+    assert!(named(&mut engine, "crate hall 1 2").is_none());
+    editor.selection = vec![picked.unwrap()];
+    editor.delete(&mut engine).unwrap();
+    assert!(named(&mut engine, "crate hall 1").is_none());
+    let under = editor.select_by_ray(&mut engine, &down_onto(-2.2, -3.2, 2.0), false);
+    assert!(
+        under.is_some() && under != picked,
+        "the floor is hit there now"
+    );
+    editor.selection.clear();
+
+    // Undo all four steps: the crate is back with all its components at its old place in
+    // the level, and the level saves as the file it was.
+    for _ in 0..4 {
+        assert!(editor.undo(&mut engine).unwrap());
+    }
+    assert!(!editor.undo(&mut engine).unwrap(), "nothing more to undo");
+    assert_eq!(named(&mut engine, "crate hall 1").unwrap(), before);
+    assert!(!editor.is_dirty(), "back to the loaded state");
+    assert_eq!(saved_text(&mut editor, &mut engine, &path), text);
+
+    // Redo the move: the crate moves again, and the level is dirty again.
+    assert!(editor.redo(&mut engine).unwrap());
+    assert_eq!(named(&mut engine, "crate hall 1").unwrap(), moved);
+    assert!(editor.is_dirty());
+}
+
+#[test]
+fn saving_keeps_the_old_file_and_a_failed_save_loses_nothing() {
+    let (path, text, mut engine) = open_first_light("editor-save");
+    let mut editor = Editor::new();
+
+    // Load then save with no edit: the same bytes, the old file kept as .bak.
+    assert_eq!(saved_text(&mut editor, &mut engine, &path), text);
+    assert_eq!(
+        backup_path(&path),
+        path.with_file_name("first-light.ron.bak")
+    );
+    assert_eq!(std::fs::read_to_string(backup_path(&path)).unwrap(), text);
+
+    // An edit, saved: the file has it, the .bak the version before.
+    editor.selection = vec![entity_defs(&mut engine.world)[0].0];
+    editor
+        .translate(&mut engine, Vec3::new(0.0, 0.0, 0.5))
+        .unwrap();
+    assert!(editor.is_dirty());
+    let edited = saved_text(&mut editor, &mut engine, &path);
+    assert_ne!(edited, text);
+    assert!(!editor.is_dirty());
+    assert_eq!(std::fs::read_to_string(backup_path(&path)).unwrap(), text);
+    // What was saved loads back as the same level.
+    let reloaded = Scene::load(&path).unwrap();
+    let mut again = Engine::new(&reloaded, RenderSettings::real_time(32, 18));
+    assert_eq!(defs(&mut again), defs(&mut engine));
+
+    // A save that cannot be written (a file stands where its folder should be) says why
+    // and changes nothing: not the old file, not the world, not the dirty marker.
+    editor
+        .translate(&mut engine, Vec3::new(0.0, 0.0, 0.5))
+        .unwrap();
+    let blocked = path.parent().unwrap().join("blocked");
+    std::fs::write(&blocked, "a file, not a folder").unwrap();
+    let error = editor
+        .save(&mut engine, &blocked.join("first-light.ron"))
+        .unwrap_err();
+    assert!(format!("{error:#}").contains("blocked"), "{error:#}");
+    assert!(editor.is_dirty());
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), edited);
+    assert_eq!(
+        std::fs::read_to_string(&blocked).unwrap(),
+        "a file, not a folder"
+    );
+    // The edits are still there to save elsewhere.
+    let elsewhere = path.with_file_name("rescued.ron");
+    let rescued = saved_text(&mut editor, &mut engine, &elsewhere);
+    assert_ne!(rescued, edited);
+    assert!(
+        !backup_path(&elsewhere).exists(),
+        "nothing was there to keep"
+    );
+}
