@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec3, Vec3A};
 use gloam::accel::Ray;
-use gloam::edit::{Editor, backup_path};
+use gloam::edit::{Editor, Reloaded, backup_path};
 use gloam::frame::Engine;
 use gloam::game::level_io::entity_defs;
 use gloam::render::RenderSettings;
@@ -183,4 +183,41 @@ fn saving_keeps_the_old_file_and_a_failed_save_loses_nothing() {
         !backup_path(&elsewhere).exists(),
         "nothing was there to keep"
     );
+}
+
+#[test]
+fn reloading_an_unchanged_file_keeps_everything_and_a_broken_one_changes_nothing() {
+    let (path, text, mut engine) = open_first_light("editor-reload");
+    let mut editor = Editor::new();
+    // Unchanged on disk: the world, the selection and the history stay.
+    editor.selection = vec![entity_defs(&mut engine.world)[0].0];
+    editor.translate(&mut engine, Vec3::X).unwrap();
+    editor.save(&mut engine, &path).unwrap();
+    let saved = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(
+        editor.reload(&mut engine, &path).unwrap(),
+        Reloaded::Unchanged
+    );
+    assert!(editor.can_undo() && !editor.selection.is_empty());
+
+    // Broken on disk: an error with the place, and the world as it was.
+    let before = defs(&mut engine);
+    std::fs::write(
+        &path,
+        saved.replacen("name: \"First light\"", "name: First light", 1),
+    )
+    .unwrap();
+    let error = format!("{:#}", editor.reload(&mut engine, &path).unwrap_err());
+    assert!(error.contains("first-light.ron:"), "{error}");
+    assert_eq!(defs(&mut engine), before);
+
+    // Changed on disk (the file as it first was): the world is the file's level now, with
+    // a clean history, and saving it again gives the file back.
+    std::fs::write(&path, &text).unwrap();
+    assert_eq!(
+        editor.reload(&mut engine, &path).unwrap(),
+        Reloaded::Replaced
+    );
+    assert!(!editor.can_undo() && !editor.is_dirty() && editor.selection.is_empty());
+    assert_eq!(saved_text(&mut editor, &mut engine, &path), text);
 }

@@ -14,7 +14,8 @@
 //!    frame and the next pick see the change;
 //! 4. push one step on the undo stack and clear the redo stack.
 //!
-//! Saving writes `level_from_world`: a level loaded and saved with no edit is the file it
+//! Reloading compares the file's level with the world's and replaces the world only when
+//! they differ. Saving writes `level_from_world`: a level loaded and saved with no edit is the file it
 //! came from, byte for byte. The previous file is kept as `<file>.bak` (a name no reader
 //! of `levels/*.ron` picks up) and the new one is written atomically, so a failed save
 //! leaves the old file and the edits where they were.
@@ -31,6 +32,7 @@ use crate::frame::Engine;
 use crate::game::level_io::entity_defs;
 use crate::game::spawn::{Assets, spawn_entity};
 use crate::game::{LevelEntity, Transform, level_from_world};
+use crate::scene::Scene;
 use crate::scene::files::write_atomically;
 use crate::scene::level::{EntityDef, level_to_string};
 
@@ -259,6 +261,24 @@ impl Editor {
         Ok(())
     }
 
+    /// Reads `path` again (the file changed on disk, or the designer chose to revert): an
+    /// unchanged level leaves everything as it is; a changed one replaces the world and
+    /// starts a new history, clean. A file that does not load changes nothing and the error
+    /// gives its `file:line:column: message` lines. Asking before dropping unsaved edits
+    /// is the window's part.
+    pub fn reload(&mut self, engine: &mut Engine, path: &Path) -> anyhow::Result<Reloaded> {
+        let scene = Scene::load(path).map_err(|error| anyhow::anyhow!("{error}"))?;
+        if scene.level == level_from_world(&mut engine.world) {
+            return Ok(Reloaded::Unchanged);
+        }
+        *engine = Engine::new(&scene, engine.film.settings.clone());
+        engine.pose_at(self.time);
+        let time = self.time;
+        *self = Editor::new();
+        self.time = time;
+        Ok(Reloaded::Replaced)
+    }
+
     /// Applies `changes` to the world and records them as one step.
     fn commit(&mut self, engine: &mut Engine, changes: Vec<Change>) -> anyhow::Result<()> {
         if changes.is_empty() {
@@ -273,6 +293,15 @@ impl Editor {
         self.redo.clear();
         Ok(())
     }
+}
+
+/// What `Editor::reload` found on disk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reloaded {
+    /// The file holds the level the world holds: nothing changed.
+    Unchanged,
+    /// The file differed: the world is the file's level now.
+    Replaced,
 }
 
 /// Where `path`'s previous contents are kept on save: `x.ron` -> `x.ron.bak`.
