@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec3, Vec3A};
 use gloam::accel::Ray;
-use gloam::edit::{Editor, Reloaded, backup_path};
+use gloam::edit::{Editor, Reloaded, autosave_path, backup_path};
 use gloam::frame::Engine;
 use gloam::game::level_io::entity_defs;
 use gloam::render::RenderSettings;
@@ -220,4 +220,31 @@ fn reloading_an_unchanged_file_keeps_everything_and_a_broken_one_changes_nothing
     );
     assert!(!editor.can_undo() && !editor.is_dirty() && editor.selection.is_empty());
     assert_eq!(saved_text(&mut editor, &mut engine, &path), text);
+}
+
+#[test]
+fn autosave_writes_unsaved_edits_beside_the_file_and_leaves_it_alone() {
+    let (path, text, mut engine) = open_first_light("editor-autosave");
+    let mut editor = Editor::new();
+    let autosave = autosave_path(&path);
+    assert_eq!(autosave, path.with_file_name(".first-light.ron.autosave"));
+    assert!(
+        !editor.autosave(&mut engine, &path).unwrap(),
+        "nothing unsaved"
+    );
+    assert!(!autosave.exists());
+
+    editor.selection = vec![entity_defs(&mut engine.world)[0].0];
+    editor.translate(&mut engine, Vec3::Z).unwrap();
+    assert!(editor.autosave(&mut engine, &path).unwrap());
+    assert_eq!(
+        std::fs::read_to_string(&path).unwrap(),
+        text,
+        "the level file is untouched"
+    );
+    assert!(editor.is_dirty(), "an autosave is not a save");
+    // The autosave is the edited level.
+    let recovered = std::fs::read_to_string(&autosave).unwrap();
+    let level = gloam::scene::level::parse_level(&autosave, &recovered).unwrap();
+    assert_eq!(level, gloam::game::level_from_world(&mut engine.world));
 }

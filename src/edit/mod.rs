@@ -215,11 +215,7 @@ impl Editor {
             self.undo.push(step);
             return Err(error);
         }
-        self.selection = reverse
-            .iter()
-            .filter(|change| change.after.is_some())
-            .map(|change| change.place)
-            .collect();
+        self.selection = present_after(&reverse);
         self.redo.push(step);
         Ok(true)
     }
@@ -233,12 +229,7 @@ impl Editor {
             self.redo.push(step);
             return Err(error);
         }
-        self.selection = step
-            .changes
-            .iter()
-            .filter(|change| change.after.is_some())
-            .map(|change| change.place)
-            .collect();
+        self.selection = present_after(&step.changes);
         self.undo.push(step);
         Ok(true)
     }
@@ -279,6 +270,18 @@ impl Editor {
         Ok(Reloaded::Replaced)
     }
 
+    /// Writes unsaved edits to `autosave_path(path)` (the window calls this every few
+    /// minutes); the level file itself is not touched and the world stays dirty. Returns
+    /// whether anything was written (nothing is when there are no unsaved edits).
+    pub fn autosave(&self, engine: &mut Engine, path: &Path) -> anyhow::Result<bool> {
+        if !self.is_dirty() {
+            return Ok(false);
+        }
+        let text = level_to_string(&level_from_world(&mut engine.world));
+        write_atomically(&autosave_path(path), text.as_bytes())?;
+        Ok(true)
+    }
+
     /// Applies `changes` to the world and records them as one step.
     fn commit(&mut self, engine: &mut Engine, changes: Vec<Change>) -> anyhow::Result<()> {
         if changes.is_empty() {
@@ -302,6 +305,24 @@ pub enum Reloaded {
     Unchanged,
     /// The file differed: the world is the file's level now.
     Replaced,
+}
+
+/// The entities `changes` leave in the world: what an undo or redo selects.
+fn present_after(changes: &[Change]) -> Vec<LevelEntity> {
+    changes
+        .iter()
+        .filter(|change| change.after.is_some())
+        .map(|change| change.place)
+        .collect()
+}
+
+/// Where unsaved edits to `path` are autosaved: `levels/x.ron` -> `levels/.x.ron.autosave`
+/// (hidden, and not `*.ron`, so nothing reading `levels/*.ron` picks it up).
+pub fn autosave_path(path: &Path) -> PathBuf {
+    let mut name = std::ffi::OsString::from(".");
+    name.push(path.file_name().unwrap_or_default());
+    name.push(".autosave");
+    path.with_file_name(name)
 }
 
 /// Where `path`'s previous contents are kept on save: `x.ron` -> `x.ron.bak`.
