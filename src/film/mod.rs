@@ -131,7 +131,7 @@ impl Accumulation {
         let camera = Camera::new(&scene.camera, settings.width, settings.height);
         let filtering = self.filter.mode != FilterMode::Off;
         let start = std::time::Instant::now();
-        let output = {
+        let mut output = {
             profiling::scope!("render");
             if filtering {
                 match self.rendered.take() {
@@ -146,7 +146,7 @@ impl Accumulation {
         times.add(Stage::Render, render_ms);
         times.render_phases = output.phases.share_of(render_ms);
         times.rays = output.rays.total();
-        self.tile_spans.clone_from(&output.tiles);
+        self.tile_spans = std::mem::take(&mut output.tiles);
         let start = std::time::Instant::now();
         profiling::scope!("film");
         if let Some(guides) = &output.guides {
