@@ -248,3 +248,88 @@ fn autosave_writes_unsaved_edits_beside_the_file_and_leaves_it_alone() {
     let level = gloam::scene::level::parse_level(&autosave, &recovered).unwrap();
     assert_eq!(level, gloam::game::level_from_world(&mut engine.world));
 }
+
+#[test]
+fn a_drag_is_one_step_and_the_palette_places_where_the_click_meets_the_floor() {
+    let (path, text, mut engine) = open_first_light("editor-drag");
+    let mut editor = Editor::new();
+    editor.select_by_ray(&mut engine, &down_onto(-3.2, -3.2, 2.0), false);
+    let before = named(&mut engine, "crate hall 1").unwrap();
+
+    // A gizmo drag: the world follows every frame of it, and letting go records one step.
+    for step in 1..=5 {
+        editor
+            .drag(&mut engine, |def| {
+                def.transform.translation =
+                    before.transform.translation + Vec3::X * step as f32 * 0.25;
+            })
+            .unwrap();
+        let now = named(&mut engine, "crate hall 1").unwrap();
+        assert_eq!(
+            now.transform.translation.x,
+            before.transform.translation.x + step as f32 * 0.25
+        );
+        assert!(editor.is_dirty(), "a drag under way is unsaved");
+        assert!(!editor.can_undo(), "nothing recorded until the drag ends");
+    }
+    editor.end_drag();
+    assert!(editor.can_undo());
+    assert!(editor.undo(&mut engine).unwrap());
+    assert_eq!(
+        named(&mut engine, "crate hall 1").unwrap(),
+        before,
+        "one undo undoes the drag"
+    );
+    assert!(!editor.can_undo());
+    assert!(!editor.is_dirty());
+    // A drag that ends where it began records nothing.
+    editor.redo(&mut engine).unwrap();
+    editor.undo(&mut engine).unwrap();
+    editor.selection = vec![editor.selection[0]];
+    editor
+        .drag(&mut engine, |def| def.transform.translation += Vec3::Y)
+        .unwrap();
+    editor
+        .drag(&mut engine, |def| def.transform.translation -= Vec3::Y)
+        .unwrap();
+    editor.end_drag();
+    assert!(!editor.can_undo() && !editor.is_dirty());
+
+    // The palette: a shard placed where a ray down at (1, 1) meets the level, under the
+    // shard prefab's name made unique ("shard" is free in first-light; a second is
+    // "shard 2"), selected; both undo away and the file saves as it was.
+    let assets = gloam::edit::palette::assets_folder(&path);
+    assert!(
+        assets.join("kit/shard.glb").is_file(),
+        "{}",
+        assets.display()
+    );
+    for expected in ["shard", "shard 2"] {
+        let at = gloam::edit::surface_point(&engine, &down_onto(1.0, 1.0, 2.5)).expect("the floor");
+        assert!(
+            (at.x - 1.0).abs() < 1e-4 && (at.z - 1.0).abs() < 1e-4 && at.y >= 0.0,
+            "{at}"
+        );
+        let def = gloam::edit::palette::Prefab::Shard.def(at, &path, &assets);
+        let place = editor.place(&mut engine, def).unwrap();
+        assert_eq!(editor.selection, [place]);
+        let placed = named(&mut engine, expected).expect("placed");
+        assert!(placed.shard.is_some() && placed.instance.is_some());
+    }
+    // The level with the shards saves and loads (the asset path is relative to the level).
+    let elsewhere = path.with_file_name("with-shards.ron");
+    editor.save(&mut engine, &elsewhere).unwrap();
+    let reloaded = Scene::load(&elsewhere).unwrap();
+    assert_eq!(
+        reloaded
+            .level
+            .entities
+            .iter()
+            .filter(|e| e.shard.is_some())
+            .count(),
+        5
+    );
+    editor.undo(&mut engine).unwrap();
+    editor.undo(&mut engine).unwrap();
+    assert_eq!(saved_text(&mut editor, &mut engine, &path), text);
+}

@@ -25,6 +25,7 @@
 //! writes a screenshot (`screenshot`: the frame as PNG and the linear film as EXR). No
 //! single key quits. A level without a player start is flown through with the same keys.
 
+pub mod editor;
 mod hud;
 pub mod menu;
 pub mod replay;

@@ -84,6 +84,26 @@ pub enum Command {
         #[arg(long, value_parser = crate::cli::values::size())]
         threads: Option<usize>,
     },
+    /// Edit a level in a window: the path-traced view with an outline, a palette of assets
+    /// and prefabs, an inspector and a gizmo. Keys: click selects, Shift+click adds, right
+    /// mouse + W A S D Q E flies (Shift: faster), W/E/R move/rotate/scale, Delete deletes,
+    /// Ctrl+D duplicates, Ctrl+Z undoes, Ctrl+Shift+Z or Ctrl+Y redoes, Ctrl+S saves
+    /// (the previous file kept as LEVEL.bak), F4 switches between the converging view and
+    /// the game's 1-spp filtered view, Esc drops the palette's choice or the selection.
+    /// Unsaved edits are autosaved to .LEVEL.autosave beside it every two minutes.
+    #[command(allow_negative_numbers = true)]
+    Edit {
+        level: PathBuf,
+        /// The view's render resolution.
+        #[arg(long, default_value_t = 480, value_parser = crate::cli::values::count())]
+        width: u32,
+        #[arg(long, default_value_t = 270, value_parser = crate::cli::values::count())]
+        height: u32,
+        /// Quit after this many frames and print the frame times (idle, converging,
+        /// dragging).
+        #[arg(long, value_parser = crate::cli::values::count())]
+        frames: Option<u32>,
+    },
     /// Validate a level (.ron) or glTF file: prints `file:line:column: message` per problem,
     /// exit 1 when there are any; otherwise a summary and the load time.
     #[command(allow_negative_numbers = true)]
@@ -307,6 +327,20 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 },
                 record,
                 watch,
+            })?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Edit {
+            level,
+            width,
+            height,
+            frames,
+        } => {
+            crate::app::editor::edit(crate::app::editor::EditOptions {
+                level,
+                width,
+                height,
+                frames,
             })?;
             Ok(ExitCode::SUCCESS)
         }

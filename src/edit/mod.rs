@@ -20,6 +20,9 @@
 //! of `levels/*.ron` picks up) and the new one is written atomically, so a failed save
 //! leaves the old file and the edits where they were.
 
+pub mod camera;
+pub mod palette;
+
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
@@ -61,6 +64,9 @@ pub struct Editor {
     pub time: f64,
     undo: Vec<Step>,
     redo: Vec<Step>,
+    /// A drag under way: what it has changed so far, each entity from its state before
+    /// the drag (recorded as one step when it ends).
+    dragging: Vec<Change>,
     next_id: u64,
     /// The id of the step on top of the undo stack when the file was last saved or loaded
     /// (0: the loaded state).
@@ -77,7 +83,19 @@ impl Editor {
 
     /// Whether the world differs from the file (the title's dirty marker).
     pub fn is_dirty(&self) -> bool {
-        self.undo.last().map_or(0, |step| step.id) != self.saved
+        self.undo.last().map_or(0, |step| step.id) != self.saved || !self.dragging.is_empty()
+    }
+
+    /// Makes `place` the selection, or (with `add`) adds it or takes it out again: the
+    /// outline list's click and Shift+click.
+    pub fn select(&mut self, place: LevelEntity, add: bool) {
+        if !add {
+            self.selection = vec![place];
+        } else if let Some(at) = self.selection.iter().position(|&p| p == place) {
+            self.selection.remove(at);
+        } else {
+            self.selection.push(place);
+        }
     }
 
     pub fn can_undo(&self) -> bool {
@@ -107,17 +125,10 @@ impl Editor {
         let picked = hit
             .and_then(instance_entity)
             .and_then(|entity| level_root(&engine.world, entity));
-        match (picked, add) {
-            (Some(place), true) => {
-                if let Some(at) = self.selection.iter().position(|&p| p == place) {
-                    self.selection.remove(at);
-                } else {
-                    self.selection.push(place);
-                }
-            }
-            (Some(place), false) => self.selection = vec![place],
-            (None, true) => {}
-            (None, false) => self.selection.clear(),
+        match picked {
+            Some(place) => self.select(place, add),
+            None if !add => self.selection.clear(),
+            None => {}
         }
         picked
     }
@@ -145,6 +156,85 @@ impl Editor {
             })
             .collect();
         self.commit(engine, changes)
+    }
+
+    /// Changes the selection's definitions with `edit` as part of a drag: the world follows
+    /// at once, and the whole drag becomes one step when `end_drag` is called (or any other
+    /// command runs).
+    pub fn drag(
+        &mut self,
+        engine: &mut Engine,
+        mut edit: impl FnMut(&mut EntityDef),
+    ) -> anyhow::Result<()> {
+        let defs = entity_defs(&mut engine.world);
+        let changes: Vec<Change> = self
+            .selection
+            .iter()
+            .filter_map(|place| defs.iter().find(|(p, _)| p == place))
+            .filter_map(|(place, now)| {
+                let mut after = now.clone();
+                edit(&mut after);
+                (after != *now).then(|| Change {
+                    place: *place,
+                    before: Some(now.clone()),
+                    after: Some(after),
+                })
+            })
+            .collect();
+        if changes.is_empty() {
+            return Ok(());
+        }
+        apply(engine, &changes, self.time)?;
+        for change in changes {
+            match self.dragging.iter_mut().find(|c| c.place == change.place) {
+                Some(earlier) => earlier.after = change.after,
+                None => self.dragging.push(change),
+            }
+        }
+        Ok(())
+    }
+
+    /// Records the drag under way as one step (nothing when it ended where it began).
+    pub fn end_drag(&mut self) {
+        let changes: Vec<Change> = std::mem::take(&mut self.dragging)
+            .into_iter()
+            .filter(|change| change.before != change.after)
+            .collect();
+        if !changes.is_empty() {
+            self.push_step(changes);
+        }
+    }
+
+    /// Adds `def` to the level as a new entity (renamed if its name is taken, as
+    /// `duplicate` does) and selects it: the palette's placing.
+    pub fn place(
+        &mut self,
+        engine: &mut Engine,
+        mut def: EntityDef,
+    ) -> anyhow::Result<LevelEntity> {
+        let defs = entity_defs(&mut engine.world);
+        let names: Vec<String> = defs.iter().map(|(_, def)| def.name.clone()).collect();
+        if def.name.is_empty() || names.contains(&def.name) {
+            def.name = unused_name(
+                if def.name.is_empty() {
+                    "entity"
+                } else {
+                    &def.name
+                },
+                &names,
+            );
+        }
+        let place = LevelEntity(defs.iter().map(|(place, _)| place.0 + 1).max().unwrap_or(0));
+        self.commit(
+            engine,
+            vec![Change {
+                place,
+                before: None,
+                after: Some(def),
+            }],
+        )?;
+        self.selection = vec![place];
+        Ok(place)
     }
 
     /// Moves the selection by `offset` metres (the gizmo's move handles, after snapping).
@@ -199,6 +289,7 @@ impl Editor {
 
     /// Undoes the last step; false when there is none.
     pub fn undo(&mut self, engine: &mut Engine) -> anyhow::Result<bool> {
+        self.end_drag();
         let Some(step) = self.undo.pop() else {
             return Ok(false);
         };
@@ -222,6 +313,7 @@ impl Editor {
 
     /// Redoes the last undone step; false when there is none.
     pub fn redo(&mut self, engine: &mut Engine) -> anyhow::Result<bool> {
+        self.end_drag();
         let Some(step) = self.redo.pop() else {
             return Ok(false);
         };
@@ -238,6 +330,7 @@ impl Editor {
     /// new one written atomically. On failure the old file, the world and the history are
     /// as they were, and the error says why.
     pub fn save(&mut self, engine: &mut Engine, path: &Path) -> anyhow::Result<()> {
+        self.end_drag();
         let text = level_to_string(&level_from_world(&mut engine.world));
         match std::fs::read(path) {
             Ok(previous) => write_atomically(&backup_path(path), &previous)
@@ -284,17 +377,23 @@ impl Editor {
 
     /// Applies `changes` to the world and records them as one step.
     fn commit(&mut self, engine: &mut Engine, changes: Vec<Change>) -> anyhow::Result<()> {
+        self.end_drag();
         if changes.is_empty() {
             return Ok(());
         }
         apply(engine, &changes, self.time)?;
+        self.push_step(changes);
+        Ok(())
+    }
+
+    /// Records `changes`, already applied, as the newest step.
+    fn push_step(&mut self, changes: Vec<Change>) {
         self.undo.push(Step {
             id: self.next_id,
             changes,
         });
         self.next_id += 1;
         self.redo.clear();
-        Ok(())
     }
 }
 
@@ -381,7 +480,7 @@ fn apply(engine: &mut Engine, changes: &[Change], time: f64) -> anyhow::Result<(
                 after.mover.is_none()
                     && after.knock.is_none()
                     && EntityDef {
-                        transform: after.transform.clone(),
+                        transform: after.transform,
                         ..before.clone()
                     } == *after
             }
@@ -411,4 +510,46 @@ fn apply(engine: &mut Engine, changes: &[Change], time: f64) -> anyhow::Result<(
     }
     engine.pose_at(time);
     Ok(())
+}
+
+/// The world box around everything level entity `place` draws (the selection's outline);
+/// None when it draws nothing (a light, the player start).
+pub fn entity_bounds(engine: &mut Engine, place: LevelEntity) -> Option<(Vec3, Vec3)> {
+    let instances = engine.level_entity_instances(place.0);
+    let accel = &engine.render_scene().accel;
+    let mut bounds: Option<(Vec3, Vec3)> = None;
+    for (_, index) in instances {
+        let instance = &accel.instances()[index as usize];
+        let local = accel.blases[instance.blas as usize].bounds();
+        let transform = instance.world_from_object();
+        for corner in 0..8 {
+            let pick = |bit: usize, min: f32, max: f32| if corner & bit == 0 { min } else { max };
+            let point = Vec3::new(
+                pick(1, local.min.x, local.max.x),
+                pick(2, local.min.y, local.max.y),
+                pick(4, local.min.z, local.max.z),
+            );
+            let world = transform.transform_point3(point);
+            bounds = Some(match bounds {
+                Some((min, max)) => (min.min(world), max.max(world)),
+                None => (world, world),
+            });
+        }
+    }
+    bounds
+}
+
+/// Where `ray` first meets the level's pickable geometry, else the ground plane y = 0
+/// (where the palette places what it holds).
+pub fn surface_point(engine: &Engine, ray: &Ray) -> Option<Vec3> {
+    let scene = engine.render_scene();
+    let t = match scene
+        .accel
+        .intersect(ray, InstanceMask::PICKABLE, &scene.alpha())
+    {
+        Some(hit) => hit.t,
+        None if ray.direction.y < -1e-6 => -ray.origin.y / ray.direction.y,
+        None => return None,
+    };
+    Some((ray.origin + ray.direction * t).into())
 }

@@ -243,6 +243,42 @@ pub struct ExitDef {
     pub radius: f32,
 }
 
+impl Default for ShardDef {
+    fn default() -> Self {
+        ShardDef {
+            radius: default_pickup_radius(),
+        }
+    }
+}
+
+impl Default for ExitDef {
+    fn default() -> Self {
+        ExitDef {
+            radius: default_exit_radius(),
+        }
+    }
+}
+
+impl Default for PlayerSpawn {
+    fn default() -> Self {
+        PlayerSpawn {
+            eye_height: default_eye_height(),
+            body: None,
+        }
+    }
+}
+
+impl WardenDef {
+    /// A warden walking `route` at the default speed, carrying the default lamp.
+    pub fn walking(route: Vec<Vec3>) -> Self {
+        WardenDef {
+            route,
+            speed: default_warden_speed(),
+            lamp: WardenLamp::default(),
+        }
+    }
+}
+
 impl EntityDef {
     /// An entity with only a name and the identity transform.
     pub fn named(name: impl Into<String>) -> Self {

@@ -1,0 +1,606 @@
+//! The level editor's window (`gloam edit LEVEL`): egui panels around the path-traced
+//! view of the level as authored, driving `edit::Editor`'s commands.
+//!
+//! Per displayed frame (winit 0.30 `ApplicationHandler`):
+//! 1. window events go to egui first (`gui`); mouse motion while the right button is held
+//!    turns the editor camera;
+//! 2. `RedrawRequested`: the camera flies by the held keys; the interface is built
+//!    (`panels`): the outline, palette, inspector, the view with its gizmo and overlays,
+//!    and the shortcuts, which queue `Command`s rather than act;
+//! 3. the commands run on the `Editor` and the `Engine` (a drag of the gizmo, a waypoint
+//!    or an inspector field is one undo step, ended when the button is let go);
+//! 4. the engine renders one frame of the still level (no simulation step runs): with the
+//!    view still the film converges, and it stops at `CONVERGED_SPP`; F4 shows the game's
+//!    1-spp filtered view instead;
+//! 5. present: the film is tone mapped into pixels' buffer, whose texture the interface
+//!    draws as the view.
+//!
+//! Every few minutes unsaved edits go to the level's autosave file; closing with unsaved
+//! edits asks first.
+
+mod gui;
+mod panels;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, anyhow};
+use glam::Vec2;
+use pixels::{Pixels, PixelsBuilder, SurfaceTexture};
+use winit::application::ApplicationHandler;
+use winit::dpi::LogicalSize;
+use winit::event::{DeviceEvent, DeviceId, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::window::{CursorGrabMode, Window, WindowId};
+
+use crate::accel::Ray;
+use crate::edit::camera::FlyCamera;
+use crate::edit::palette::{asset_def, assets_folder};
+use crate::edit::{Editor, Reloaded, surface_point};
+use crate::film::FilterMode;
+use crate::frame::Engine;
+use crate::game::LevelEntity;
+use crate::render::RenderSettings;
+use crate::render::film::tone_map;
+use crate::scene::Scene;
+use crate::scene::level::EntityDef;
+use panels::Panels;
+
+pub struct EditOptions {
+    pub level: PathBuf,
+    /// The view's render resolution (the window scales it into its panel).
+    pub width: u32,
+    pub height: u32,
+    /// Quit after this many displayed frames (for tests), printing the frame times.
+    pub frames: Option<u32>,
+}
+
+/// Samples per pixel at which a still view stops rendering: past this the image no longer
+/// visibly changes, and the editor leaves the cores to the designer.
+pub const CONVERGED_SPP: u32 = 1024;
+
+/// How often unsaved edits are written to the autosave file.
+const AUTOSAVE_EVERY: Duration = Duration::from_secs(120);
+
+/// How long a notice stays in the status bar.
+const NOTICE_SECONDS: f32 = 8.0;
+
+/// Flying speed in metres per second (Shift: four times that).
+const FLY_SPEED: f32 = 4.0;
+
+/// Radians of turn per pixel of mouse motion while flying.
+const LOOK_PER_PIXEL: f32 = 0.003;
+
+/// What the interface asks for; run after it is built, in order.
+#[derive(Clone, Debug)]
+pub enum Command {
+    /// A click in the view: pick what the ray hits (`add`: Shift).
+    Pick {
+        ray: Ray,
+        add: bool,
+    },
+    /// A click in the outline.
+    Select {
+        place: LevelEntity,
+        add: bool,
+    },
+    ClearSelection,
+    /// Place what the palette holds where a click's ray meets the level.
+    Place {
+        ray: Ray,
+        item: panels::PaletteItem,
+    },
+    /// Part of a drag (gizmo, waypoint, inspector field): the entity named `name` becomes
+    /// `def`.
+    Edit {
+        name: String,
+        def: Box<EntityDef>,
+    },
+    Duplicate,
+    Delete,
+    Undo,
+    Redo,
+    Save,
+    /// Save to another file, which becomes the level being edited.
+    SaveAs(PathBuf),
+    /// Read the file again, dropping unsaved edits.
+    Revert,
+    /// Converging view <-> the game's filtered view.
+    ToggleView,
+    /// Close the window now, whatever is unsaved (the quit prompt's answer).
+    Quit,
+    /// Save, then close.
+    SaveAndQuit,
+}
+
+/// What a frame did, for the frame-time report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum FrameKind {
+    /// Nothing rendered: the view has converged.
+    Idle,
+    /// A frame added to the converging view.
+    Converging,
+    /// An edit under way this frame (the world changed).
+    Dragging,
+}
+
+#[derive(Default)]
+struct FrameLog {
+    idle: Vec<f64>,
+    converging: Vec<f64>,
+    dragging: Vec<f64>,
+}
+
+impl FrameLog {
+    fn push(&mut self, kind: FrameKind, ms: f64) {
+        match kind {
+            FrameKind::Idle => self.idle.push(ms),
+            FrameKind::Converging => self.converging.push(ms),
+            FrameKind::Dragging => self.dragging.push(ms),
+        }
+    }
+
+    fn print(&self) {
+        let median = |times: &[f64]| {
+            let mut sorted = times.to_vec();
+            sorted.sort_by(f64::total_cmp);
+            sorted.get(sorted.len() / 2).copied()
+        };
+        for (label, times) in [
+            ("idle", &self.idle),
+            ("converging", &self.converging),
+            ("dragging", &self.dragging),
+        ] {
+            if let Some(ms) = median(times) {
+                println!(
+                    "editor frames {label}: {} frames, median {ms:.2} ms",
+                    times.len()
+                );
+            }
+        }
+    }
+}
+
+/// Opens the editor on `options.level`.
+pub fn edit(options: EditOptions) -> anyhow::Result<()> {
+    if cfg!(target_os = "linux")
+        && std::env::var_os("DISPLAY").is_none()
+        && std::env::var_os("WAYLAND_DISPLAY").is_none()
+    {
+        return Err(anyhow!(
+            "no display to open the editor's window on (DISPLAY and WAYLAND_DISPLAY are unset)"
+        ));
+    }
+    let scene = Scene::load(&options.level)?;
+    let disk = std::fs::read(&options.level)
+        .with_context(|| format!("reading {}", options.level.display()))?;
+    let event_loop =
+        EventLoop::new().map_err(|error| anyhow!("cannot open the editor's window ({error})"))?;
+    let mut engine = editor_engine(&scene, &options);
+    let camera = FlyCamera::from_view(&engine);
+    camera.install(&mut engine.world);
+    let mut app = EditorApp {
+        path: options.level.clone(),
+        panels: Panels::new(&options.level),
+        engine,
+        editor: Editor::new(),
+        camera,
+        disk,
+        options,
+        window: None,
+        pixels: None,
+        gui: None,
+        look: Vec2::ZERO,
+        grabbed: false,
+        last_frame: Instant::now(),
+        autosaved: Instant::now(),
+        shown: 0,
+        log: FrameLog::default(),
+        error: None,
+    };
+    event_loop
+        .run_app(&mut app)
+        .context("running the editor's event loop")?;
+    app.log.print();
+    match app.error {
+        Some(error) => Err(error),
+        None => Ok(()),
+    }
+}
+
+/// The level as the editor shows it: posed at time 0, nothing simulated, rendered from the
+/// editor's camera, the film converging while the view is still.
+fn editor_engine(scene: &Scene, options: &EditOptions) -> Engine {
+    let mut settings = RenderSettings::real_time(options.width, options.height);
+    settings.spp = 1;
+    Engine::new(scene, settings)
+}
+
+struct EditorApp {
+    /// The level file being edited.
+    path: PathBuf,
+    engine: Engine,
+    editor: Editor,
+    camera: FlyCamera,
+    panels: Panels,
+    /// The level file's bytes as last read or written by the editor (a change on disk
+    /// that is not the editor's own).
+    disk: Vec<u8>,
+    options: EditOptions,
+    window: Option<Arc<Window>>,
+    pixels: Option<Pixels<'static>>,
+    gui: Option<gui::Gui>,
+    /// Mouse motion gathered while flying, not yet turned into a turn.
+    look: Vec2,
+    /// The cursor is grabbed for flying.
+    grabbed: bool,
+    last_frame: Instant,
+    autosaved: Instant,
+    shown: u32,
+    log: FrameLog,
+    error: Option<anyhow::Error>,
+}
+
+impl EditorApp {
+    fn title(&self) -> String {
+        let name = self
+            .path
+            .file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        let dirty = if self.editor.is_dirty() { "*" } else { "" };
+        format!("{dirty}{name} - Gloam editor")
+    }
+
+    fn notify(&mut self, line: String) {
+        println!("{line}");
+        self.panels.notice = Some((Instant::now(), line));
+    }
+
+    fn fail(&mut self, event_loop: &ActiveEventLoop, error: anyhow::Error) {
+        self.error = Some(error);
+        event_loop.exit();
+    }
+
+    /// Runs one command; its error (a missing asset, a file that will not write) is shown
+    /// and changes nothing.
+    fn run(&mut self, event_loop: &ActiveEventLoop, command: Command) {
+        let engine = &mut self.engine;
+        let editor = &mut self.editor;
+        let result: anyhow::Result<Option<String>> = match command {
+            Command::Pick { ray, add } => {
+                let picked = editor.select_by_ray(engine, &ray, add);
+                Ok(picked.map(|place| format!("selected {}", self.panels.name_of(place))))
+            }
+            Command::Select { place, add } => {
+                editor.select(place, add);
+                Ok(Some(format!("selected {}", self.panels.name_of(place))))
+            }
+            Command::ClearSelection => {
+                editor.selection.clear();
+                Ok(None)
+            }
+            Command::Place { ray, item } => match surface_point(engine, &ray) {
+                Some(at) => {
+                    let def = match item {
+                        panels::PaletteItem::Prefab(prefab) => {
+                            prefab.def(at, &self.path, &assets_folder(&self.path))
+                        }
+                        panels::PaletteItem::Asset(asset) => asset_def(&asset, at, &self.path),
+                    };
+                    editor
+                        .place(engine, def)
+                        .map(|place| Some(format!("placed {}", entity_name(engine, place))))
+                }
+                None => Ok(Some("nothing there to place on".to_owned())),
+            },
+            Command::Edit { name, def } => editor
+                .drag(engine, |entity| {
+                    if entity.name == name {
+                        *entity = (*def).clone();
+                    }
+                })
+                .map(|()| None),
+            Command::Duplicate => editor
+                .duplicate(engine)
+                .map(|()| Some(format!("duplicated: {} new", editor.selection.len()))),
+            Command::Delete => {
+                let count = editor.selection.len();
+                editor
+                    .delete(engine)
+                    .map(|()| Some(format!("deleted {count}")))
+            }
+            Command::Undo => editor
+                .undo(engine)
+                .map(|done| Some(if done { "undone" } else { "nothing to undo" }.to_owned())),
+            Command::Redo => editor
+                .redo(engine)
+                .map(|done| Some(if done { "redone" } else { "nothing to redo" }.to_owned())),
+            Command::Save | Command::SaveAndQuit => {
+                let quit = matches!(command, Command::SaveAndQuit);
+                match self.save_to(self.path.clone()) {
+                    Ok(line) => {
+                        if quit {
+                            event_loop.exit();
+                        }
+                        Ok(Some(line))
+                    }
+                    Err(error) => Err(error),
+                }
+            }
+            Command::SaveAs(path) => self.save_to(path).map(Some),
+            Command::Revert => self.reload().map(|line| Some(line.to_owned())),
+            Command::ToggleView => {
+                let film = &mut self.engine.film;
+                film.filter.mode = match film.filter.mode {
+                    FilterMode::Off => FilterMode::Full,
+                    _ => FilterMode::Off,
+                };
+                film.filter.reset();
+                film.reset = true;
+                Ok(Some(format!("view: {}", view_name(film.filter.mode))))
+            }
+            Command::Quit => {
+                event_loop.exit();
+                Ok(None)
+            }
+        };
+        match result {
+            Ok(Some(line)) => self.notify(line),
+            Ok(None) => {}
+            Err(error) => self.notify(format!("{error:#}")),
+        }
+    }
+
+    /// Saves the level to `path` (which becomes the file edited); says where.
+    fn save_to(&mut self, path: PathBuf) -> anyhow::Result<String> {
+        self.editor.save(&mut self.engine, &path)?;
+        self.disk = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        self.path = path;
+        Ok(format!("saved {}", self.path.display()))
+    }
+
+    /// Reads the level file again, the editor's camera kept.
+    fn reload(&mut self) -> anyhow::Result<&'static str> {
+        let reloaded = self.editor.reload(&mut self.engine, &self.path)?;
+        self.disk = std::fs::read(&self.path)
+            .with_context(|| format!("reading {}", self.path.display()))?;
+        self.camera.install(&mut self.engine.world);
+        Ok(match reloaded {
+            Reloaded::Unchanged => "the file holds the level shown",
+            Reloaded::Replaced => "reloaded",
+        })
+    }
+
+    fn set_grab(&mut self, grab: bool) {
+        if grab == self.grabbed {
+            return;
+        }
+        let Some(window) = &self.window else { return };
+        if grab {
+            let _ = window
+                .set_cursor_grab(CursorGrabMode::Locked)
+                .or_else(|_| window.set_cursor_grab(CursorGrabMode::Confined));
+        } else {
+            let _ = window.set_cursor_grab(CursorGrabMode::None);
+        }
+        window.set_cursor_visible(!grab);
+        self.grabbed = grab;
+    }
+
+    fn redraw(&mut self, event_loop: &ActiveEventLoop) {
+        let start = Instant::now();
+        let seconds = (start - self.last_frame).as_secs_f32().min(0.25);
+        self.last_frame = start;
+        let (Some(window), Some(gui)) = (self.window.clone(), self.gui.as_mut()) else {
+            return;
+        };
+
+        // 2. Fly by the held keys, then build the interface.
+        let mut commands = Vec::new();
+        let view = {
+            let film = &self.engine.film;
+            panels::ViewState {
+                width: film.settings.width,
+                height: film.settings.height,
+                spp: film.frames,
+                mode: film.filter.mode,
+                texture: gui.view,
+            }
+        };
+        let frame = panels::FrameInput::gather(&mut self.engine, &self.editor);
+        let camera_before = self.camera;
+        gui.run(&window, |ui| {
+            self.panels
+                .ui(ui, &frame, &view, &self.camera, &mut commands)
+        });
+        let flying = self.panels.flying;
+        if flying {
+            let held = &self.panels.fly_keys;
+            let speed = if held.fast {
+                4.0 * FLY_SPEED
+            } else {
+                FLY_SPEED
+            };
+            self.camera
+                .turn(std::mem::take(&mut self.look) * LOOK_PER_PIXEL);
+            self.camera.fly(held.direction() * speed * seconds);
+        } else {
+            self.look = Vec2::ZERO;
+        }
+        self.set_grab(flying);
+
+        // 3. Run what the interface asked for.
+        let edited = commands.iter().any(|c| matches!(c, Command::Edit { .. }));
+        for command in commands {
+            self.run(event_loop, command);
+        }
+        if !self.panels.primary_down {
+            self.editor.end_drag();
+        }
+        if self.camera != camera_before {
+            self.camera.install(&mut self.engine.world);
+        }
+        window.set_title(&self.title());
+
+        // 4. Render unless the view has converged.
+        let converged = self.engine.film.filter.mode == FilterMode::Off
+            && self.engine.film.frames >= CONVERGED_SPP
+            && !self.engine.film.reset;
+        let kind = if edited {
+            FrameKind::Dragging
+        } else if converged {
+            FrameKind::Idle
+        } else {
+            FrameKind::Converging
+        };
+        if !converged || self.engine.film.reset {
+            self.engine.advance(0.0);
+        }
+        if self.autosaved.elapsed() >= AUTOSAVE_EVERY {
+            self.autosaved = Instant::now();
+            match self.editor.autosave(&mut self.engine, &self.path) {
+                Ok(true) => self.notify(format!(
+                    "autosaved to {}",
+                    crate::edit::autosave_path(&self.path).display()
+                )),
+                Ok(false) => {}
+                Err(error) => self.notify(format!("autosave failed: {error:#}")),
+            }
+        }
+
+        // 5. Present.
+        let Some(pixels) = &mut self.pixels else {
+            return;
+        };
+        let image = self.engine.film.image().resized(view.width, view.height);
+        for (rgba, radiance) in pixels.frame_mut().chunks_exact_mut(4).zip(&image.pixels) {
+            let [r, g, b] = tone_map(*radiance, 1.0);
+            rgba.copy_from_slice(&[r, g, b, 255]);
+        }
+        let Some(gui) = self.gui.as_mut() else { return };
+        let presented = pixels.render_with(|encoder, target, context| {
+            gui.paint(encoder, target, context);
+            Ok(())
+        });
+        if let Err(error) = presented {
+            return self.fail(
+                event_loop,
+                anyhow!("presenting the editor's frame: {error}"),
+            );
+        }
+        self.log.push(kind, start.elapsed().as_secs_f64() * 1e3);
+        self.shown += 1;
+        if self.options.frames.is_some_and(|limit| self.shown >= limit) {
+            event_loop.exit();
+        }
+    }
+}
+
+/// The view's name in the status bar.
+fn view_name(mode: FilterMode) -> &'static str {
+    match mode {
+        FilterMode::Off => "converging",
+        _ => "game (1 spp, filtered)",
+    }
+}
+
+impl ApplicationHandler for EditorApp {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.window.is_some() {
+            return;
+        }
+        let attributes = Window::default_attributes()
+            .with_title(self.title())
+            .with_inner_size(LogicalSize::new(1280, 760));
+        let window = match event_loop.create_window(attributes) {
+            Ok(window) => Arc::new(window),
+            Err(error) => {
+                return self.fail(event_loop, anyhow!("cannot create the window: {error}"));
+            }
+        };
+        let size = window.inner_size();
+        let surface =
+            SurfaceTexture::new(size.width.max(1), size.height.max(1), Arc::clone(&window));
+        let pixels = match PixelsBuilder::new(self.options.width, self.options.height, surface)
+            .enable_vsync(true)
+            .build()
+        {
+            Ok(pixels) => pixels,
+            Err(error) => {
+                return self.fail(
+                    event_loop,
+                    anyhow!("cannot start the editor's window surface: {error}"),
+                );
+            }
+        };
+        self.gui = Some(gui::Gui::new(event_loop, &window, &pixels));
+        self.pixels = Some(pixels);
+        self.window = Some(window);
+        self.last_frame = Instant::now();
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+        if let (Some(window), Some(gui)) = (&self.window, &mut self.gui) {
+            gui.on_event(window, &event);
+        }
+        match event {
+            WindowEvent::CloseRequested => {
+                if self.editor.is_dirty() {
+                    self.panels.quit_prompt = true;
+                } else {
+                    event_loop.exit();
+                }
+            }
+            WindowEvent::Resized(size) => {
+                if let Some(pixels) = &mut self.pixels
+                    && size.width > 0
+                    && size.height > 0
+                    && let Err(error) = pixels.resize_surface(size.width, size.height)
+                {
+                    self.fail(event_loop, anyhow!("resizing the window surface: {error}"));
+                }
+            }
+            WindowEvent::Focused(false) => {
+                self.panels.flying = false;
+                self.set_grab(false);
+            }
+            WindowEvent::RedrawRequested => self.redraw(event_loop),
+            _ => {}
+        }
+    }
+
+    fn device_event(&mut self, _: &ActiveEventLoop, _: DeviceId, event: DeviceEvent) {
+        if let DeviceEvent::MouseMotion { delta } = event
+            && self.panels.flying
+        {
+            self.look += Vec2::new(delta.0 as f32, -delta.1 as f32);
+        }
+    }
+
+    fn about_to_wait(&mut self, _: &ActiveEventLoop) {
+        if let Some(window) = &self.window {
+            window.request_redraw();
+        }
+    }
+}
+
+/// Where a click at `at` (0..1 across the view, from the top-left) looks into the level.
+pub fn view_ray(camera: &FlyCamera, width: u32, height: u32, at: Vec2) -> Ray {
+    let placement = crate::scene::world::CameraPlacement {
+        name: String::new(),
+        yfov: camera.yfov,
+        znear: camera.znear,
+        world_from_camera: camera.world_from_camera(),
+    };
+    let film = crate::render::Camera::new(&placement, width, height);
+    film.ray(at * Vec2::new(width as f32, height as f32), Vec2::ZERO)
+}
+
+/// The name of level entity `place` in the engine's world.
+fn entity_name(engine: &mut Engine, place: LevelEntity) -> String {
+    crate::game::level_io::entity_defs(&mut engine.world)
+        .into_iter()
+        .find(|(p, _)| *p == place)
+        .map_or_else(String::new, |(_, def)| def.name)
+}

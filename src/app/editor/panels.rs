@@ -1,0 +1,1273 @@
+//! The editor's interface, built each frame: the menu and tool bar, the outline and
+//! palette (left), the inspector (right), the status line, and the view in the middle with
+//! its overlays (the selection's boxes, markers for what draws nothing, wardens' routes
+//! with draggable waypoints, the gizmo). It reads a snapshot of the level (`FrameInput`)
+//! and only queues `Command`s: the window runs them after.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use egui::{Color32, Key, KeyboardShortcut, Modifiers, Pos2, Rect, Sense, Stroke, TextureId};
+use glam::{DMat4, EulerRot, Quat, Vec2, Vec3};
+use transform_gizmo_egui::config::GizmoModeKind;
+use transform_gizmo_egui::math::Transform as GizmoTransform;
+use transform_gizmo_egui::prelude::*;
+
+use super::{Command, view_ray};
+use crate::edit::camera::FlyCamera;
+use crate::edit::palette::{Prefab, asset_files, assets_folder};
+use crate::edit::{Editor, entity_bounds};
+use crate::film::FilterMode;
+use crate::frame::Engine;
+use crate::game::LevelEntity;
+use crate::game::level_io::entity_defs;
+use crate::scene::level::{
+    CameraDef, EntityDef, ExitDef, KnockDef, LightDef, MoverDef, PlayerSpawn, ShardDef, WardenDef,
+};
+
+/// What the interface reads of the level this frame.
+pub struct FrameInput {
+    pub defs: Vec<(LevelEntity, EntityDef)>,
+    pub selection: Vec<LevelEntity>,
+    /// The world box of each selected entity that draws something.
+    pub bounds: Vec<(Vec3, Vec3)>,
+    pub dirty: bool,
+    pub can_undo: bool,
+    pub can_redo: bool,
+}
+
+impl FrameInput {
+    pub fn gather(engine: &mut Engine, editor: &Editor) -> FrameInput {
+        let bounds = editor
+            .selection
+            .iter()
+            .filter_map(|&place| entity_bounds(engine, place))
+            .collect();
+        FrameInput {
+            defs: entity_defs(&mut engine.world),
+            selection: editor.selection.clone(),
+            bounds,
+            dirty: editor.is_dirty(),
+            can_undo: editor.can_undo(),
+            can_redo: editor.can_redo(),
+        }
+    }
+
+    fn def(&self, place: LevelEntity) -> Option<&EntityDef> {
+        self.defs
+            .iter()
+            .find(|(p, _)| *p == place)
+            .map(|(_, def)| def)
+    }
+}
+
+/// The view's film this frame.
+pub struct ViewState {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub mode: FilterMode,
+    pub texture: TextureId,
+}
+
+/// What the palette holds, ready to place with the next click in the view.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PaletteItem {
+    Prefab(Prefab),
+    Asset(PathBuf),
+}
+
+/// The fly keys held this frame.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FlyKeys {
+    forward: bool,
+    back: bool,
+    left: bool,
+    right: bool,
+    up: bool,
+    down: bool,
+    pub fast: bool,
+}
+
+impl FlyKeys {
+    /// x right, y up, z forward; each -1, 0 or 1.
+    pub fn direction(&self) -> Vec3 {
+        let axis = |plus: bool, minus: bool| plus as i32 as f32 - minus as i32 as f32;
+        Vec3::new(
+            axis(self.right, self.left),
+            axis(self.up, self.down),
+            axis(self.forward, self.back),
+        )
+    }
+}
+
+/// Which handles the gizmo shows (W, E, R).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Tool {
+    Move,
+    Rotate,
+    Scale,
+}
+
+/// Pixels within which a click takes a marker or a waypoint.
+const HANDLE_RADIUS: f32 = 9.0;
+
+pub struct Panels {
+    /// The right button went down in the view and is still held: the camera flies.
+    pub flying: bool,
+    pub fly_keys: FlyKeys,
+    /// The primary button is held (a drag in progress continues).
+    pub primary_down: bool,
+    /// Closing with unsaved edits: ask first.
+    pub quit_prompt: bool,
+    /// The last thing the editor did or failed to do.
+    pub notice: Option<(Instant, String)>,
+    tool: Tool,
+    snapping: bool,
+    /// Grid step for moving, metres.
+    grid: f32,
+    /// Angle step for rotating, degrees.
+    angle: f32,
+    armed: Option<PaletteItem>,
+    assets_folder: PathBuf,
+    assets: Vec<PathBuf>,
+    /// The path field for Save as (always there, with or without a desktop file dialog).
+    path_field: String,
+    gizmo: Gizmo,
+    /// The waypoint being dragged: (warden's name, index in its route).
+    waypoint: Option<(String, usize)>,
+    names: HashMap<LevelEntity, String>,
+}
+
+impl Panels {
+    pub fn new(level: &Path) -> Panels {
+        let folder = assets_folder(level);
+        Panels {
+            flying: false,
+            fly_keys: FlyKeys::default(),
+            primary_down: false,
+            quit_prompt: false,
+            notice: None,
+            tool: Tool::Move,
+            snapping: true,
+            grid: 0.25,
+            angle: 15.0,
+            armed: None,
+            assets: asset_files(&folder),
+            assets_folder: folder,
+            path_field: level.display().to_string(),
+            gizmo: Gizmo::default(),
+            waypoint: None,
+            names: HashMap::new(),
+        }
+    }
+
+    pub fn name_of(&self, place: LevelEntity) -> String {
+        self.names
+            .get(&place)
+            .cloned()
+            .unwrap_or_else(|| format!("entity {}", place.0))
+    }
+
+    pub fn ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: &FrameInput,
+        view: &ViewState,
+        camera: &FlyCamera,
+        out: &mut Vec<Command>,
+    ) {
+        let ctx = ui.ctx().clone();
+        self.primary_down = ctx.input(|i| i.pointer.primary_down());
+        self.names = frame
+            .defs
+            .iter()
+            .map(|(place, def)| (*place, def.name.clone()))
+            .collect();
+        self.shortcuts(&ctx, out);
+        egui::Panel::top("menu").show_inside(ui, |ui| self.menu_bar(ui, frame, view, out));
+        egui::Panel::bottom("status").show_inside(ui, |ui| self.status(ui, frame, view));
+        egui::Panel::left("outline")
+            .resizable(true)
+            .default_size(220.0)
+            .show_inside(ui, |ui| self.outline_and_palette(ui, frame, out));
+        egui::Panel::right("inspector")
+            .resizable(true)
+            .default_size(280.0)
+            .show_inside(ui, |ui| self.inspector(ui, frame, out));
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE.fill(Color32::from_gray(12)))
+            .show_inside(ui, |ui| self.view(ui, frame, view, camera, out));
+        if self.quit_prompt {
+            self.quit_prompt(&ctx, out);
+        }
+    }
+
+    /// The keys. None fires while a text field has the keyboard.
+    fn shortcuts(&mut self, ctx: &egui::Context, out: &mut Vec<Command>) {
+        self.fly_keys = FlyKeys::default();
+        if ctx.egui_wants_keyboard_input() {
+            return;
+        }
+        let command = |key| KeyboardShortcut::new(Modifiers::COMMAND, key);
+        let command_shift = |key| KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, key);
+        ctx.input_mut(|input| {
+            // Ctrl+Shift+Z before Ctrl+Z, which would also match it.
+            if input.consume_shortcut(&command_shift(Key::Z))
+                || input.consume_shortcut(&command(Key::Y))
+            {
+                out.push(Command::Redo);
+            }
+            if input.consume_shortcut(&command(Key::Z)) {
+                out.push(Command::Undo);
+            }
+            if input.consume_shortcut(&command(Key::S)) {
+                out.push(Command::Save);
+            }
+            if input.consume_shortcut(&command(Key::D)) {
+                out.push(Command::Duplicate);
+            }
+            if input.consume_key(Modifiers::NONE, Key::Delete) {
+                out.push(Command::Delete);
+            }
+            if input.consume_key(Modifiers::NONE, Key::F4) {
+                out.push(Command::ToggleView);
+            }
+            if input.consume_key(Modifiers::NONE, Key::Escape) && self.armed.take().is_none() {
+                out.push(Command::ClearSelection);
+            }
+            if self.flying {
+                self.fly_keys = FlyKeys {
+                    forward: input.key_down(Key::W),
+                    back: input.key_down(Key::S),
+                    left: input.key_down(Key::A),
+                    right: input.key_down(Key::D),
+                    up: input.key_down(Key::E),
+                    down: input.key_down(Key::Q),
+                    fast: input.modifiers.shift,
+                };
+            } else {
+                for (key, tool) in [
+                    (Key::W, Tool::Move),
+                    (Key::E, Tool::Rotate),
+                    (Key::R, Tool::Scale),
+                ] {
+                    if input.consume_key(Modifiers::NONE, key) {
+                        self.tool = tool;
+                    }
+                }
+            }
+        });
+    }
+
+    fn menu_bar(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: &FrameInput,
+        view: &ViewState,
+        out: &mut Vec<Command>,
+    ) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui.button("Save  (Ctrl+S)").clicked() {
+                    out.push(Command::Save);
+                    ui.close();
+                }
+                ui.separator();
+                ui.label("Save as:");
+                ui.text_edit_singleline(&mut self.path_field);
+                if ui.button("Save as this file").clicked() {
+                    out.push(Command::SaveAs(PathBuf::from(self.path_field.trim())));
+                    ui.close();
+                }
+                ui.separator();
+                if ui
+                    .add_enabled(frame.dirty, egui::Button::new("Revert to the file"))
+                    .clicked()
+                {
+                    out.push(Command::Revert);
+                    ui.close();
+                }
+                if ui.button("Quit").clicked() {
+                    if frame.dirty {
+                        self.quit_prompt = true;
+                    } else {
+                        out.push(Command::Quit);
+                    }
+                    ui.close();
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                let items = [
+                    ("Undo  (Ctrl+Z)", frame.can_undo, Command::Undo),
+                    (
+                        "Redo  (Ctrl+Shift+Z, Ctrl+Y)",
+                        frame.can_redo,
+                        Command::Redo,
+                    ),
+                    (
+                        "Duplicate  (Ctrl+D)",
+                        !frame.selection.is_empty(),
+                        Command::Duplicate,
+                    ),
+                    (
+                        "Delete  (Del)",
+                        !frame.selection.is_empty(),
+                        Command::Delete,
+                    ),
+                ];
+                for (label, enabled, command) in items {
+                    if ui.add_enabled(enabled, egui::Button::new(label)).clicked() {
+                        out.push(command);
+                        ui.close();
+                    }
+                }
+            });
+            ui.separator();
+            for (tool, label) in [
+                (Tool::Move, "Move (W)"),
+                (Tool::Rotate, "Rotate (E)"),
+                (Tool::Scale, "Scale (R)"),
+            ] {
+                if ui.selectable_label(self.tool == tool, label).clicked() {
+                    self.tool = tool;
+                }
+            }
+            ui.separator();
+            ui.checkbox(&mut self.snapping, "Snap");
+            ui.add(
+                egui::DragValue::new(&mut self.grid)
+                    .range(0.01..=10.0)
+                    .speed(0.01)
+                    .suffix(" m"),
+            );
+            ui.add(
+                egui::DragValue::new(&mut self.angle)
+                    .range(1.0..=90.0)
+                    .speed(0.5)
+                    .suffix("°"),
+            );
+            ui.separator();
+            let label = match view.mode {
+                FilterMode::Off => "View: converging (F4)",
+                _ => "View: game (F4)",
+            };
+            if ui.button(label).clicked() {
+                out.push(Command::ToggleView);
+            }
+        });
+    }
+
+    fn status(&mut self, ui: &mut egui::Ui, frame: &FrameInput, view: &ViewState) {
+        ui.horizontal(|ui| {
+            let film = match view.mode {
+                FilterMode::Off => format!("{} spp", view.spp),
+                _ => "game view".to_owned(),
+            };
+            ui.label(format!(
+                "{}x{} {film}{}",
+                view.width,
+                view.height,
+                if frame.dirty { "  | unsaved" } else { "" }
+            ));
+            ui.separator();
+            if let Some(item) = &self.armed {
+                let name = match item {
+                    PaletteItem::Prefab(prefab) => prefab.name().to_owned(),
+                    PaletteItem::Asset(path) => path.display().to_string(),
+                };
+                ui.colored_label(
+                    Color32::LIGHT_YELLOW,
+                    format!("click in the view to place {name}; Esc puts it back"),
+                );
+            } else if let Some((at, line)) = &self.notice
+                && at.elapsed().as_secs_f32() < super::NOTICE_SECONDS
+            {
+                ui.label(line);
+            } else {
+                ui.weak("right mouse + W A S D Q E: fly   click: select   Shift+click: add");
+            }
+        });
+    }
+
+    fn outline_and_palette(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: &FrameInput,
+        out: &mut Vec<Command>,
+    ) {
+        let shift = ui.input(|i| i.modifiers.shift);
+        ui.heading("Level");
+        egui::ScrollArea::vertical()
+            .id_salt("outline")
+            .max_height(ui.available_height() * 0.55)
+            .show(ui, |ui| {
+                for (place, def) in &frame.defs {
+                    let selected = frame.selection.contains(place);
+                    if ui.selectable_label(selected, &def.name).clicked() {
+                        out.push(Command::Select {
+                            place: *place,
+                            add: shift,
+                        });
+                    }
+                }
+            });
+        ui.separator();
+        ui.heading("Palette");
+        egui::ScrollArea::vertical()
+            .id_salt("palette")
+            .show(ui, |ui| {
+                ui.label("Prefabs");
+                for prefab in Prefab::ALL {
+                    let item = PaletteItem::Prefab(prefab);
+                    let armed = self.armed.as_ref() == Some(&item);
+                    if ui.selectable_label(armed, prefab.name()).clicked() {
+                        self.armed = (!armed).then_some(item);
+                    }
+                }
+                ui.label("Assets");
+                for asset in &self.assets {
+                    let label = asset
+                        .strip_prefix(&self.assets_folder)
+                        .unwrap_or(asset)
+                        .display()
+                        .to_string();
+                    let item = PaletteItem::Asset(asset.clone());
+                    let armed = self.armed.as_ref() == Some(&item);
+                    if ui.selectable_label(armed, label).clicked() {
+                        self.armed = (!armed).then_some(item);
+                    }
+                }
+            });
+    }
+
+    fn inspector(&mut self, ui: &mut egui::Ui, frame: &FrameInput, out: &mut Vec<Command>) {
+        ui.heading("Inspector");
+        let selected: Vec<&EntityDef> = frame
+            .selection
+            .iter()
+            .filter_map(|&p| frame.def(p))
+            .collect();
+        match selected.as_slice() {
+            [] => {
+                ui.weak("Nothing selected.");
+            }
+            [original] => {
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    let mut def = (*original).clone();
+                    inspect(ui, &mut def);
+                    let taken = def.name != original.name
+                        && frame.defs.iter().any(|(_, other)| other.name == def.name);
+                    if taken || def.name.trim().is_empty() {
+                        ui.colored_label(
+                            Color32::LIGHT_RED,
+                            "names must be unique and not empty: kept the old one",
+                        );
+                        def.name = original.name.clone();
+                    }
+                    if def != **original {
+                        out.push(Command::Edit {
+                            name: original.name.clone(),
+                            def: Box::new(def),
+                        });
+                    }
+                });
+            }
+            many => {
+                ui.label(format!("{} selected", many.len()));
+                for def in many {
+                    ui.label(&def.name);
+                }
+            }
+        }
+    }
+
+    fn quit_prompt(&mut self, ctx: &egui::Context, out: &mut Vec<Command>) {
+        egui::Modal::new(egui::Id::new("quit prompt")).show(ctx, |ui| {
+            ui.heading("Unsaved changes");
+            ui.label("The level has edits that are not saved.");
+            ui.horizontal(|ui| {
+                if ui.button("Save and quit").clicked() {
+                    out.push(Command::SaveAndQuit);
+                    self.quit_prompt = false;
+                }
+                if ui.button("Quit without saving").clicked() {
+                    out.push(Command::Quit);
+                }
+                if ui.button("Cancel").clicked() {
+                    self.quit_prompt = false;
+                }
+            });
+        });
+    }
+
+    /// The path-traced view, its overlays, the gizmo, and what clicks in it do.
+    fn view(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: &FrameInput,
+        view: &ViewState,
+        camera: &FlyCamera,
+        out: &mut Vec<Command>,
+    ) {
+        let available = ui.available_rect_before_wrap();
+        let aspect = view.width as f32 / view.height as f32;
+        let mut size = available.size();
+        if size.x / size.y.max(1.0) > aspect {
+            size.x = size.y * aspect;
+        } else {
+            size.y = size.x / aspect;
+        }
+        let rect = Rect::from_center_size(available.center(), size);
+        let response = ui.allocate_rect(rect, Sense::click_and_drag());
+        let painter = ui.painter_at(rect);
+        painter.image(
+            view.texture,
+            rect,
+            Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+            Color32::WHITE,
+        );
+        let (pressed_secondary, secondary_down) = ui.input(|i| {
+            (
+                i.pointer.button_pressed(egui::PointerButton::Secondary),
+                i.pointer.secondary_down(),
+            )
+        });
+        if response.hovered() && pressed_secondary {
+            self.flying = true;
+        }
+        if !secondary_down {
+            self.flying = false;
+        }
+
+        let projection = ViewProjection::new(camera, view, rect);
+        self.overlays(&painter, frame, &projection);
+        let gizmo_busy = self.gizmo(ui, frame, camera, rect, out);
+        let waypoint_busy = self.waypoints(ui, &response, frame, &projection, camera, view, out);
+        if response.clicked()
+            && !gizmo_busy
+            && !waypoint_busy
+            && let Some(at) = response.interact_pointer_pos()
+        {
+            let add = ui.input(|i| i.modifiers.shift);
+            let fraction = Vec2::new(
+                (at.x - rect.min.x) / rect.width(),
+                (at.y - rect.min.y) / rect.height(),
+            );
+            let ray = view_ray(camera, view.width, view.height, fraction);
+            if let Some(item) = self.armed.clone() {
+                out.push(Command::Place { ray, item });
+                if !add {
+                    self.armed = None;
+                }
+            } else if let Some(place) = marker_at(frame, &projection, at) {
+                out.push(Command::Select { place, add });
+            } else {
+                out.push(Command::Pick { ray, add });
+            }
+        }
+    }
+
+    /// The selection's boxes, a marker for each entity that draws nothing, and each
+    /// warden's beat.
+    fn overlays(&self, painter: &egui::Painter, frame: &FrameInput, projection: &ViewProjection) {
+        let highlight = Color32::from_rgb(255, 170, 40);
+        for (min, max) in &frame.bounds {
+            draw_box(painter, projection, *min, *max, Stroke::new(1.5, highlight));
+        }
+        for (place, def) in &frame.defs {
+            let selected = frame.selection.contains(place);
+            if let Some(warden) = &def.warden {
+                let colour = if selected {
+                    highlight
+                } else {
+                    Color32::from_rgba_unmultiplied(200, 60, 60, 160)
+                };
+                let beat = beat_points(def, warden);
+                for pair in beat.windows(2) {
+                    if let (Some(a), Some(b)) =
+                        (projection.point(pair[0]), projection.point(pair[1]))
+                    {
+                        painter.line_segment([a, b], Stroke::new(1.5, colour));
+                    }
+                }
+                for point in &warden.route {
+                    if let Some(at) = projection.point(*point) {
+                        painter.rect_filled(
+                            Rect::from_center_size(at, egui::vec2(7.0, 7.0)),
+                            1.0,
+                            colour,
+                        );
+                    }
+                }
+            }
+            if def.instance.is_some() {
+                continue;
+            }
+            let Some(at) = projection.point(def.transform.translation) else {
+                continue;
+            };
+            let (colour, label) = marker_style(def);
+            painter.circle_filled(at, 5.0, colour);
+            if selected {
+                painter.circle_stroke(at, 8.0, Stroke::new(2.0, highlight));
+            }
+            if selected || projection.rect.contains(at) && label != "light" {
+                painter.text(
+                    at + egui::vec2(8.0, -8.0),
+                    egui::Align2::LEFT_BOTTOM,
+                    &def.name,
+                    egui::FontId::proportional(12.0),
+                    Color32::from_gray(220),
+                );
+            }
+        }
+    }
+
+    /// The gizmo on the selection; true while it has the pointer (hovered or dragged).
+    fn gizmo(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: &FrameInput,
+        camera: &FlyCamera,
+        rect: Rect,
+        out: &mut Vec<Command>,
+    ) -> bool {
+        let selected: Vec<&EntityDef> = frame
+            .selection
+            .iter()
+            .filter_map(|&p| frame.def(p))
+            .collect();
+        if selected.is_empty() || self.flying {
+            return false;
+        }
+        let view = camera.world_from_camera().inverse().as_dmat4();
+        let projection = perspective(
+            camera.yfov as f64,
+            (rect.width() / rect.height()) as f64,
+            camera.znear as f64,
+        );
+        let kind = match self.tool {
+            Tool::Move => GizmoModeKind::Translate,
+            Tool::Rotate => GizmoModeKind::Rotate,
+            Tool::Scale => GizmoModeKind::Scale,
+        };
+        self.gizmo.update_config(GizmoConfig {
+            view_matrix: row_matrix(view),
+            projection_matrix: row_matrix(projection),
+            viewport: rect,
+            modes: GizmoMode::all_from_kind(kind),
+            orientation: GizmoOrientation::Global,
+            snapping: self.snapping,
+            snap_angle: self.angle.to_radians(),
+            snap_distance: self.grid,
+            snap_scale: 0.1,
+            ..GizmoConfig::default()
+        });
+        let targets: Vec<GizmoTransform> = selected
+            .iter()
+            .map(|def| {
+                let t = &def.transform;
+                let q = t.rotation_quat();
+                GizmoTransform::from_scale_rotation_translation(
+                    mint::Vector3::from(t.scale.as_dvec3().to_array()),
+                    mint::Quaternion::from([q.x as f64, q.y as f64, q.z as f64, q.w as f64]),
+                    mint::Vector3::from(t.translation.as_dvec3().to_array()),
+                )
+            })
+            .collect();
+        if let Some((_, moved)) = self.gizmo.interact(ui, &targets) {
+            for (def, transform) in selected.iter().zip(moved) {
+                let mut changed = (*def).clone();
+                let v = |m: mint::Vector3<f64>| Vec3::new(m.x as f32, m.y as f32, m.z as f32);
+                changed.transform.translation = v(transform.translation);
+                changed.transform.scale = v(transform.scale);
+                let r = transform.rotation;
+                let rotation =
+                    Quat::from_xyzw(r.v.x as f32, r.v.y as f32, r.v.z as f32, r.s as f32);
+                changed.transform.rotation = euler_degrees(rotation);
+                if changed != **def {
+                    out.push(Command::Edit {
+                        name: def.name.clone(),
+                        def: Box::new(changed),
+                    });
+                }
+            }
+        }
+        self.gizmo.is_focused()
+    }
+
+    /// A selected warden's waypoints, dragged over the horizontal plane they stand on;
+    /// true while one is held or under the pointer.
+    #[allow(clippy::too_many_arguments)]
+    fn waypoints(
+        &mut self,
+        ui: &egui::Ui,
+        response: &egui::Response,
+        frame: &FrameInput,
+        projection: &ViewProjection,
+        camera: &FlyCamera,
+        view: &ViewState,
+        out: &mut Vec<Command>,
+    ) -> bool {
+        let pointer = ui.input(|i| i.pointer.hover_pos());
+        let wardens = frame
+            .selection
+            .iter()
+            .filter_map(|&p| frame.def(p))
+            .filter(|d| d.warden.is_some());
+        let mut under = None;
+        for def in wardens {
+            let Some(warden) = &def.warden else { continue };
+            for (index, point) in warden.route.iter().enumerate() {
+                if let (Some(at), Some(pointer)) = (projection.point(*point), pointer)
+                    && at.distance(pointer) < HANDLE_RADIUS
+                {
+                    under = Some((def.name.clone(), index));
+                }
+            }
+        }
+        if response.drag_started() && self.waypoint.is_none() {
+            self.waypoint = under.clone();
+        }
+        if let Some((name, index)) = self.waypoint.clone() {
+            if !self.primary_down {
+                self.waypoint = None;
+            } else if let (Some(pointer), Some(def)) = (
+                pointer,
+                frame.defs.iter().map(|(_, d)| d).find(|d| d.name == name),
+            ) && let Some(warden) = &def.warden
+                && let Some(old) = warden.route.get(index)
+            {
+                let fraction = Vec2::new(
+                    (pointer.x - projection.rect.min.x) / projection.rect.width(),
+                    (pointer.y - projection.rect.min.y) / projection.rect.height(),
+                );
+                let ray = view_ray(camera, view.width, view.height, fraction);
+                let origin = Vec3::from(ray.origin);
+                let direction = Vec3::from(ray.direction);
+                if direction.y.abs() > 1e-5 {
+                    let t = (old.y - origin.y) / direction.y;
+                    if t > 0.0 {
+                        let mut at = origin + direction * t;
+                        if self.snapping {
+                            at.x = (at.x / self.grid).round() * self.grid;
+                            at.z = (at.z / self.grid).round() * self.grid;
+                        }
+                        at.y = old.y;
+                        let mut changed = def.clone();
+                        if let Some(route) = changed.warden.as_mut().map(|w| &mut w.route) {
+                            route[index] = at;
+                        }
+                        if changed != *def {
+                            out.push(Command::Edit {
+                                name,
+                                def: Box::new(changed),
+                            });
+                        }
+                    }
+                }
+            }
+        }
+        self.waypoint.is_some() || under.is_some()
+    }
+}
+
+/// Projects world points onto the view's rectangle on screen.
+struct ViewProjection {
+    projection: crate::render::camera::Projection,
+    film: Vec2,
+    rect: Rect,
+}
+
+impl ViewProjection {
+    fn new(camera: &FlyCamera, view: &ViewState, rect: Rect) -> ViewProjection {
+        let placement = crate::scene::world::CameraPlacement {
+            name: String::new(),
+            yfov: camera.yfov,
+            znear: camera.znear,
+            world_from_camera: camera.world_from_camera(),
+        };
+        ViewProjection {
+            projection: crate::render::Camera::new(&placement, view.width, view.height)
+                .projection(),
+            film: Vec2::new(view.width as f32, view.height as f32),
+            rect,
+        }
+    }
+
+    fn point(&self, world: Vec3) -> Option<Pos2> {
+        let film = self.projection.project(world.into())?;
+        let fraction = film / self.film;
+        Some(Pos2::new(
+            self.rect.min.x + fraction.x * self.rect.width(),
+            self.rect.min.y + fraction.y * self.rect.height(),
+        ))
+    }
+}
+
+/// The twelve edges of the box [min, max], as far as they are in front of the camera.
+fn draw_box(
+    painter: &egui::Painter,
+    projection: &ViewProjection,
+    min: Vec3,
+    max: Vec3,
+    stroke: Stroke,
+) {
+    let corner = |i: usize| {
+        Vec3::new(
+            if i & 1 == 0 { min.x } else { max.x },
+            if i & 2 == 0 { min.y } else { max.y },
+            if i & 4 == 0 { min.z } else { max.z },
+        )
+    };
+    for a in 0..8usize {
+        for bit in [1, 2, 4] {
+            if a & bit == 0
+                && let (Some(p), Some(q)) = (
+                    projection.point(corner(a)),
+                    projection.point(corner(a | bit)),
+                )
+            {
+                painter.line_segment([p, q], stroke);
+            }
+        }
+    }
+}
+
+/// A warden's beat as it walks it: from where it stands through its route, and round.
+fn beat_points(def: &EntityDef, warden: &WardenDef) -> Vec<Vec3> {
+    let mut points = vec![def.transform.translation];
+    points.extend(&warden.route);
+    if let Some(first) = warden.route.first() {
+        points.push(*first);
+    }
+    points
+}
+
+/// The colour and kind of the marker drawn for an entity that draws nothing.
+fn marker_style(def: &EntityDef) -> (Color32, &'static str) {
+    if let Some(light) = &def.light {
+        let colour = match light {
+            LightDef::Point { color, .. }
+            | LightDef::Spot { color, .. }
+            | LightDef::Directional { color, .. } => *color,
+        };
+        let c = (colour / colour.max_element().max(1e-6) * 255.0).to_array();
+        return (
+            Color32::from_rgb(c[0] as u8, c[1] as u8, c[2] as u8),
+            "light",
+        );
+    }
+    if def.player_spawn.is_some() {
+        return (Color32::from_rgb(60, 220, 90), "player start");
+    }
+    if def.exit.is_some() {
+        return (Color32::from_rgb(80, 160, 255), "exit");
+    }
+    if def.camera.is_some() {
+        return (Color32::from_gray(170), "camera");
+    }
+    (Color32::from_gray(120), "entity")
+}
+
+/// The marker entity (one that draws nothing) under the screen point `at`.
+fn marker_at(frame: &FrameInput, projection: &ViewProjection, at: Pos2) -> Option<LevelEntity> {
+    frame
+        .defs
+        .iter()
+        .filter(|(_, def)| def.instance.is_none())
+        .filter_map(|(place, def)| {
+            let seen = projection.point(def.transform.translation)?;
+            let distance = seen.distance(at);
+            (distance < HANDLE_RADIUS).then_some((distance, *place))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, place)| place)
+}
+
+/// A right-handed perspective projection onto depth 0..1 (wgpu's), looking down -Z: what
+/// the gizmo projects its handles with, matching the renderer's pinhole camera.
+fn perspective(yfov: f64, aspect: f64, near: f64) -> DMat4 {
+    const FAR: f64 = 1000.0;
+    let f = 1.0 / (0.5 * yfov).tan();
+    let depth = FAR / (near - FAR);
+    DMat4::from_cols_array(&[
+        f / aspect,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        f,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        depth,
+        -1.0,
+        0.0,
+        0.0,
+        near * depth,
+        0.0,
+    ])
+}
+
+fn row_matrix(m: DMat4) -> mint::RowMatrix4<f64> {
+    mint::RowMatrix4::from([
+        m.row(0).to_array(),
+        m.row(1).to_array(),
+        m.row(2).to_array(),
+        m.row(3).to_array(),
+    ])
+}
+
+/// A rotation as the level writes it: degrees about X, Y and Z, applied Y, X, Z
+/// (`TransformDef::rotation_quat`'s inverse), rounded to a thousandth of a degree so a
+/// round trip through the quaternion does not leave 89.99999 in the file.
+pub fn euler_degrees(rotation: Quat) -> Vec3 {
+    let (y, x, z) = rotation.to_euler(EulerRot::YXZ);
+    let round = |radians: f32| {
+        let degrees = (radians.to_degrees() * 1000.0).round() / 1000.0;
+        if degrees == 0.0 { 0.0 } else { degrees }
+    };
+    Vec3::new(round(x), round(y), round(z))
+}
+
+/// The inspector's fields for one entity: every component it has, and a box to add each
+/// one it has not.
+fn inspect(ui: &mut egui::Ui, def: &mut EntityDef) {
+    ui.horizontal(|ui| {
+        ui.label("Name");
+        ui.text_edit_singleline(&mut def.name);
+    });
+    egui::CollapsingHeader::new("Transform")
+        .default_open(true)
+        .show(ui, |ui| {
+            vec3_row(ui, "Position", &mut def.transform.translation, 0.01, " m");
+            vec3_row(ui, "Rotation", &mut def.transform.rotation, 0.5, "°");
+            vec3_row(ui, "Scale", &mut def.transform.scale, 0.01, "");
+            let scale = &mut def.transform.scale;
+            *scale = scale.max(Vec3::splat(0.001));
+        });
+    if let Some(instance) = &mut def.instance {
+        egui::CollapsingHeader::new("Asset")
+            .default_open(true)
+            .show(ui, |ui| {
+                ui.label(&instance.asset);
+                for (material, change) in instance.material_overrides.iter_mut() {
+                    ui.label(format!("material '{material}'"));
+                    if let Some(colour) = &mut change.base_color {
+                        let mut rgb = colour.truncate().to_array();
+                        ui.horizontal(|ui| {
+                            ui.label("base colour");
+                            ui.color_edit_button_rgb(&mut rgb);
+                        });
+                        *colour = Vec3::from_array(rgb).extend(colour.w);
+                    }
+                    if let Some(value) = &mut change.metallic {
+                        slider(ui, "metallic", value, 0.0..=1.0);
+                    }
+                    if let Some(value) = &mut change.roughness {
+                        slider(ui, "roughness", value, 0.0..=1.0);
+                    }
+                }
+            });
+    }
+    component(
+        ui,
+        "Light",
+        &mut def.light,
+        || LightDef::Point {
+            color: Vec3::ONE,
+            intensity: 10.0,
+        },
+        |ui, light| {
+            let (color, intensity) = match light {
+                LightDef::Point { color, intensity }
+                | LightDef::Directional { color, intensity }
+                | LightDef::Spot {
+                    color, intensity, ..
+                } => (color, intensity),
+            };
+            let mut rgb = color.to_array();
+            ui.horizontal(|ui| {
+                ui.label("colour");
+                ui.color_edit_button_rgb(&mut rgb);
+            });
+            *color = Vec3::from_array(rgb);
+            number(ui, "intensity", intensity, 0.1, 0.0..=10_000.0, "");
+            if let LightDef::Spot {
+                inner_cone_degrees,
+                outer_cone_degrees,
+                ..
+            } = light
+            {
+                number(ui, "inner cone", inner_cone_degrees, 0.5, 0.0..=90.0, "°");
+                number(ui, "outer cone", outer_cone_degrees, 0.5, 0.0..=90.0, "°");
+                *inner_cone_degrees = inner_cone_degrees.min(*outer_cone_degrees);
+            }
+            let kind = match light {
+                LightDef::Point { .. } => 0,
+                LightDef::Spot { .. } => 1,
+                LightDef::Directional { .. } => 2,
+            };
+            let mut chosen = kind;
+            ui.horizontal(|ui| {
+                ui.radio_value(&mut chosen, 0, "point");
+                ui.radio_value(&mut chosen, 1, "spot");
+                ui.radio_value(&mut chosen, 2, "directional");
+            });
+            if chosen != kind {
+                let (color, intensity) = match *light {
+                    LightDef::Point { color, intensity }
+                    | LightDef::Directional { color, intensity }
+                    | LightDef::Spot {
+                        color, intensity, ..
+                    } => (color, intensity),
+                };
+                *light = match chosen {
+                    0 => LightDef::Point { color, intensity },
+                    1 => LightDef::Spot {
+                        color,
+                        intensity,
+                        inner_cone_degrees: 25.0,
+                        outer_cone_degrees: 38.0,
+                    },
+                    _ => LightDef::Directional { color, intensity },
+                };
+            }
+        },
+    );
+    component(
+        ui,
+        "Warden",
+        &mut def.warden,
+        || WardenDef::walking(Vec::new()),
+        |ui, warden| {
+            number(ui, "speed", &mut warden.speed, 0.05, 0.1..=10.0, " m/s");
+            ui.label("route (drag the squares in the view)");
+            let mut remove = None;
+            for (index, point) in warden.route.iter_mut().enumerate() {
+                ui.horizontal(|ui| {
+                    ui.label(format!("{}", index + 1));
+                    for value in [&mut point.x, &mut point.y, &mut point.z] {
+                        ui.add(egui::DragValue::new(value).speed(0.05));
+                    }
+                    if ui.small_button("x").clicked() {
+                        remove = Some(index);
+                    }
+                });
+            }
+            if let Some(index) = remove {
+                warden.route.remove(index);
+            }
+            if ui.button("add a waypoint").clicked() {
+                let last = warden.route.last().copied().unwrap_or_default();
+                warden.route.push(last + Vec3::new(1.0, 0.0, 0.0));
+            }
+            ui.label("lamp");
+            let lamp = &mut warden.lamp;
+            let mut rgb = lamp.color.to_array();
+            ui.horizontal(|ui| {
+                ui.label("colour");
+                ui.color_edit_button_rgb(&mut rgb);
+            });
+            lamp.color = Vec3::from_array(rgb);
+            number(
+                ui,
+                "intensity",
+                &mut lamp.intensity,
+                0.1,
+                0.0..=10_000.0,
+                "",
+            );
+            number(
+                ui,
+                "inner cone",
+                &mut lamp.inner_cone_degrees,
+                0.5,
+                0.0..=90.0,
+                "°",
+            );
+            number(
+                ui,
+                "outer cone",
+                &mut lamp.outer_cone_degrees,
+                0.5,
+                0.0..=90.0,
+                "°",
+            );
+            number(ui, "tilt", &mut lamp.tilt_degrees, 0.5, -90.0..=90.0, "°");
+            number(ui, "height", &mut lamp.height, 0.01, 0.0..=5.0, " m");
+        },
+    );
+    component(
+        ui,
+        "Shard",
+        &mut def.shard,
+        ShardDef::default,
+        |ui, shard| {
+            number(
+                ui,
+                "pickup radius",
+                &mut shard.radius,
+                0.01,
+                0.05..=5.0,
+                " m",
+            );
+        },
+    );
+    component(ui, "Exit", &mut def.exit, ExitDef::default, |ui, exit| {
+        number(ui, "radius", &mut exit.radius, 0.01, 0.1..=10.0, " m");
+    });
+    component(
+        ui,
+        "Player start",
+        &mut def.player_spawn,
+        PlayerSpawn::default,
+        |ui, spawn| {
+            number(
+                ui,
+                "eye height",
+                &mut spawn.eye_height,
+                0.01,
+                0.5..=2.5,
+                " m",
+            );
+        },
+    );
+    component(
+        ui,
+        "Camera",
+        &mut def.camera,
+        || CameraDef {
+            yfov_degrees: 60.0,
+            znear: 0.05,
+        },
+        |ui, camera| {
+            number(
+                ui,
+                "field of view",
+                &mut camera.yfov_degrees,
+                0.5,
+                10.0..=150.0,
+                "°",
+            );
+        },
+    );
+    component(
+        ui,
+        "Knocks over",
+        &mut def.knock,
+        KnockDef::default,
+        |ui, knock| {
+            number(ui, "radius", &mut knock.radius, 0.01, 0.05..=3.0, " m");
+            number(ui, "noise reach", &mut knock.noise, 0.1, 0.0..=50.0, " m");
+        },
+    );
+    component(
+        ui,
+        "Mover",
+        &mut def.mover,
+        || MoverDef {
+            offset: Vec3::new(1.0, 0.0, 0.0),
+            period: 4.0,
+        },
+        |ui, mover| {
+            vec3_row(ui, "offset", &mut mover.offset, 0.01, " m");
+            number(ui, "period", &mut mover.period, 0.05, 0.1..=120.0, " s");
+        },
+    );
+}
+
+/// A component's section: a box that adds or removes it, and its fields while present.
+fn component<T>(
+    ui: &mut egui::Ui,
+    label: &str,
+    value: &mut Option<T>,
+    make: impl FnOnce() -> T,
+    fields: impl FnOnce(&mut egui::Ui, &mut T),
+) {
+    let mut present = value.is_some();
+    ui.separator();
+    ui.checkbox(&mut present, label);
+    match (present, value.is_some()) {
+        (true, false) => *value = Some(make()),
+        (false, true) => *value = None,
+        _ => {}
+    }
+    if let Some(inner) = value {
+        ui.indent(label, |ui| fields(ui, inner));
+    }
+}
+
+fn vec3_row(ui: &mut egui::Ui, label: &str, value: &mut Vec3, speed: f64, suffix: &str) {
+    ui.horizontal(|ui| {
+        ui.label(label);
+        for axis in [&mut value.x, &mut value.y, &mut value.z] {
+            ui.add(egui::DragValue::new(axis).speed(speed).suffix(suffix));
+        }
+    });
+}
+
+fn number(
+    ui: &mut egui::Ui,
+    label: &str,
+    value: &mut f32,
+    speed: f64,
+    range: std::ops::RangeInclusive<f32>,
+    suffix: &str,
+) {
+    ui.horizontal(|ui| {
+        ui.label(label);
+        ui.add(
+            egui::DragValue::new(value)
+                .speed(speed)
+                .range(range)
+                .suffix(suffix),
+        );
+    });
+}
+
+fn slider(ui: &mut egui::Ui, label: &str, value: &mut f32, range: std::ops::RangeInclusive<f32>) {
+    ui.horizontal(|ui| {
+        ui.label(label);
+        ui.add(egui::Slider::new(value, range));
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn euler_degrees_inverts_the_level_rotation() {
+        for rotation in [
+            Vec3::new(0.0, 90.0, 0.0),
+            Vec3::new(-90.0, 0.0, 0.0),
+            Vec3::new(10.0, -135.0, 30.0),
+        ] {
+            let def = crate::scene::level::TransformDef {
+                rotation,
+                ..Default::default()
+            };
+            let back = euler_degrees(def.rotation_quat());
+            assert!(
+                (back - rotation).abs().max_element() < 1e-2,
+                "{rotation} -> {back}"
+            );
+        }
+    }
+
+    #[test]
+    fn fly_keys_make_a_direction() {
+        let keys = FlyKeys {
+            forward: true,
+            left: true,
+            up: true,
+            ..FlyKeys::default()
+        };
+        assert_eq!(keys.direction(), Vec3::new(-1.0, 1.0, 1.0));
+    }
+}

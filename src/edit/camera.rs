@@ -1,0 +1,132 @@
+//! The editor's own view: a free-flying camera that is not part of the level (it is never
+//! saved), put into the world as the active `ViewCamera` so extract renders from it.
+//!
+//! Yaw turns about world +Y, pitch about the camera's own X; the camera looks down its
+//! local -Z, as every Gloam camera does. Flying moves in the view's frame: forward along
+//! the look direction, right along its X, up along world +Y.
+
+use bevy_ecs::prelude::{Component, Name, With, World};
+use glam::{EulerRot, Mat4, Quat, Vec2, Vec3};
+
+use crate::frame::Engine;
+use crate::game::{ActiveCamera, GlobalTransform, PreviousGlobalTransform, Transform, ViewCamera};
+
+/// Marks the editor's view entity (one per world).
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct EditorView;
+
+/// How far pitch may go from the horizon, short of straight up or down (where yaw is lost).
+const PITCH_LIMIT: f32 = 1.55;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FlyCamera {
+    pub position: Vec3,
+    /// Radians about +Y; 0 looks down -Z.
+    pub yaw: f32,
+    /// Radians above the horizon.
+    pub pitch: f32,
+    /// Vertical field of view in radians.
+    pub yfov: f32,
+    pub znear: f32,
+}
+
+impl FlyCamera {
+    /// Starts where the engine's view is now: the level's own camera, else the view that
+    /// frames it.
+    pub fn from_view(engine: &Engine) -> FlyCamera {
+        let placement = &engine.render_scene().camera;
+        let (_, rotation, position) = placement.world_from_camera.to_scale_rotation_translation();
+        let forward = rotation * Vec3::NEG_Z;
+        FlyCamera {
+            position,
+            yaw: (-forward.x).atan2(-forward.z),
+            pitch: forward
+                .y
+                .clamp(-1.0, 1.0)
+                .asin()
+                .clamp(-PITCH_LIMIT, PITCH_LIMIT),
+            yfov: placement.yfov,
+            znear: placement.znear.min(0.05),
+        }
+    }
+
+    pub fn rotation(&self) -> Quat {
+        Quat::from_euler(EulerRot::YXZ, self.yaw, self.pitch, 0.0)
+    }
+
+    pub fn world_from_camera(&self) -> Mat4 {
+        Mat4::from_rotation_translation(self.rotation(), self.position)
+    }
+
+    /// Turns the view by `radians` (x: right, y: up).
+    pub fn turn(&mut self, radians: Vec2) {
+        self.yaw -= radians.x;
+        self.pitch = (self.pitch + radians.y).clamp(-PITCH_LIMIT, PITCH_LIMIT);
+    }
+
+    /// Moves by `local` metres: x right, y world up, z forward along the look direction.
+    pub fn fly(&mut self, local: Vec3) {
+        let rotation = self.rotation();
+        self.position +=
+            rotation * Vec3::X * local.x + Vec3::Y * local.y + rotation * Vec3::NEG_Z * local.z;
+    }
+
+    /// Makes this the view the next frame renders from (spawning the editor's view entity
+    /// the first time). Only the view changes: the level is not touched.
+    pub fn install(&self, world: &mut World) {
+        let placed = Transform::from_matrix(self.world_from_camera());
+        let global = placed.affine();
+        let lens = ViewCamera {
+            yfov: self.yfov,
+            znear: self.znear,
+        };
+        let mut views = world.query_filtered::<(
+            &mut Transform,
+            &mut GlobalTransform,
+            &mut PreviousGlobalTransform,
+            &mut ViewCamera,
+        ), With<EditorView>>();
+        if let Some((mut transform, mut now, mut before, mut view)) = views.iter_mut(world).next() {
+            *transform = placed;
+            now.0 = global;
+            // No motion between frames to blur or reproject: the view jumps.
+            before.0 = global;
+            *view = lens;
+            return;
+        }
+        world.spawn((
+            Name::new("editor view"),
+            EditorView,
+            ActiveCamera,
+            lens,
+            placed,
+            GlobalTransform(global),
+            PreviousGlobalTransform(global),
+        ));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn yaw_and_pitch_give_the_look_direction_and_flying_follows_it() {
+        let mut camera = FlyCamera {
+            position: Vec3::ZERO,
+            yaw: 0.0,
+            pitch: 0.0,
+            yfov: 1.0,
+            znear: 0.05,
+        };
+        camera.fly(Vec3::new(0.0, 0.0, 2.0));
+        assert!((camera.position - Vec3::new(0.0, 0.0, -2.0)).length() < 1e-6);
+        // A quarter turn right looks down +X.
+        camera.turn(Vec2::new(std::f32::consts::FRAC_PI_2, 0.0));
+        camera.fly(Vec3::new(0.0, 1.0, 1.0));
+        assert!((camera.position - Vec3::new(1.0, 1.0, -2.0)).length() < 1e-5);
+        // Pitch stops short of the pole.
+        camera.turn(Vec2::new(0.0, 10.0));
+        assert_eq!(camera.pitch, PITCH_LIMIT);
+    }
+}
