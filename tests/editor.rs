@@ -333,3 +333,57 @@ fn a_drag_is_one_step_and_the_palette_places_where_the_click_meets_the_floor() {
     editor.undo(&mut engine).unwrap();
     assert_eq!(saved_text(&mut editor, &mut engine, &path), text);
 }
+
+#[test]
+fn a_changed_asset_is_imported_again_in_place_and_a_broken_one_changes_nothing() {
+    let (path, _, mut engine) = open_first_light("editor-assets");
+    // The level's crates come from a copy of the kit's crate beside the scratch level.
+    let scratch_crate = path.with_file_name("crate.glb");
+    let kit_crate = common::repo().join("assets/kit/crate.glb");
+    std::fs::copy(&kit_crate, &scratch_crate).unwrap();
+    let mut editor = Editor::new();
+    editor.select_by_ray(&mut engine, &down_onto(-3.2, -3.2, 2.0), false);
+    editor
+        .modify(&mut engine, |def| {
+            def.instance.as_mut().unwrap().asset = "crate.glb".to_owned();
+        })
+        .unwrap();
+    let steps_before = editor.can_undo();
+    let crate_top = |engine: &Engine| {
+        gloam::edit::surface_point(engine, &down_onto(-3.2, -3.2, 5.0))
+            .unwrap()
+            .y
+    };
+    let before = crate_top(&engine);
+
+    // The file changes on disk into a taller asset (the kit's bookcase): the entity is
+    // respawned from it where it stands, and the history is untouched.
+    std::fs::copy(
+        common::repo().join("assets/kit/bookcase.glb"),
+        &scratch_crate,
+    )
+    .unwrap();
+    let respawned = editor
+        .reload_assets(&mut engine, std::slice::from_ref(&scratch_crate))
+        .unwrap();
+    assert_eq!(respawned, 1);
+    let after = crate_top(&engine);
+    assert!(after > before + 0.5, "{before} -> {after}");
+    assert_eq!(editor.can_undo(), steps_before);
+    assert_eq!(
+        named(&mut engine, "crate hall 1")
+            .unwrap()
+            .instance
+            .unwrap()
+            .asset,
+        "crate.glb"
+    );
+
+    // A broken file: an error naming it, and the world as it was.
+    std::fs::write(&scratch_crate, b"glTF not really").unwrap();
+    let error = editor
+        .reload_assets(&mut engine, std::slice::from_ref(&scratch_crate))
+        .unwrap_err();
+    assert!(format!("{error:#}").contains("crate.glb"), "{error:#}");
+    assert_eq!(crate_top(&engine), after);
+}

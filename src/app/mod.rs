@@ -13,7 +13,10 @@
 //!    the window;
 //! 4. when a warden has caught the player, the level starts again at once from the loaded
 //!    `Scene`; when the player gets out, the best time is kept and the end page opens (a
-//!    watched recording stays on its last frame instead).
+//!    watched recording stays on its last frame instead);
+//! 5. hot reload: when the level file or one of its assets changes on disk
+//!    (`scene::watch`), the level starts again from the files; one that does not load
+//!    leaves the level playing with its `file:line:column: message` on screen until fixed.
 //!
 //! With no level named, the window opens on the main menu over the first level seen from
 //! its own camera, its wardens walking their beats. Keys in play (the defaults; the keys
@@ -56,6 +59,7 @@ use crate::profile::{Profile, overlay};
 use crate::render::RenderSettings;
 use crate::render::film::tone_map;
 use crate::scene::files::default_level;
+use crate::scene::watch::FileWatch;
 use crate::scene::world::Scene;
 use menu::{Finish, Menu, MenuCommand, MenuContext, MenuInput, Page};
 use resolution::ResolutionController;
@@ -231,6 +235,8 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         },
         config,
         notice: notices.last().map(|line| (Instant::now(), line.clone())),
+        watch: None,
+        file_error: None,
         pointer: None,
         caught: None,
         options,
@@ -406,6 +412,11 @@ struct App {
     /// A line shown at the top for a few seconds (a broken settings file, a level that
     /// would not load).
     notice: Option<(Instant, String)>,
+    /// The level being played and its assets, watched for changes on disk (hot reload).
+    watch: Option<FileWatch>,
+    /// The level or an asset changed on disk and no longer loads: its problems, shown
+    /// until a version that loads replaces it (the level plays on meanwhile).
+    file_error: Option<String>,
     /// The mouse pointer in frame pixels, while over the window.
     pointer: Option<(u32, u32)>,
     /// When the player was last caught, and by whom (shown over the new attempt).
@@ -448,6 +459,7 @@ impl App {
 
     /// Starts playing `scene` (loaded from `level`), menus closed.
     fn start(&mut self, scene: Scene, level: PathBuf) {
+        self.watch_level(&scene, &level);
         let mut engine = play_engine(&scene, &self.options);
         set_field_of_view(&mut engine, self.context.settings.field_of_view);
         if self.options.record.is_some() {
@@ -475,6 +487,53 @@ impl App {
         self.menu = None;
         self.caught = None;
         self.apply_target();
+    }
+
+    /// Watches `level` and the assets of its `scene` for changes on disk.
+    fn watch_level(&mut self, scene: &Scene, level: &Path) {
+        let files = std::iter::once(level.to_path_buf())
+            .chain(scene.assets.iter().map(|asset| asset.source.clone()));
+        let result = match &mut self.watch {
+            Some(watch) => watch.set_files(files),
+            None => FileWatch::new(files).map(|watch| self.watch = Some(watch)),
+        };
+        if let Err(error) = result {
+            self.notify(format!("{error:#} (changes on disk will not be noticed)"));
+        }
+    }
+
+    /// Hot reload: when the level being played or one of its assets changed on disk, the
+    /// level starts again from the files; one that does not load leaves the level playing
+    /// and its problems on screen until it is fixed.
+    fn reload_changed(&mut self) {
+        let Some(watch) = &mut self.watch else { return };
+        if watch.poll().is_empty() {
+            return;
+        }
+        let Some(game) = &self.game else { return };
+        let level = game.level.clone();
+        match Scene::load(&level) {
+            Ok(scene) => {
+                let internal = (
+                    game.engine.film.settings.width,
+                    game.engine.film.settings.height,
+                );
+                self.finish_recording(crate::game::replay::Ended::Quit);
+                let menu = self.menu.take();
+                self.start(scene, level.clone());
+                self.menu = menu;
+                if let Some(game) = &mut self.game {
+                    game.engine.film.set_resolution(internal.0, internal.1);
+                }
+                self.file_error = None;
+                self.notify(format!("{} changed on disk: reloaded", level.display()));
+            }
+            Err(error) => {
+                let text = format!("{error:#}");
+                eprintln!("gloam: {text}");
+                self.file_error = Some(text);
+            }
+        }
     }
 
     /// Loads and plays `level`; a level that does not load is named and the menu stays.
@@ -799,6 +858,7 @@ impl App {
     }
 
     fn redraw(&mut self, event_loop: &ActiveEventLoop) {
+        self.reload_changed();
         let now = Instant::now();
         let elapsed = now - self.last_frame;
         self.last_frame = now;
@@ -935,6 +995,27 @@ impl App {
         if let Some((at, line)) = &self.notice {
             if at.elapsed().as_secs_f32() < NOTICE_SECONDS {
                 hud::draw_text(pixels.frame_mut(), width, height, 2, 20, line);
+            }
+        }
+        if let Some(error) = &self.file_error {
+            // Wrapped to the frame: the HUD's glyphs are 8 pixels wide.
+            let columns = (width as usize / 8).saturating_sub(1).max(8);
+            let rows = error.lines().flat_map(|line| {
+                let chars: Vec<char> = line.chars().collect();
+                chars
+                    .chunks(columns)
+                    .map(|chunk| chunk.iter().collect::<String>())
+                    .collect::<Vec<_>>()
+            });
+            for (row, line) in rows.take(6).enumerate() {
+                hud::draw_text(
+                    pixels.frame_mut(),
+                    width,
+                    height,
+                    2,
+                    38 + 16 * row as u32,
+                    &line,
+                );
             }
         }
         if let Err(error) = pixels.render() {

@@ -36,7 +36,7 @@ use crate::game::level_io::entity_defs;
 use crate::game::spawn::{Assets, spawn_entity};
 use crate::game::{LevelEntity, Transform, level_from_world};
 use crate::scene::Scene;
-use crate::scene::files::write_atomically;
+use crate::scene::files::{absolute, write_atomically};
 use crate::scene::level::{EntityDef, level_to_string};
 
 /// One entity's definition before and after a step (`None`: it did not exist).
@@ -361,6 +361,56 @@ impl Editor {
         *self = Editor::new();
         self.time = time;
         Ok(Reloaded::Replaced)
+    }
+
+    /// Imports the asset `files` that changed on disk again and respawns, in place, every
+    /// level entity that instances one (not an undo step: the asset changed, not the
+    /// level). Every file is imported before anything changes, so one that no longer
+    /// imports changes nothing and the error gives its problems. Returns how many
+    /// entities were respawned.
+    pub fn reload_assets(
+        &mut self,
+        engine: &mut Engine,
+        files: &[PathBuf],
+    ) -> anyhow::Result<usize> {
+        self.end_drag();
+        let changed: Vec<PathBuf> = files.iter().map(|file| absolute(file)).collect();
+        let (cached, base) = {
+            let cache = &engine.world.get_resource_or_init::<Assets>().0;
+            let cached: Vec<PathBuf> = cache
+                .files()
+                .filter(|file| changed.contains(&absolute(file)))
+                .map(Path::to_path_buf)
+                .collect();
+            (cached, cache.base.clone())
+        };
+        let fresh = cached
+            .iter()
+            .map(|file| crate::scene::gltf_import::import_gltf(file))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|error| anyhow::anyhow!("{error}"))?;
+        {
+            let cache = &mut engine.world.resource_mut::<Assets>().0;
+            for asset in fresh {
+                cache.insert(std::sync::Arc::new(asset));
+            }
+        }
+        let respawned: Vec<Change> = entity_defs(&mut engine.world)
+            .into_iter()
+            .filter(|(_, def)| {
+                def.instance.as_ref().is_some_and(|instance| {
+                    changed.contains(&absolute(&base.join(&instance.asset)))
+                })
+            })
+            .map(|(place, def)| Change {
+                place,
+                // No `before`: the entity is spawned anew, not moved.
+                before: None,
+                after: Some(def),
+            })
+            .collect();
+        apply(engine, &respawned, self.time)?;
+        Ok(respawned.len())
     }
 
     /// Writes unsaved edits to `autosave_path(path)` (the window calls this every few

@@ -8,6 +8,8 @@ use std::path::{Component, Path, PathBuf};
 
 use glam::Vec3;
 
+use crate::scene::files::absolute;
+
 use crate::scene::level::{
     EntityDef, ExitDef, InstanceDef, LightDef, PlayerSpawn, ShardDef, WardenDef,
 };
@@ -142,11 +144,6 @@ pub fn asset_def(asset: &Path, at: Vec3, level: &Path) -> EntityDef {
 /// separators (`../assets/kit/crate.glb`), or absolute when no relative path exists (another
 /// drive).
 pub fn asset_reference(level: &Path, asset: &Path) -> String {
-    let absolute = |path: &Path| {
-        std::path::absolute(path)
-            .map(|p| normalise(&p))
-            .unwrap_or_else(|_| path.to_path_buf())
-    };
     let from = absolute(level.parent().unwrap_or(Path::new(".")));
     let to = absolute(asset);
     let from_parts: Vec<Component> = from.components().collect();
@@ -166,21 +163,6 @@ pub fn asset_reference(level: &Path, asset: &Path) -> String {
             .map(|part| part.as_os_str().to_string_lossy().into_owned()),
     );
     parts.join("/")
-}
-
-/// `path` with `.` and `..` worked out (without asking the file system).
-fn normalise(path: &Path) -> PathBuf {
-    let mut out = PathBuf::new();
-    for part in path.components() {
-        match part {
-            Component::CurDir => {}
-            Component::ParentDir => {
-                out.pop();
-            }
-            other => out.push(other),
-        }
-    }
-    out
 }
 
 #[cfg(test)]

@@ -51,6 +51,11 @@ impl AssetCache {
         Ok(asset)
     }
 
+    /// The files of the assets imported so far.
+    pub fn files(&self) -> impl Iterator<Item = &Path> {
+        self.by_path.keys().map(PathBuf::as_path)
+    }
+
     /// Assets imported so far.
     pub fn len(&self) -> usize {
         self.by_path.len()

@@ -55,3 +55,20 @@ pub fn default_level() -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join(relative)
     }
 }
+
+/// `path` made absolute (from the working folder) with `.` and `..` worked out, without
+/// asking the file system: the same file named two ways compares equal.
+pub fn absolute(path: &Path) -> PathBuf {
+    let whole = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut out = PathBuf::new();
+    for part in whole.components() {
+        match part {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    out
+}

@@ -18,6 +18,7 @@ pub mod kit;
 pub mod level;
 pub mod model;
 pub mod source_map;
+pub mod watch;
 pub mod world;
 
 pub use assets::{AssetCache, AssetKey};

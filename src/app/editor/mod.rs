@@ -16,7 +16,11 @@
 //!    draws as the view.
 //!
 //! Every few minutes unsaved edits go to the level's autosave file; closing with unsaved
-//! edits asks first.
+//! edits asks first. The level file and its assets are watched (`scene::watch`): a level
+//! changed on disk by someone else is loaded (or, with unsaved edits, the designer is asked
+//! which to keep), a changed asset is imported again in place, and a file that does not
+//! load leaves the level as it is and shows its `file:line:column: message` over the view
+//! until it is fixed. The editor's own saves are recognised by their bytes and ignored.
 
 mod gui;
 mod panels;
@@ -44,7 +48,9 @@ use crate::game::LevelEntity;
 use crate::render::RenderSettings;
 use crate::render::film::tone_map;
 use crate::scene::Scene;
+use crate::scene::files::absolute;
 use crate::scene::level::EntityDef;
+use crate::scene::watch::FileWatch;
 use panels::Panels;
 
 pub struct EditOptions {
@@ -112,6 +118,11 @@ pub enum Command {
     Quit,
     /// Save, then close.
     SaveAndQuit,
+    /// The file changed on disk while there were unsaved edits: keep the edits (a save
+    /// will replace the file, which `.bak` then keeps).
+    KeepEdits,
+    /// ... or load the file (the edits go to the autosave file first).
+    TakeFile,
 }
 
 /// What a frame did, for the frame-time report.
@@ -191,6 +202,7 @@ pub fn edit(options: EditOptions) -> anyhow::Result<()> {
         window: None,
         pixels: None,
         gui: None,
+        watch: None,
         look: Vec2::ZERO,
         grabbed: false,
         last_frame: Instant::now(),
@@ -199,6 +211,11 @@ pub fn edit(options: EditOptions) -> anyhow::Result<()> {
         log: FrameLog::default(),
         error: None,
     };
+    match FileWatch::new([app.path.clone()]) {
+        Ok(watch) => app.watch = Some(watch),
+        Err(error) => app.notify(format!("{error:#} (changes on disk will not be noticed)")),
+    }
+    app.watch_files();
     event_loop
         .run_app(&mut app)
         .context("running the editor's event loop")?;
@@ -231,6 +248,9 @@ struct EditorApp {
     window: Option<Arc<Window>>,
     pixels: Option<Pixels<'static>>,
     gui: Option<gui::Gui>,
+    /// The level file and its assets, watched for changes on disk (None: watching failed,
+    /// which was said).
+    watch: Option<FileWatch>,
     /// Mouse motion gathered while flying, not yet turned into a turn.
     look: Vec2,
     /// The cursor is grabbed for flying.
@@ -329,7 +349,7 @@ impl EditorApp {
                 }
             }
             Command::SaveAs(path) => self.save_to(path).map(Some),
-            Command::Revert => self.reload().map(|line| Some(line.to_owned())),
+            Command::Revert => self.force_reload().map(|line| Some(line.to_owned())),
             Command::ToggleView => {
                 let film = &mut self.engine.film;
                 film.filter.mode = match film.filter.mode {
@@ -343,6 +363,33 @@ impl EditorApp {
             Command::Quit => {
                 event_loop.exit();
                 Ok(None)
+            }
+            Command::KeepEdits => {
+                self.panels.conflict = false;
+                // What is on disk now is the version the next save replaces (and keeps
+                // as .bak): asking again about the same bytes would be noise.
+                match std::fs::read(&self.path) {
+                    Ok(bytes) => self.disk = bytes,
+                    Err(error) => self.notify(format!("reading {}: {error}", self.path.display())),
+                }
+                Ok(Some(
+                    "kept the edits; saving will replace the file on disk".to_owned(),
+                ))
+            }
+            Command::TakeFile => {
+                self.panels.conflict = false;
+                match self.editor.autosave(&mut self.engine, &self.path) {
+                    Ok(_) => {
+                        let kept = crate::edit::autosave_path(&self.path);
+                        self.force_reload().map(|line| {
+                            Some(format!("{line}; the edits were kept in {}", kept.display()))
+                        })
+                    }
+                    Err(error) => {
+                        Err(error
+                            .context("the edits could not be kept, so the file was not loaded"))
+                    }
+                }
             }
         };
         match result {
@@ -360,9 +407,17 @@ impl EditorApp {
         Ok(format!("saved {}", self.path.display()))
     }
 
-    /// Reads the level file again, the editor's camera kept.
-    fn reload(&mut self) -> anyhow::Result<&'static str> {
-        let reloaded = self.editor.reload(&mut self.engine, &self.path)?;
+    /// Reads the level file again, dropping unsaved edits, the editor's camera kept; on an
+    /// error nothing changes.
+    fn force_reload(&mut self) -> anyhow::Result<&'static str> {
+        let reloaded = match self.editor.reload(&mut self.engine, &self.path) {
+            Ok(reloaded) => reloaded,
+            Err(error) => {
+                self.panels.file_error = Some(format!("{error:#}"));
+                return Err(error);
+            }
+        };
+        self.panels.file_error = None;
         self.disk = std::fs::read(&self.path)
             .with_context(|| format!("reading {}", self.path.display()))?;
         self.camera.install(&mut self.engine.world);
@@ -370,6 +425,76 @@ impl EditorApp {
             Reloaded::Unchanged => "the file holds the level shown",
             Reloaded::Replaced => "reloaded",
         })
+    }
+
+    /// What changed on disk since the last frame, handled: the level (someone else's
+    /// save), or assets it uses.
+    fn files_changed(&mut self) {
+        let Some(watch) = &mut self.watch else { return };
+        let changed = watch.poll();
+        if changed.is_empty() {
+            return;
+        }
+        let level_changed = changed.iter().any(|file| *file == absolute(&self.path));
+        let assets: Vec<PathBuf> = changed
+            .into_iter()
+            .filter(|file| *file != absolute(&self.path))
+            .collect();
+        if !assets.is_empty() {
+            match self.editor.reload_assets(&mut self.engine, &assets) {
+                Ok(count) => {
+                    self.panels.file_error = None;
+                    let names: Vec<String> =
+                        assets.iter().map(|f| f.display().to_string()).collect();
+                    self.notify(format!("reloaded {} ({count} entities)", names.join(", ")));
+                }
+                Err(error) => {
+                    self.panels.file_error = Some(format!("{error:#}"));
+                    self.notify(format!("{error:#}"));
+                }
+            }
+        }
+        if level_changed {
+            let bytes = std::fs::read(&self.path).unwrap_or_default();
+            if bytes == self.disk {
+                // The editor's own save, or the file put back as the editor knows it.
+                if self.panels.file_error.take().is_some() {
+                    self.notify(format!(
+                        "{}: the file holds the level shown",
+                        self.path.display()
+                    ));
+                }
+                return;
+            }
+            if self.editor.is_dirty() {
+                self.panels.conflict = true;
+                self.notify(format!(
+                    "{} changed on disk while there are unsaved edits",
+                    self.path.display()
+                ));
+                return;
+            }
+            match self.force_reload() {
+                Ok(line) => {
+                    self.notify(format!("{}: {line} (changed on disk)", self.path.display()))
+                }
+                Err(error) => self.notify(format!("{error:#}")),
+            }
+        }
+    }
+
+    /// Watches the level file and every asset the world has loaded.
+    fn watch_files(&mut self) {
+        let Some(watch) = &mut self.watch else { return };
+        let mut files = vec![self.path.clone()];
+        if let Some(assets) = self.engine.world.get_resource::<crate::game::Assets>() {
+            files.extend(assets.0.files().map(|f| f.to_path_buf()));
+        }
+        if files.iter().any(|file| !watch.watches(file))
+            && let Err(error) = watch.set_files(files)
+        {
+            self.notify(format!("{error:#}"));
+        }
     }
 
     fn set_grab(&mut self, grab: bool) {
@@ -430,11 +555,16 @@ impl EditorApp {
         }
         self.set_grab(flying);
 
-        // 3. Run what the interface asked for.
+        // 3. Run what the interface asked for, then what changed on disk.
         let edited = commands.iter().any(|c| matches!(c, Command::Edit { .. }));
+        let ran = !commands.is_empty();
         for command in commands {
             self.run(event_loop, command);
         }
+        if ran {
+            self.watch_files();
+        }
+        self.files_changed();
         if !self.panels.primary_down {
             self.editor.end_drag();
         }

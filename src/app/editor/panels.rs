@@ -123,6 +123,11 @@ pub struct Panels {
     pub quit_prompt: bool,
     /// The last thing the editor did or failed to do.
     pub notice: Option<(Instant, String)>,
+    /// The level changed on disk while there are unsaved edits: ask which to keep.
+    pub conflict: bool,
+    /// The level or an asset on disk does not load: its problems, shown over the view
+    /// until a good version is loaded.
+    pub file_error: Option<String>,
     tool: Tool,
     snapping: bool,
     /// Grid step for moving, metres.
@@ -149,6 +154,8 @@ impl Panels {
             primary_down: false,
             quit_prompt: false,
             notice: None,
+            conflict: false,
+            file_error: None,
             tool: Tool::Move,
             snapping: true,
             grid: 0.25,
@@ -201,6 +208,8 @@ impl Panels {
             .show_inside(ui, |ui| self.view(ui, frame, view, camera, out));
         if self.quit_prompt {
             self.quit_prompt(&ctx, out);
+        } else if self.conflict {
+            conflict_prompt(&ctx, out);
         }
     }
 
@@ -502,6 +511,26 @@ impl Panels {
         });
     }
 
+    /// The problems of a file on disk that does not load, over the top of the view.
+    fn file_error(&self, painter: &egui::Painter, rect: Rect) {
+        let Some(error) = &self.file_error else {
+            return;
+        };
+        let text = painter.layout(
+            error.clone(),
+            egui::FontId::monospace(12.0),
+            Color32::from_rgb(255, 120, 110),
+            rect.width() - 16.0,
+        );
+        let at = rect.min + egui::vec2(8.0, 8.0);
+        painter.rect_filled(
+            Rect::from_min_size(at, text.size()).expand(4.0),
+            3.0,
+            Color32::from_black_alpha(200),
+        );
+        painter.galley(at, text, Color32::WHITE);
+    }
+
     /// The path-traced view, its overlays, the gizmo, and what clicks in it do.
     fn view(
         &mut self,
@@ -543,6 +572,7 @@ impl Panels {
 
         let projection = ViewProjection::new(camera, view, rect);
         self.overlays(&painter, frame, &projection);
+        self.file_error(&painter, rect);
         let gizmo_busy = self.gizmo(ui, frame, camera, rect, out);
         let waypoint_busy = self.waypoints(ui, &response, frame, &projection, camera, view, out);
         if response.clicked()
@@ -844,6 +874,27 @@ fn beat_points(def: &EntityDef, warden: &WardenDef) -> Vec<Vec3> {
         points.push(*first);
     }
     points
+}
+
+/// The level changed on disk while there are unsaved edits: which to keep. Neither is
+/// dropped silently: keeping the edits means the next save replaces the file (kept as
+/// `.bak`); taking the file writes the edits to the autosave file first.
+fn conflict_prompt(ctx: &egui::Context, out: &mut Vec<Command>) {
+    egui::Modal::new(egui::Id::new("changed on disk")).show(ctx, |ui| {
+        ui.heading("The level changed on disk");
+        ui.label("Someone else saved the level file while you have unsaved edits.");
+        ui.horizontal(|ui| {
+            if ui.button("Keep my edits").clicked() {
+                out.push(Command::KeepEdits);
+            }
+            if ui
+                .button("Load the file (my edits go to the autosave file)")
+                .clicked()
+            {
+                out.push(Command::TakeFile);
+            }
+        });
+    });
 }
 
 /// The colour and kind of the marker drawn for an entity that draws nothing.
