@@ -434,6 +434,53 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
         lit > 2000,
         "the view shows the lit level ({lit} bright pixels)"
     );
+
+    // Hot reload: a change on disk by someone else is loaded; a broken file leaves the
+    // level as it is and says where the problem is, until it is fixed.
+    let brighter = original.replacen("intensity: 25.0,", "intensity: 60.0,", 1);
+    std::fs::write(&level, &brighter).unwrap();
+    assert_eq!(
+        next_line("the reload"),
+        format!("{}: reloaded (changed on disk)", level.display())
+    );
+    let broken = brighter.replacen("    version: 1,", "    version: 1,\n    bogus: 3,", 1);
+    std::fs::write(&level, broken).unwrap();
+    let problem = next_line("the broken file's problem");
+    assert!(
+        problem.starts_with(&format!("{}:4:5: ", level.display())),
+        "{problem}"
+    );
+    std::fs::write(&level, &brighter).unwrap();
+    assert_eq!(
+        next_line("the fixed file"),
+        format!("{}: the file holds the level shown", level.display())
+    );
+
+    // Play-test (F5) the level as edited, with an edit not saved: the game's window opens,
+    // Esc comes back to the editor, and the edit is still there, unsaved.
+    focus_window(&display, &id);
+    xdotool(&["mousemove", "--window", &id, "610", "420"]);
+    std::thread::sleep(Duration::from_millis(300));
+    xdotool(&["click", "1"]);
+    next_line("the second selection");
+    key("Delete");
+    assert_eq!(next_line("the delete"), "deleted 1");
+    key("F5");
+    let started = next_line("the play-test");
+    assert!(started.starts_with("play-test "), "{started}");
+    std::thread::sleep(Duration::from_secs(2));
+    let game = gloam_window(&display);
+    assert!(xdotool(&["getwindowname", &game]).starts_with("Gloam - "));
+    focus_window(&display, &game);
+    xdotool(&["key", "Escape"]);
+    assert_eq!(next_line("the way back"), "play-test left");
+    std::thread::sleep(Duration::from_secs(2));
+    let back = gloam_window(&display);
+    assert_eq!(
+        xdotool(&["getwindowname", &back]),
+        "*first-light.ron - Gloam editor",
+        "the edit is still there, unsaved"
+    );
     println!("screenshot: {}", shot.display());
 }
 

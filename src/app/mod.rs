@@ -24,8 +24,8 @@
 //! douses or relights the lamp looked at, N toggles noclip (fly through walls: Space and C
 //! rise and sink), mouse looks once captured (click). Fixed: Esc pauses (the pause page:
 //! resume, restart, settings, main menu, quit), F11 toggles fullscreen, V vsync, F3 the
-//! profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw), F12
-//! writes a screenshot (`screenshot`: the frame as PNG and the linear film as EXR). No
+//! profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw), F2
+//! opens the level's file in the editor (`shell`), F12 writes a screenshot (`screenshot`: the frame as PNG and the linear film as EXR). No
 //! single key quits. A level without a player start is flown through with the same keys.
 
 pub mod editor;
@@ -35,6 +35,7 @@ pub mod replay;
 pub mod resolution;
 pub mod screenshot;
 pub mod settings;
+pub(crate) mod shell;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -157,10 +158,14 @@ enum Binding {
     Filter,
     Vsync,
     Screenshot,
+    /// Edit the level being played, as its file has it (in a play-test: back to the
+    /// editor).
+    Edit,
 }
 
 /// The window's own keys (`settings::RESERVED_KEYS`, which no game action may take).
-const WINDOW_KEYS: [(KeyCode, Binding); 6] = [
+const WINDOW_KEYS: [(KeyCode, Binding); 7] = [
+    (KeyCode::F2, Binding::Edit),
     (KeyCode::Escape, Binding::Pause),
     (KeyCode::F11, Binding::Fullscreen),
     (KeyCode::F3, Binding::Profiler),
@@ -190,83 +195,108 @@ pub fn play(options: PlayOptions) -> anyhow::Result<()> {
         Some(level) => Some((Scene::load(level)?, level.clone())),
         None => None,
     };
-    let event_loop = EventLoop::new().map_err(|error| {
+    let mut event_loop = EventLoop::new().map_err(|error| {
         anyhow!("cannot open a window ({error}); `gloam play --headless`, `gloam render` and `gloam bench` work without a display")
     })?;
-    let mut notices = Vec::new();
-    let config = settings::config_dir();
-    let (player_settings, best) = match &config {
-        Some(dir) => {
-            let loaded = settings::load::<Settings>(&dir.join(settings::SETTINGS_FILE));
-            let best = settings::load::<BestTimes>(&dir.join(settings::BEST_TIMES_FILE));
-            notices.extend(loaded.warning);
-            notices.extend(best.warning);
-            (loaded.value, best.value)
-        }
-        None => {
-            notices.push(
-                "no config folder (set HOME or GLOAM_CONFIG_DIR): settings and best times are not kept"
-                    .to_string(),
-            );
-            (Settings::default(), BestTimes::default())
-        }
-    };
-    let levels_folder = default_level()
-        .parent()
-        .map_or_else(|| PathBuf::from("levels"), Path::to_path_buf);
-    let (levels, warnings) = menu::find_levels(&levels_folder);
-    notices.extend(warnings);
-    for notice in &notices {
-        eprintln!("gloam: {notice}");
-    }
-    let log = StageLog::new(&options);
-    let overlay = options.profiler;
-    let mut app = App {
-        resolution: None,
-        game: None,
-        backdrop: None,
-        menu: None,
-        context: MenuContext {
-            levels,
-            best,
-            settings: player_settings,
-            playing: None,
-            finish: None,
-        },
-        config,
-        notice: notices.last().map(|line| (Instant::now(), line.clone())),
-        watch: None,
-        file_error: None,
-        pointer: None,
-        caught: None,
-        options,
-        window: None,
-        pixels: None,
-        last_frame: Instant::now(),
-        frame_ms: Vec::new(),
-        vsync: true,
-        overlay,
-        screenshot: false,
-        captured: false,
-        rendered: 0,
-        done_at: None,
-        error: None,
-        log,
-    };
-    app.apply_target();
+    let mut app = App::new(options);
     match first {
         Some((scene, level)) => app.start(scene, level),
         None => app.open_main_menu(),
     }
-    event_loop
-        .run_app(&mut app)
-        .context("running the window's event loop")?;
-    if app.options.frames.is_some() {
-        app.log.print("windowed");
+    shell::run(&mut event_loop, shell::Mode::Play(Box::new(app)))
+}
+
+impl App {
+    /// The window's state before any window exists: the player's settings and best times
+    /// (a broken file named), the levels to choose from.
+    fn new(options: PlayOptions) -> App {
+        let mut notices = Vec::new();
+        let config = settings::config_dir();
+        let (player_settings, best) = match &config {
+            Some(dir) => {
+                let loaded = settings::load::<Settings>(&dir.join(settings::SETTINGS_FILE));
+                let best = settings::load::<BestTimes>(&dir.join(settings::BEST_TIMES_FILE));
+                notices.extend(loaded.warning);
+                notices.extend(best.warning);
+                (loaded.value, best.value)
+            }
+            None => {
+                notices.push(
+                    "no config folder (set HOME or GLOAM_CONFIG_DIR): settings and best times are not kept"
+                        .to_string(),
+                );
+                (Settings::default(), BestTimes::default())
+            }
+        };
+        let levels_folder = default_level()
+            .parent()
+            .map_or_else(|| PathBuf::from("levels"), Path::to_path_buf);
+        let (levels, warnings) = menu::find_levels(&levels_folder);
+        notices.extend(warnings);
+        for notice in &notices {
+            eprintln!("gloam: {notice}");
+        }
+        let log = StageLog::new(&options);
+        let overlay = options.profiler;
+        let mut app = App {
+            resolution: None,
+            game: None,
+            backdrop: None,
+            menu: None,
+            context: MenuContext {
+                levels,
+                best,
+                settings: player_settings,
+                playing: None,
+                finish: None,
+            },
+            config,
+            notice: notices.last().map(|line| (Instant::now(), line.clone())),
+            watch: None,
+            file_error: None,
+            pointer: None,
+            caught: None,
+            options,
+            window: None,
+            pixels: None,
+            last_frame: Instant::now(),
+            frame_ms: Vec::new(),
+            vsync: true,
+            overlay,
+            screenshot: false,
+            captured: false,
+            rendered: 0,
+            done_at: None,
+            error: None,
+            log,
+            switch: None,
+            play_test: false,
+        };
+        app.apply_target();
+        app
     }
-    match app.error {
-        Some(error) => Err(error),
-        None => Ok(()),
+
+    /// After its event loop has returned: the frame table of a `--frames` run, and the
+    /// error that ended it, if one did.
+    fn finish(&mut self) -> anyhow::Result<()> {
+        if self.options.frames.is_some() {
+            self.log.print("windowed");
+        }
+        match self.error.take() {
+            Some(error) => Err(error),
+            None => Ok(()),
+        }
+    }
+
+    /// Leaves the event loop for another mode (`shell`), the window closed first: winit
+    /// carries no window from one run of the loop to the next.
+    fn switch_to(&mut self, event_loop: &ActiveEventLoop, switch: shell::Switch) {
+        self.finish_recording(crate::game::replay::Ended::Quit);
+        self.switch = Some(switch);
+        self.pixels = None;
+        self.window = None;
+        self.captured = false;
+        event_loop.exit();
     }
 }
 
@@ -399,7 +429,7 @@ struct Game {
     level: PathBuf,
 }
 
-struct App {
+pub(crate) struct App {
     game: Option<Game>,
     /// The main menu's backdrop: the first level seen from its own camera, no player in
     /// it, the wardens walking their beats.
@@ -441,6 +471,12 @@ struct App {
     done_at: Option<Instant>,
     error: Option<anyhow::Error>,
     log: StageLog,
+    /// Set when the window closes for another mode: the editor (F2), or back to it.
+    switch: Option<shell::Switch>,
+    /// A play-test from the editor: Esc, closing the window and winning go back to the
+    /// editor instead of the menus, and the level file is not watched (the editor holds
+    /// the level being played).
+    play_test: bool,
 }
 
 /// How long a notice stays on screen.
@@ -491,6 +527,9 @@ impl App {
 
     /// Watches `level` and the assets of its `scene` for changes on disk.
     fn watch_level(&mut self, scene: &Scene, level: &Path) {
+        if self.play_test {
+            return;
+        }
         let files = std::iter::once(level.to_path_buf())
             .chain(scene.assets.iter().map(|asset| asset.source.clone()));
         let result = match &mut self.watch {
@@ -766,6 +805,14 @@ impl App {
         if !pressed {
             return;
         }
+        if binding == Binding::Edit || (binding == Binding::Pause && self.play_test) {
+            let switch = match (self.play_test, &self.game) {
+                (true, _) => shell::Switch::BackToEditor("play-test left".to_owned()),
+                (false, Some(game)) => shell::Switch::Edit(game.level.clone()),
+                (false, None) => return,
+            };
+            return self.switch_to(event_loop, switch);
+        }
         if binding == Binding::Pause {
             if let Some(game) = &mut self.game {
                 game.engine.world.resource_mut::<Input>().held.clear();
@@ -805,7 +852,7 @@ impl App {
                 }
             }
             Binding::Screenshot => self.screenshot = true,
-            Binding::Pause => {}
+            Binding::Pause | Binding::Edit => {}
         }
     }
 
@@ -885,6 +932,15 @@ impl App {
                     .get_resource::<crate::game::Progress>()
                     .map(|p| p.outcome);
                 match outcome {
+                    Some(crate::game::Outcome::Won) if self.play_test => {
+                        let seconds = game
+                            .engine
+                            .world
+                            .get_resource::<crate::game::Progress>()
+                            .map_or(0.0, |progress| progress.seconds());
+                        let line = format!("play-test won in {seconds:.1} s");
+                        return self.switch_to(event_loop, shell::Switch::BackToEditor(line));
+                    }
                     Some(crate::game::Outcome::Won) => {
                         self.finish_recording(crate::game::replay::Ended::Won);
                         self.won();
@@ -1166,6 +1222,10 @@ impl ApplicationHandler for App {
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
         match event {
+            WindowEvent::CloseRequested if self.play_test => {
+                let back = shell::Switch::BackToEditor("play-test closed".to_owned());
+                self.switch_to(event_loop, back);
+            }
             WindowEvent::CloseRequested => {
                 self.finish_recording(crate::game::replay::Ended::Quit);
                 event_loop.exit();

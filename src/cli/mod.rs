@@ -35,7 +35,7 @@ pub enum Command {
     /// best times). Default keys: W A S D walk, Shift sprints, Space jumps, C crouches, E
     /// douses or relights the lamp you look at, N toggles noclip, mouse looks after a
     /// click; Esc pauses (resume, restart, settings, main menu, quit), F11 fullscreen, V
-    /// vsync, F3 profiler, F4 film filters, F12 screenshot (PNG and EXR into the pictures
+    /// vsync, F2 edit the level's file, F3 profiler, F4 film filters, F12 screenshot (PNG and EXR into the pictures
     /// folder's Gloam/, else ~/.local/share/gloam/screenshots). Settings and best times
     /// live in the user's config folder (~/.config/gloam, or $GLOAM_CONFIG_DIR).
     #[command(allow_negative_numbers = true)]
@@ -89,7 +89,8 @@ pub enum Command {
     /// mouse + W A S D Q E flies (Shift: faster), W/E/R move/rotate/scale, Delete deletes,
     /// Ctrl+D duplicates, Ctrl+Z undoes, Ctrl+Shift+Z or Ctrl+Y redoes, Ctrl+S saves
     /// (the previous file kept as LEVEL.bak), F4 switches between the converging view and
-    /// the game's 1-spp filtered view, Esc drops the palette's choice or the selection.
+    /// the game's 1-spp filtered view, F5 play-tests the level as edited from the
+    /// editor's camera (Esc comes back), Esc drops the palette's choice or the selection.
     /// Unsaved edits are autosaved to .LEVEL.autosave beside it every two minutes.
     #[command(allow_negative_numbers = true)]
     Edit {

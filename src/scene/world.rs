@@ -142,7 +142,12 @@ impl Scene {
     }
 
     fn load_level(path: &Path) -> Result<Scene, LoadError> {
-        let level = load_level(path)?;
+        Self::from_level(load_level(path)?, path)
+    }
+
+    /// A level already in memory (the editor's, unsaved edits and all) as if loaded from
+    /// `path`: its assets are named relative to `path`'s folder and imported.
+    pub fn from_level(level: Level, path: &Path) -> Result<Scene, LoadError> {
         // Positions for cross-file problems need the text again (only read on error).
         let text = || std::fs::read_to_string(path).unwrap_or_default();
         let base = path.parent().unwrap_or(Path::new("."));

@@ -123,6 +123,8 @@ pub enum Command {
     KeepEdits,
     /// ... or load the file (the edits go to the autosave file first).
     TakeFile,
+    /// Play the level as edited from the editor's camera (F5); Esc comes back.
+    PlayTest,
 }
 
 /// What a frame did, for the frame-time report.
@@ -183,46 +185,136 @@ pub fn edit(options: EditOptions) -> anyhow::Result<()> {
             "no display to open the editor's window on (DISPLAY and WAYLAND_DISPLAY are unset)"
         ));
     }
-    let scene = Scene::load(&options.level)?;
-    let disk = std::fs::read(&options.level)
-        .with_context(|| format!("reading {}", options.level.display()))?;
-    let event_loop =
+    let mut event_loop =
         EventLoop::new().map_err(|error| anyhow!("cannot open the editor's window ({error})"))?;
-    let mut engine = editor_engine(&scene, &options);
-    let camera = FlyCamera::from_view(&engine);
-    camera.install(&mut engine.world);
-    let mut app = EditorApp {
-        path: options.level.clone(),
-        panels: Panels::new(&options.level),
-        engine,
-        editor: Editor::new(),
-        camera,
-        disk,
-        options,
-        window: None,
-        pixels: None,
-        gui: None,
-        watch: None,
-        look: Vec2::ZERO,
-        grabbed: false,
-        last_frame: Instant::now(),
-        autosaved: Instant::now(),
-        shown: 0,
-        log: FrameLog::default(),
-        error: None,
-    };
-    match FileWatch::new([app.path.clone()]) {
-        Ok(watch) => app.watch = Some(watch),
-        Err(error) => app.notify(format!("{error:#} (changes on disk will not be noticed)")),
+    let editor = EditorApp::open(options)?;
+    super::shell::run(&mut event_loop, super::shell::Mode::Edit(Box::new(editor)))
+}
+
+impl EditOptions {
+    /// The editor's defaults for `level` (as `gloam edit LEVEL` has them).
+    pub fn for_level(level: PathBuf) -> EditOptions {
+        EditOptions {
+            level,
+            width: 480,
+            height: 270,
+            frames: None,
+        }
     }
-    app.watch_files();
-    event_loop
-        .run_app(&mut app)
-        .context("running the editor's event loop")?;
-    app.log.print();
-    match app.error {
-        Some(error) => Err(error),
-        None => Ok(()),
+}
+
+impl EditorApp {
+    /// Loads the level and starts watching it; the window opens when the loop runs.
+    pub fn open(options: EditOptions) -> anyhow::Result<EditorApp> {
+        let scene = Scene::load(&options.level)?;
+        let disk = std::fs::read(&options.level)
+            .with_context(|| format!("reading {}", options.level.display()))?;
+        let mut engine = editor_engine(&scene, &options);
+        let camera = FlyCamera::from_view(&engine);
+        camera.install(&mut engine.world);
+        let mut app = EditorApp {
+            path: options.level.clone(),
+            panels: Panels::new(&options.level),
+            engine,
+            editor: Editor::new(),
+            camera,
+            disk,
+            options,
+            window: None,
+            pixels: None,
+            gui: None,
+            watch: None,
+            look: Vec2::ZERO,
+            grabbed: false,
+            last_frame: Instant::now(),
+            autosaved: Instant::now(),
+            shown: 0,
+            log: FrameLog::default(),
+            error: None,
+            switch: None,
+        };
+        match FileWatch::new([app.path.clone()]) {
+            Ok(watch) => app.watch = Some(watch),
+            Err(error) => app.notify(format!("{error:#} (changes on disk will not be noticed)")),
+        }
+        app.watch_files();
+        Ok(app)
+    }
+
+    /// After the loop has returned for good: the frame times, and the error that ended it.
+    pub fn finish(&mut self) -> anyhow::Result<()> {
+        self.log.print();
+        match self.error.take() {
+            Some(error) => Err(error),
+            None => Ok(()),
+        }
+    }
+
+    /// Back from a play-test: the level as it was left, the film converging again.
+    pub fn back_from_play_test(&mut self, ended: String) {
+        self.engine.film.reset = true;
+        self.last_frame = Instant::now();
+        self.notify(ended);
+    }
+
+    /// Plays the level as edited (unsaved edits too) from where the editor's camera stands:
+    /// the player start moves under the camera, facing its way.
+    fn play_test(&mut self, event_loop: &ActiveEventLoop) -> anyhow::Result<Option<String>> {
+        let mut level = crate::game::level_from_world(&mut self.engine.world);
+        // The floor under the camera, if the camera is over the level: else the level's
+        // own start is kept (a camera out in the void would drop the player into it).
+        let down = Ray::new(self.camera.position.into(), glam::Vec3A::NEG_Y);
+        let floor = {
+            let scene = self.engine.render_scene();
+            scene
+                .accel
+                .intersect(&down, crate::accel::InstanceMask::PICKABLE, &scene.alpha())
+                .map(|hit| self.camera.position - glam::Vec3::Y * hit.t)
+        };
+        let has_start = level.entities.iter().any(|e| e.player_spawn.is_some());
+        let from = match (floor, has_start) {
+            (Some(feet), _) => {
+                let start = match level.entities.iter().position(|e| e.player_spawn.is_some()) {
+                    Some(index) => &mut level.entities[index],
+                    None => {
+                        let mut start = EntityDef::named("play-test start");
+                        start.player_spawn = Some(Default::default());
+                        level.entities.push(start);
+                        level.entities.last_mut().expect("just pushed")
+                    }
+                };
+                start.transform.translation = feet;
+                start.transform.rotation = glam::Vec3::new(0.0, self.camera.yaw.to_degrees(), 0.0);
+                "from the editor's camera"
+            }
+            (None, true) => "from the level's start (the camera is over no floor)",
+            (None, false) => {
+                return Ok(Some(
+                    "no play-test: the level has no player start and the camera is over no floor"
+                        .to_owned(),
+                ));
+            }
+        };
+        level.playable = true;
+        let scene = Scene::from_level(level, &self.path).map_err(|error| anyhow!("{error}"))?;
+        self.switch = Some(super::shell::Switch::PlayTest(Box::new(
+            super::shell::PlayTest {
+                scene,
+                level: self.path.clone(),
+            },
+        )));
+        self.close_window();
+        event_loop.exit();
+        Ok(Some(format!("play-test {from}: Esc comes back")))
+    }
+
+    /// Closes the window (before the loop is left for another mode).
+    fn close_window(&mut self) {
+        self.set_grab(false);
+        self.panels.flying = false;
+        self.gui = None;
+        self.pixels = None;
+        self.window = None;
     }
 }
 
@@ -234,7 +326,7 @@ fn editor_engine(scene: &Scene, options: &EditOptions) -> Engine {
     Engine::new(scene, settings)
 }
 
-struct EditorApp {
+pub struct EditorApp {
     /// The level file being edited.
     path: PathBuf,
     engine: Engine,
@@ -260,6 +352,8 @@ struct EditorApp {
     shown: u32,
     log: FrameLog,
     error: Option<anyhow::Error>,
+    /// Set when the editor leaves the loop for a play-test.
+    pub switch: Option<super::shell::Switch>,
 }
 
 impl EditorApp {
@@ -364,6 +458,7 @@ impl EditorApp {
                 event_loop.exit();
                 Ok(None)
             }
+            Command::PlayTest => self.play_test(event_loop),
             Command::KeepEdits => {
                 self.panels.conflict = false;
                 // What is on disk now is the version the next save replaces (and keeps

@@ -243,6 +243,9 @@ impl Panels {
             if input.consume_key(Modifiers::NONE, Key::F4) {
                 out.push(Command::ToggleView);
             }
+            if input.consume_key(Modifiers::NONE, Key::F5) {
+                out.push(Command::PlayTest);
+            }
             if input.consume_key(Modifiers::NONE, Key::Escape) && self.armed.take().is_none() {
                 out.push(Command::ClearSelection);
             }
@@ -364,6 +367,9 @@ impl Panels {
             };
             if ui.button(label).clicked() {
                 out.push(Command::ToggleView);
+            }
+            if ui.button("Play-test (F5)").clicked() {
+                out.push(Command::PlayTest);
             }
         });
     }
