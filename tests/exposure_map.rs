@@ -145,3 +145,75 @@ fn a_shard_nobody_can_reach_leaves_no_route() {
     assert_eq!(map.route.max_exposure, None);
     assert!(!map.route.exists);
 }
+
+/// The route drawn: a walk of neighbouring cells from the spawn past every shard to the
+/// exit whose brightest cell is the route's `max_exposure`; while warden 1 stands over a
+/// shard the lit crossings it cannot avoid are chokepoints, and once it has walked away
+/// there are none.
+#[test]
+fn the_drawn_route_walks_through_every_target_and_its_lit_crossings_are_chokepoints() {
+    for (time, lit) in [(0.0, true), (4.0, false)] {
+        let (map, _) = map_at(time);
+        let route = &map["route"];
+        let point = |p: &Value| {
+            let p = p.as_array().unwrap();
+            Vec3::new(
+                p[0].as_f64().unwrap() as f32,
+                p[1].as_f64().unwrap() as f32,
+                p[2].as_f64().unwrap() as f32,
+            )
+        };
+        let path: Vec<Vec3> = route["path"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(point)
+            .collect();
+        assert!(!path.is_empty());
+        for pair in path.windows(2) {
+            let across = glam::Vec2::new(pair[1].x - pair[0].x, pair[1].z - pair[0].z).length();
+            assert!(across > 0.0 && across < 0.36, "{} -> {}", pair[0], pair[1]);
+        }
+        let scene = Scene::load(&level_one()).unwrap();
+        let spawn = scene.player_spawn().unwrap().0;
+        assert!(
+            path[0].distance(Vec3::new(spawn.x, path[0].y, spawn.z)) < 0.4,
+            "{}",
+            path[0]
+        );
+        for entity in &scene.level.entities {
+            let radius = match (&entity.shard, &entity.exit) {
+                (Some(shard), _) => shard.radius,
+                (_, Some(exit)) => exit.radius,
+                _ => continue,
+            };
+            let at = entity.transform.translation;
+            assert!(
+                path.iter()
+                    .any(|p| glam::Vec2::new(p.x - at.x, p.z - at.z).length()
+                        <= radius.max(0.125) + 1e-4),
+                "{} is passed by",
+                entity.name
+            );
+        }
+        let value = |p: Vec3| {
+            let standing = cell(&map, "standing", p.x, p.z).unwrap();
+            let crouching = cell(&map, "crouching", p.x, p.z).unwrap();
+            standing.min(crouching)
+        };
+        let brightest = path.iter().map(|&p| value(p)).fold(0.0, f64::max);
+        let max = route["max_exposure"].as_f64().unwrap();
+        assert!((brightest - max).abs() < 1e-5, "{brightest} against {max}");
+        let chokepoints: Vec<Vec3> = route["chokepoints"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(point)
+            .collect();
+        assert_eq!(!chokepoints.is_empty(), lit, "at {time} s: {chokepoints:?}");
+        for choke in chokepoints {
+            assert!(value(choke) > 0.5, "{choke} is lit");
+            assert!(path.contains(&choke));
+        }
+    }
+}

@@ -481,6 +481,16 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
         "*first-light.ron - Gloam editor",
         "the edit is still there, unsaved"
     );
+
+    // The exposure map (X): computed off the view's thread, its route reported.
+    focus_window(&display, &back);
+    xdotool(&["mousemove", "--window", &back, "610", "420"]);
+    xdotool(&["key", "x"]);
+    let map = next_line("the exposure map");
+    assert!(
+        map.starts_with("exposure map at 0 s: darkest route peaks at "),
+        "{map}"
+    );
     println!("screenshot: {}", shot.display());
 }
 

@@ -1,23 +1,18 @@
 //! `gloam exposure`: the exposure map of a level, headless, before anyone plays it.
 //!
-//! A measurement over the simulation, outside the frame: the level is loaded into an
-//! `Engine`, its wardens walk their beats for `--time` seconds (no player, so no warden
-//! sees anyone), and the simulation's copy of the level as it then stands answers
-//! `game::exposure_map` (the game's own body points, lights and shadow rays). Writes the
+//! A measurement over the simulation, outside the frame (`edit::exposure::compute`, which
+//! the editor's overlay shares): the level's wardens walk their beats for `--time` seconds
+//! and the game's own body points, lights and shadow rays give each cell its gem. Writes the
 //! map as JSON (the schema in the README, `gloam exposure`) and as a PNG, `PNG_SCALE`
 //! pixels a cell, +x right and +z down.
 
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use bevy_ecs::prelude::{With, World};
 use serde_json::{Value, json};
 
-use crate::frame::Engine;
-use crate::game::exposure::curve::HIDDEN;
-use crate::game::exposure_map::{ExposureMap, Storey, Waypoints, exposure_map};
-use crate::game::{Exit, PlayerStart, SIMULATION_HZ, Shard, Transform, WorldGeometry};
-use crate::render::RenderSettings;
+use crate::edit::exposure::{colour, compute};
+use crate::game::exposure_map::{ExposureMap, Storey, Waypoints};
 use crate::scene::files::write_atomically;
 use crate::scene::world::Scene;
 
@@ -56,30 +51,9 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         anyhow::bail!("--threshold must be between 0 and 1");
     }
     let scene = Scene::load(&options.level)?;
-    let mut engine = Engine::new(&scene, RenderSettings::real_time(1, 1));
-    for _ in 0..(options.time * SIMULATION_HZ).round() as u64 {
-        engine.step();
-    }
-    engine.update_step_world();
-    let waypoints = waypoints(&mut engine.world).with_context(|| {
-        format!(
-            "{}: the level has no player start to map from",
-            options.level.display()
-        )
-    })?;
-    let geometry = &engine.world.resource::<WorldGeometry>().0;
-    let bounds = geometry
-        .bounds()
-        .with_context(|| format!("{}: the level has no geometry", options.level.display()))?;
-    let start = std::time::Instant::now();
-    let map = exposure_map(
-        geometry.as_ref(),
-        bounds,
-        options.cell,
-        &waypoints,
-        options.threshold,
-    );
-    let seconds = start.elapsed().as_secs_f64();
+    let computed = compute(&scene, options.time, options.cell, options.threshold)
+        .map_err(|problem| anyhow::anyhow!("{}: {problem}", options.level.display()))?;
+    let (map, waypoints, seconds) = (computed.map, computed.waypoints, computed.seconds);
     let reached: usize = map
         .storeys
         .iter()
@@ -118,30 +92,6 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The spawn, shards and exit of the world's level (None without a player start).
-fn waypoints(world: &mut World) -> Option<Waypoints> {
-    let spawn = world
-        .query_filtered::<&Transform, With<PlayerStart>>()
-        .iter(world)
-        .next()?
-        .translation;
-    let shards = world
-        .query::<(&Transform, &Shard)>()
-        .iter(world)
-        .map(|(t, shard)| (t.translation, shard.radius))
-        .collect();
-    let exit = world
-        .query::<(&Transform, &Exit)>()
-        .iter(world)
-        .next()
-        .map(|(t, exit)| (t.translation, exit.radius));
-    Some(Waypoints {
-        spawn,
-        shards,
-        exit,
-    })
-}
-
 /// `depth` rows of `width` values, null where the player cannot stand.
 fn rows(map: &ExposureMap, values: &[Option<f32>]) -> Value {
     Value::Array(
@@ -157,6 +107,7 @@ pub fn map_json(map: &ExposureMap, threshold: f32) -> Value {
     let empty = Storey {
         standing: vec![None; map.width * map.depth],
         crouching: vec![None; map.width * map.depth],
+        floor: vec![None; map.width * map.depth],
     };
     let ground = map.storeys.first().unwrap_or(&empty);
     let mut report = json!({
@@ -170,6 +121,8 @@ pub fn map_json(map: &ExposureMap, threshold: f32) -> Value {
             "exists": map.route.exists,
             "max_exposure": map.route.max_exposure,
             "threshold": threshold,
+            "path": map.route.path.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+            "chokepoints": map.route.chokepoints.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
         },
     });
     if map.storeys.len() > 1 {
@@ -197,20 +150,9 @@ fn map_png(map: &ExposureMap, waypoints: &Waypoints, threshold: f32) -> anyhow::
     let (width, height) = (map.width as u32 * PNG_SCALE, map.depth as u32 * PNG_SCALE);
     let mut image = image::RgbImage::new(width.max(1), height.max(1));
     let ground = map.storeys.first();
-    let colour = |value: Option<f32>| -> [u8; 3] {
-        match value {
-            None => [12, 12, 14],
-            Some(v) if v < HIDDEN => [20, 30, 70],
-            Some(v) if v > threshold => [200, 40, 30],
-            Some(v) => {
-                let t = ((v - HIDDEN) / (threshold - HIDDEN).max(1e-3)).clamp(0.0, 1.0);
-                [
-                    (60.0 + 180.0 * t) as u8,
-                    (60.0 + 150.0 * t) as u8,
-                    (90.0 - 50.0 * t) as u8,
-                ]
-            }
-        }
+    let colour = |value: Option<f32>| match value {
+        None => [12, 12, 14],
+        Some(value) => colour(value, threshold),
     };
     for row in 0..map.depth {
         for column in 0..map.width {

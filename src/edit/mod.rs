@@ -21,6 +21,7 @@
 //! leaves the old file and the edits where they were.
 
 pub mod camera;
+pub mod exposure;
 pub mod palette;
 
 use std::path::{Path, PathBuf};

@@ -40,6 +40,7 @@ use winit::window::{CursorGrabMode, Window, WindowId};
 
 use crate::accel::Ray;
 use crate::edit::camera::FlyCamera;
+use crate::edit::exposure::Exposure;
 use crate::edit::palette::{asset_def, assets_folder};
 use crate::edit::{Editor, Reloaded, surface_point};
 use crate::film::FilterMode;
@@ -50,8 +51,10 @@ use crate::render::film::tone_map;
 use crate::scene::Scene;
 use crate::scene::files::absolute;
 use crate::scene::level::EntityDef;
+use crate::scene::level::Level;
 use crate::scene::watch::FileWatch;
 use panels::Panels;
+use std::sync::mpsc::Receiver;
 
 pub struct EditOptions {
     pub level: PathBuf,
@@ -232,6 +235,9 @@ impl EditorApp {
             log: FrameLog::default(),
             error: None,
             switch: None,
+            exposure: None,
+            exposure_job: None,
+            exposure_for: None,
         };
         match FileWatch::new([app.path.clone()]) {
             Ok(watch) => app.watch = Some(watch),
@@ -354,6 +360,11 @@ pub struct EditorApp {
     error: Option<anyhow::Error>,
     /// Set when the editor leaves the loop for a play-test.
     pub switch: Option<super::shell::Switch>,
+    /// The exposure map on show, the one being computed (on a thread of its own, so the
+    /// view stays live), and the level and time the last one was asked for.
+    exposure: Option<Exposure>,
+    exposure_job: Option<Receiver<Result<Exposure, String>>>,
+    exposure_for: Option<(Level, f32)>,
 }
 
 impl EditorApp {
@@ -578,6 +589,78 @@ impl EditorApp {
         }
     }
 
+    /// Keeps the exposure overlay's map up to date while it is shown: a finished
+    /// computation is shown, and when the level or the time has changed since the last
+    /// request and none is running, the next starts (so during a drag the map follows as
+    /// fast as it is computed).
+    fn update_exposure(&mut self) {
+        if let Some(job) = &self.exposure_job {
+            match job.try_recv() {
+                Ok(Ok(exposure)) => {
+                    let route = &exposure.map.route;
+                    self.panels.exposure.status = match route.max_exposure {
+                        None => "no walkable route through every shard to the exit".to_owned(),
+                        Some(max) if route.exists => format!(
+                            "darkest route peaks at {max:.2} ({:.0} ms)",
+                            exposure.seconds * 1e3
+                        ),
+                        Some(max) => format!(
+                            "darkest route peaks at {max:.2}: {} lit chokepoint(s) ({:.0} ms)",
+                            route.chokepoints.len(),
+                            exposure.seconds * 1e3
+                        ),
+                    };
+                    println!(
+                        "exposure map at {} s: {}",
+                        self.panels.exposure.time, self.panels.exposure.status
+                    );
+                    self.exposure = Some(exposure);
+                    self.exposure_job = None;
+                }
+                Ok(Err(problem)) => {
+                    self.panels.exposure.status = problem;
+                    self.exposure = None;
+                    self.exposure_job = None;
+                }
+                Err(std::sync::mpsc::TryRecvError::Empty) => {}
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => self.exposure_job = None,
+            }
+        }
+        if !self.panels.exposure.on || self.exposure_job.is_some() {
+            return;
+        }
+        let wanted = (
+            crate::game::level_from_world(&mut self.engine.world),
+            self.panels.exposure.time,
+        );
+        if self.exposure_for.as_ref() == Some(&wanted) {
+            return;
+        }
+        let (sender, receiver) = std::sync::mpsc::channel();
+        let (level, time) = wanted.clone();
+        let path = self.path.clone();
+        let threshold = self.panels.exposure.threshold;
+        std::thread::spawn(move || {
+            let result = Scene::from_level(level, &path)
+                .map_err(|error| format!("{error}"))
+                .and_then(|scene| {
+                    crate::edit::exposure::compute(
+                        &scene,
+                        time as f64,
+                        crate::game::nav::CELL,
+                        threshold,
+                    )
+                    .map_err(|problem| problem.to_string())
+                });
+            let _ = sender.send(result);
+        });
+        if self.exposure.is_none() {
+            self.panels.exposure.status = "computing...".to_owned();
+        }
+        self.exposure_job = Some(receiver);
+        self.exposure_for = Some(wanted);
+    }
+
     /// Watches the level file and every asset the world has loaded.
     fn watch_files(&mut self) {
         let Some(watch) = &mut self.watch else { return };
@@ -612,6 +695,7 @@ impl EditorApp {
         let start = Instant::now();
         let seconds = (start - self.last_frame).as_secs_f32().min(0.25);
         self.last_frame = start;
+        self.update_exposure();
         let (Some(window), Some(gui)) = (self.window.clone(), self.gui.as_mut()) else {
             return;
         };
@@ -630,9 +714,10 @@ impl EditorApp {
         };
         let frame = panels::FrameInput::gather(&mut self.engine, &self.editor);
         let camera_before = self.camera;
+        let exposure = self.exposure.as_ref();
         gui.run(&window, |ui| {
             self.panels
-                .ui(ui, &frame, &view, &self.camera, &mut commands)
+                .ui(ui, &frame, &view, &self.camera, exposure, &mut commands)
         });
         let flying = self.panels.flying;
         if flying {

@@ -16,6 +16,7 @@ use transform_gizmo_egui::prelude::*;
 
 use super::{Command, view_ray};
 use crate::edit::camera::FlyCamera;
+use crate::edit::exposure::Exposure;
 use crate::edit::palette::{Prefab, asset_files, assets_folder};
 use crate::edit::{Editor, entity_bounds};
 use crate::film::FilterMode;
@@ -110,6 +111,22 @@ enum Tool {
     Scale,
 }
 
+/// The exposure overlay's controls.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExposureControls {
+    pub on: bool,
+    pub crouching: bool,
+    /// Seconds into the wardens' beats.
+    pub time: f32,
+    /// The gem a route may not rise above.
+    pub threshold: f32,
+    /// What the last map says, or that one is being computed.
+    pub status: String,
+}
+
+/// The longest time the exposure slider reaches, seconds.
+const EXPOSURE_TIME_MAX: f32 = 60.0;
+
 /// Pixels within which a click takes a marker or a waypoint.
 const HANDLE_RADIUS: f32 = 9.0;
 
@@ -128,6 +145,7 @@ pub struct Panels {
     /// The level or an asset on disk does not load: its problems, shown over the view
     /// until a good version is loaded.
     pub file_error: Option<String>,
+    pub exposure: ExposureControls,
     tool: Tool,
     snapping: bool,
     /// Grid step for moving, metres.
@@ -156,6 +174,13 @@ impl Panels {
             notice: None,
             conflict: false,
             file_error: None,
+            exposure: ExposureControls {
+                on: false,
+                crouching: false,
+                time: 0.0,
+                threshold: 0.5,
+                status: String::new(),
+            },
             tool: Tool::Move,
             snapping: true,
             grid: 0.25,
@@ -183,6 +208,7 @@ impl Panels {
         frame: &FrameInput,
         view: &ViewState,
         camera: &FlyCamera,
+        exposure: Option<&Exposure>,
         out: &mut Vec<Command>,
     ) {
         let ctx = ui.ctx().clone();
@@ -205,7 +231,7 @@ impl Panels {
             .show_inside(ui, |ui| self.inspector(ui, frame, out));
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE.fill(Color32::from_gray(12)))
-            .show_inside(ui, |ui| self.view(ui, frame, view, camera, out));
+            .show_inside(ui, |ui| self.view(ui, frame, view, camera, exposure, out));
         if self.quit_prompt {
             self.quit_prompt(&ctx, out);
         } else if self.conflict {
@@ -245,6 +271,9 @@ impl Panels {
             }
             if input.consume_key(Modifiers::NONE, Key::F5) {
                 out.push(Command::PlayTest);
+            }
+            if !self.flying && input.consume_key(Modifiers::NONE, Key::X) {
+                self.exposure.on = !self.exposure.on;
             }
             if input.consume_key(Modifiers::NONE, Key::Escape) && self.armed.take().is_none() {
                 out.push(Command::ClearSelection);
@@ -371,6 +400,8 @@ impl Panels {
             if ui.button("Play-test (F5)").clicked() {
                 out.push(Command::PlayTest);
             }
+            ui.separator();
+            ui.toggle_value(&mut self.exposure.on, "Exposure map (X)");
         });
     }
 
@@ -544,6 +575,7 @@ impl Panels {
         frame: &FrameInput,
         view: &ViewState,
         camera: &FlyCamera,
+        exposure: Option<&Exposure>,
         out: &mut Vec<Command>,
     ) {
         let available = ui.available_rect_before_wrap();
@@ -577,6 +609,12 @@ impl Panels {
         }
 
         let projection = ViewProjection::new(camera, view, rect);
+        if self.exposure.on {
+            if let Some(exposure) = exposure {
+                self.exposure_overlay(&painter, exposure, &projection);
+            }
+            self.exposure_controls(ui, rect);
+        }
         self.overlays(&painter, frame, &projection);
         self.file_error(&painter, rect);
         let gizmo_busy = self.gizmo(ui, frame, camera, rect, out);
@@ -603,6 +641,111 @@ impl Panels {
                 out.push(Command::Pick { ray, add });
             }
         }
+    }
+
+    /// The exposure map over the floor: each cell the player reaches in its colour (standing
+    /// or crouching), the darkest route from the spawn through the shards to the exit, its
+    /// lit chokepoints, and the wardens where the time slider has put them.
+    fn exposure_overlay(
+        &self,
+        painter: &egui::Painter,
+        exposure: &Exposure,
+        projection: &ViewProjection,
+    ) {
+        let map = &exposure.map;
+        let threshold = self.exposure.threshold;
+        let mut mesh = egui::Mesh::default();
+        for storey in &map.storeys {
+            let values = if self.exposure.crouching {
+                &storey.crouching
+            } else {
+                &storey.standing
+            };
+            for (column, (value, floor)) in values.iter().zip(&storey.floor).enumerate() {
+                let (Some(value), Some(floor)) = (value, floor) else {
+                    continue;
+                };
+                let x = map.origin.0 + (column % map.width) as f32 * map.cell_size;
+                let z = map.origin.1 + (column / map.width) as f32 * map.cell_size;
+                let y = floor + 0.02;
+                let corners = [
+                    Vec3::new(x, y, z),
+                    Vec3::new(x + map.cell_size, y, z),
+                    Vec3::new(x + map.cell_size, y, z + map.cell_size),
+                    Vec3::new(x, y, z + map.cell_size),
+                ];
+                let Some(points) = corners
+                    .iter()
+                    .map(|&c| projection.point(c))
+                    .collect::<Option<Vec<Pos2>>>()
+                else {
+                    continue;
+                };
+                let [r, g, b] = crate::edit::exposure::colour(*value, threshold);
+                let colour = Color32::from_rgba_unmultiplied(r, g, b, 120);
+                let first = mesh.vertices.len() as u32;
+                for point in points {
+                    mesh.colored_vertex(point, colour);
+                }
+                mesh.add_triangle(first, first + 1, first + 2);
+                mesh.add_triangle(first, first + 2, first + 3);
+            }
+        }
+        painter.add(mesh);
+        let route: Vec<Pos2> = map
+            .route
+            .path
+            .iter()
+            .filter_map(|&p| projection.point(p + Vec3::Y * 0.05))
+            .collect();
+        painter.add(egui::Shape::line(
+            route,
+            Stroke::new(2.0, Color32::from_rgb(120, 255, 200)),
+        ));
+        for &choke in &map.route.chokepoints {
+            if let Some(at) = projection.point(choke + Vec3::Y * 0.05) {
+                painter.circle_stroke(at, 9.0, Stroke::new(2.5, Color32::from_rgb(255, 60, 40)));
+                painter.text(
+                    at + egui::vec2(10.0, -10.0),
+                    egui::Align2::LEFT_BOTTOM,
+                    "lit, no way round",
+                    egui::FontId::proportional(12.0),
+                    Color32::from_rgb(255, 140, 120),
+                );
+            }
+        }
+        for &(feet, facing) in &exposure.wardens {
+            if let (Some(at), Some(ahead)) = (
+                projection.point(feet + Vec3::Y * 0.05),
+                projection.point(feet + Vec3::Y * 0.05 + facing * 0.8),
+            ) {
+                painter.circle_filled(at, 6.0, Color32::from_rgb(230, 60, 60));
+                painter.line_segment(
+                    [at, ahead],
+                    Stroke::new(2.0, Color32::from_rgb(230, 60, 60)),
+                );
+            }
+        }
+    }
+
+    /// The overlay's controls, in a corner of the view.
+    fn exposure_controls(&mut self, ui: &mut egui::Ui, rect: Rect) {
+        egui::Area::new(egui::Id::new("exposure controls"))
+            .fixed_pos(Pos2::new(rect.min.x + 8.0, rect.max.y - 92.0))
+            .show(ui.ctx(), |ui| {
+                egui::Frame::popup(ui.style()).show(ui, |ui| {
+                    ui.horizontal(|ui| {
+                        ui.radio_value(&mut self.exposure.crouching, false, "standing");
+                        ui.radio_value(&mut self.exposure.crouching, true, "crouching");
+                    });
+                    ui.add(
+                        egui::Slider::new(&mut self.exposure.time, 0.0..=EXPOSURE_TIME_MAX)
+                            .step_by(0.25)
+                            .text("s into the beats"),
+                    );
+                    ui.label(&self.exposure.status);
+                });
+            });
     }
 
     /// The selection's boxes, a marker for each entity that draws nothing, and each
