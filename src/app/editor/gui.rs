@@ -19,6 +19,8 @@ pub struct Gui {
     textures: TexturesDelta,
     /// pixels' frame texture, as egui knows it.
     pub view: TextureId,
+    /// egui asked for the next frame at once (an animation, a tooltip on its way).
+    pub wants_repaint: bool,
 }
 
 impl Gui {
@@ -58,6 +60,7 @@ impl Gui {
             paint_jobs: Vec::new(),
             textures: TexturesDelta::default(),
             view,
+            wants_repaint: true,
         }
     }
 
@@ -80,6 +83,10 @@ impl Gui {
     pub fn run(&mut self, window: &Window, ui: impl FnMut(&mut egui::Ui)) {
         let input = self.state.take_egui_input(window);
         let output = self.context.run_ui(input, ui);
+        self.wants_repaint = output
+            .viewport_output
+            .get(&ViewportId::ROOT)
+            .is_none_or(|viewport| viewport.repaint_delay.is_zero());
         self.textures.append(output.textures_delta);
         self.state
             .handle_platform_output(window, output.platform_output);

@@ -10,8 +10,9 @@
 //! 3. the commands run on the `Editor` and the `Engine` (a drag of the gizmo, a waypoint
 //!    or an inspector field is one undo step, ended when the button is let go);
 //! 4. the engine renders one frame of the still level (no simulation step runs): with the
-//!    view still the film converges, and it stops at `CONVERGED_SPP`; F4 shows the game's
-//!    1-spp filtered view instead;
+//!    view still the film converges, and it stops at `CONVERGED_SPP`, after which the
+//!    editor draws only on input or four times a second (`about_to_wait`); F4 shows the
+//!    game's 1-spp filtered view instead;
 //! 5. present: the film is tone mapped into pixels' buffer, whose texture the interface
 //!    draws as the view.
 //!
@@ -35,7 +36,7 @@ use pixels::{Pixels, PixelsBuilder, SurfaceTexture};
 use winit::application::ApplicationHandler;
 use winit::dpi::LogicalSize;
 use winit::event::{DeviceEvent, DeviceId, WindowEvent};
-use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::window::{CursorGrabMode, Window, WindowId};
 
 use crate::accel::Ray;
@@ -68,6 +69,9 @@ pub struct EditOptions {
 /// Samples per pixel at which a still view stops rendering: past this the image no longer
 /// visibly changes, and the editor leaves the cores to the designer.
 pub const CONVERGED_SPP: u32 = 1024;
+
+/// How far apart frames are drawn while the editor is idle (see `about_to_wait`).
+const IDLE_FRAME: Duration = Duration::from_millis(250);
 
 /// How often unsaved edits are written to the autosave file.
 const AUTOSAVE_EVERY: Duration = Duration::from_secs(120);
@@ -312,6 +316,12 @@ impl EditorApp {
         self.close_window();
         event_loop.exit();
         Ok(Some(format!("play-test {from}: Esc comes back")))
+    }
+
+    /// The view is still and has all the samples it will take.
+    fn converged(&self) -> bool {
+        let film = &self.engine.film;
+        film.filter.mode == FilterMode::Off && film.frames >= CONVERGED_SPP && !film.reset
     }
 
     /// Closes the window (before the loop is left for another mode).
@@ -754,9 +764,7 @@ impl EditorApp {
         window.set_title(&self.title());
 
         // 4. Render unless the view has converged.
-        let converged = self.engine.film.filter.mode == FilterMode::Off
-            && self.engine.film.frames >= CONVERGED_SPP
-            && !self.engine.film.reset;
+        let converged = self.converged();
         let kind = if edited {
             FrameKind::Dragging
         } else if converged {
@@ -853,6 +861,10 @@ impl ApplicationHandler for EditorApp {
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
         if let (Some(window), Some(gui)) = (&self.window, &mut self.gui) {
             gui.on_event(window, &event);
+            // Any input may change what is shown: answer it with a frame.
+            if !matches!(event, WindowEvent::RedrawRequested) {
+                window.request_redraw();
+            }
         }
         match event {
             WindowEvent::CloseRequested => {
@@ -888,9 +900,27 @@ impl ApplicationHandler for EditorApp {
         }
     }
 
-    fn about_to_wait(&mut self, _: &ActiveEventLoop) {
-        if let Some(window) = &self.window {
+    /// Frames are drawn back to back while anything moves (the view converging, the
+    /// camera flying, a drag, an exposure map on its way, egui animating); once all is
+    /// still the editor waits for input, waking `IDLE_FRAME` apart to notice files
+    /// changed on disk and end notices, so a converged view leaves the cores alone.
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        let Some(window) = &self.window else { return };
+        let busy = !self.converged()
+            || self.panels.flying
+            || self.panels.primary_down
+            || self.exposure_job.is_some()
+            || self.gui.as_ref().is_some_and(|gui| gui.wants_repaint);
+        if busy {
+            event_loop.set_control_flow(ControlFlow::Poll);
             window.request_redraw();
+        } else {
+            let next = self.last_frame + IDLE_FRAME;
+            if Instant::now() >= next {
+                window.request_redraw();
+            } else {
+                event_loop.set_control_flow(ControlFlow::WaitUntil(next));
+            }
         }
     }
 }
