@@ -1094,6 +1094,19 @@ impl App {
     }
 }
 
+/// Follows a resized window with pixels' surface (a minimised window, 0 x 0, is left).
+fn resize_surface(
+    pixels: &mut Option<Pixels<'static>>,
+    size: winit::dpi::PhysicalSize<u32>,
+) -> anyhow::Result<()> {
+    match pixels {
+        Some(pixels) if size.width > 0 && size.height > 0 => pixels
+            .resize_surface(size.width, size.height)
+            .map_err(|error| anyhow!("resizing the window surface: {error}")),
+        _ => Ok(()),
+    }
+}
+
 /// The HUD over the level being played: the light gem, each warden's state mark, the lamp
 /// prompt, noise rings, the caught banner, the shards.
 fn draw_hud(
@@ -1231,12 +1244,8 @@ impl ApplicationHandler for App {
                 event_loop.exit();
             }
             WindowEvent::Resized(size) => {
-                if let Some(pixels) = &mut self.pixels
-                    && size.width > 0
-                    && size.height > 0
-                    && let Err(error) = pixels.resize_surface(size.width, size.height)
-                {
-                    self.fail(event_loop, anyhow!("resizing the window surface: {error}"));
+                if let Err(error) = resize_surface(&mut self.pixels, size) {
+                    self.fail(event_loop, error);
                 }
             }
             WindowEvent::KeyboardInput { event, .. } => {

@@ -139,23 +139,9 @@ impl Editor {
     pub fn modify(
         &mut self,
         engine: &mut Engine,
-        mut edit: impl FnMut(&mut EntityDef),
+        edit: impl FnMut(&mut EntityDef),
     ) -> anyhow::Result<()> {
-        let defs = entity_defs(&mut engine.world);
-        let changes = self
-            .selection
-            .iter()
-            .filter_map(|place| defs.iter().find(|(p, _)| p == place))
-            .filter_map(|(place, before)| {
-                let mut after = before.clone();
-                edit(&mut after);
-                (after != *before).then(|| Change {
-                    place: *place,
-                    before: Some(before.clone()),
-                    after: Some(after),
-                })
-            })
-            .collect();
+        let changes = self.selection_changes(engine, edit);
         self.commit(engine, changes)
     }
 
@@ -165,23 +151,9 @@ impl Editor {
     pub fn drag(
         &mut self,
         engine: &mut Engine,
-        mut edit: impl FnMut(&mut EntityDef),
+        edit: impl FnMut(&mut EntityDef),
     ) -> anyhow::Result<()> {
-        let defs = entity_defs(&mut engine.world);
-        let changes: Vec<Change> = self
-            .selection
-            .iter()
-            .filter_map(|place| defs.iter().find(|(p, _)| p == place))
-            .filter_map(|(place, now)| {
-                let mut after = now.clone();
-                edit(&mut after);
-                (after != *now).then(|| Change {
-                    place: *place,
-                    before: Some(now.clone()),
-                    after: Some(after),
-                })
-            })
-            .collect();
+        let changes = self.selection_changes(engine, edit);
         if changes.is_empty() {
             return Ok(());
         }
@@ -193,6 +165,28 @@ impl Editor {
             }
         }
         Ok(())
+    }
+
+    /// Each selected entity's definition before and after `edit`, where it changed.
+    fn selection_changes(
+        &self,
+        engine: &mut Engine,
+        mut edit: impl FnMut(&mut EntityDef),
+    ) -> Vec<Change> {
+        let defs = entity_defs(&mut engine.world);
+        self.selection
+            .iter()
+            .filter_map(|place| defs.iter().find(|(p, _)| p == place))
+            .filter_map(|(place, before)| {
+                let mut after = before.clone();
+                edit(&mut after);
+                (after != *before).then(|| Change {
+                    place: *place,
+                    before: Some(before.clone()),
+                    after: Some(after),
+                })
+            })
+            .collect()
     }
 
     /// Records the drag under way as one step (nothing when it ended where it began).

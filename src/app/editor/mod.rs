@@ -875,12 +875,8 @@ impl ApplicationHandler for EditorApp {
                 }
             }
             WindowEvent::Resized(size) => {
-                if let Some(pixels) = &mut self.pixels
-                    && size.width > 0
-                    && size.height > 0
-                    && let Err(error) = pixels.resize_surface(size.width, size.height)
-                {
-                    self.fail(event_loop, anyhow!("resizing the window surface: {error}"));
+                if let Err(error) = super::resize_surface(&mut self.pixels, size) {
+                    self.fail(event_loop, error);
                 }
             }
             WindowEvent::Focused(false) => {
