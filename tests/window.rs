@@ -146,7 +146,8 @@ fn lines_of(output: impl std::io::Read + Send + 'static) -> std::sync::mpsc::Rec
 /// Gives window `id` the keyboard focus (real key presses go to the focused window: winit
 /// ignores synthetic events), trying again while it settles on the display.
 fn focus_window(display: &str, id: &str) {
-    for _ in 0..50 {
+    // Up to 20 s: the window tests run side by side, and the editor's keeps both cores busy.
+    for _ in 0..200 {
         let focused = Command::new("xdotool")
             .args(["windowfocus", "--sync", id])
             .env("DISPLAY", display)
