@@ -1094,6 +1094,36 @@ impl App {
     }
 }
 
+/// The view's render resolution when none is asked for (`play`, `edit`, play-tests).
+pub const DEFAULT_WIDTH: u32 = 480;
+pub const DEFAULT_HEIGHT: u32 = 270;
+
+/// Opens a window of `size` titled `title`, with a pixels surface over it holding a
+/// `buffer` (width, height) frame buffer.
+fn open_window(
+    event_loop: &ActiveEventLoop,
+    title: String,
+    size: LogicalSize<u32>,
+    (width, height): (u32, u32),
+    vsync: bool,
+) -> anyhow::Result<(Arc<Window>, Pixels<'static>)> {
+    let attributes = Window::default_attributes()
+        .with_title(title)
+        .with_inner_size(size);
+    let window = Arc::new(
+        event_loop
+            .create_window(attributes)
+            .map_err(|error| anyhow!("cannot create the window: {error}"))?,
+    );
+    let inner = window.inner_size();
+    let surface = SurfaceTexture::new(inner.width.max(1), inner.height.max(1), Arc::clone(&window));
+    let pixels = PixelsBuilder::new(width, height, surface)
+        .enable_vsync(vsync)
+        .build()
+        .map_err(|error| anyhow!("cannot start the renderer's window surface: {error}"))?;
+    Ok((window, pixels))
+}
+
 /// Follows a resized window with pixels' surface (a minimised window, 0 x 0, is left).
 fn resize_surface(
     pixels: &mut Option<Pixels<'static>>,
@@ -1205,31 +1235,14 @@ impl ApplicationHandler for App {
             Some(game) => format!("Gloam - {}", game.level.display()),
             None => "Gloam".to_string(),
         };
-        let attributes = Window::default_attributes()
-            .with_title(title)
-            .with_inner_size(LogicalSize::new(width * 2, height * 2));
-        let window = match event_loop.create_window(attributes) {
-            Ok(window) => Arc::new(window),
-            Err(error) => {
-                return self.fail(event_loop, anyhow!("cannot create the window: {error}"));
+        let size = LogicalSize::new(width * 2, height * 2);
+        match open_window(event_loop, title, size, (width, height), self.vsync) {
+            Ok((window, pixels)) => {
+                self.pixels = Some(pixels);
+                self.window = Some(window);
             }
-        };
-        let size = window.inner_size();
-        let surface =
-            SurfaceTexture::new(size.width.max(1), size.height.max(1), Arc::clone(&window));
-        match PixelsBuilder::new(width, height, surface)
-            .enable_vsync(self.vsync)
-            .build()
-        {
-            Ok(pixels) => self.pixels = Some(pixels),
-            Err(error) => {
-                return self.fail(
-                    event_loop,
-                    anyhow!("cannot start the renderer's window surface: {error}"),
-                );
-            }
+            Err(error) => return self.fail(event_loop, error),
         }
-        self.window = Some(window);
         self.last_frame = Instant::now();
     }
 

@@ -78,8 +78,8 @@ pub fn run(event_loop: &mut EventLoop<()>, first: Mode) -> anyhow::Result<()> {
 fn play_test(event_loop: &mut EventLoop<()>, test: PlayTest) -> anyhow::Result<String> {
     let options = PlayOptions {
         level: Some(test.level.clone()),
-        width: 480,
-        height: 270,
+        width: super::DEFAULT_WIDTH,
+        height: super::DEFAULT_HEIGHT,
         frames: None,
         linger: std::time::Duration::ZERO,
         headless: false,

@@ -42,9 +42,9 @@ pub enum Command {
     Play {
         level: Option<PathBuf>,
         /// Internal render resolution; the window scales it.
-        #[arg(long, default_value_t = 480, value_parser = crate::cli::values::count())]
+        #[arg(long, default_value_t = crate::app::DEFAULT_WIDTH, value_parser = crate::cli::values::count())]
         width: u32,
-        #[arg(long, default_value_t = 270, value_parser = crate::cli::values::count())]
+        #[arg(long, default_value_t = crate::app::DEFAULT_HEIGHT, value_parser = crate::cli::values::count())]
         height: u32,
         /// Render this many frames, then keep showing the image and print `ready`.
         #[arg(long, value_parser = crate::cli::values::count())]
@@ -96,9 +96,9 @@ pub enum Command {
     Edit {
         level: PathBuf,
         /// The view's render resolution.
-        #[arg(long, default_value_t = 480, value_parser = crate::cli::values::count())]
+        #[arg(long, default_value_t = crate::app::DEFAULT_WIDTH, value_parser = crate::cli::values::count())]
         width: u32,
-        #[arg(long, default_value_t = 270, value_parser = crate::cli::values::count())]
+        #[arg(long, default_value_t = crate::app::DEFAULT_HEIGHT, value_parser = crate::cli::values::count())]
         height: u32,
         /// Quit after this many frames and print the frame times (idle, converging,
         /// dragging).

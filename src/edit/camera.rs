@@ -10,6 +10,7 @@ use glam::{EulerRot, Mat4, Quat, Vec2, Vec3};
 
 use crate::frame::Engine;
 use crate::game::{ActiveCamera, GlobalTransform, PreviousGlobalTransform, Transform, ViewCamera};
+use crate::scene::world::CameraPlacement;
 
 /// Marks the editor's view entity (one per world).
 #[derive(Component, Clone, Copy, Debug, Default)]
@@ -56,6 +57,16 @@ impl FlyCamera {
 
     pub fn world_from_camera(&self) -> Mat4 {
         Mat4::from_rotation_translation(self.rotation(), self.position)
+    }
+
+    /// The view as the renderer's camera takes it (to cast a click's ray, to project).
+    pub fn placement(&self) -> CameraPlacement {
+        CameraPlacement {
+            name: String::new(),
+            yfov: self.yfov,
+            znear: self.znear,
+            world_from_camera: self.world_from_camera(),
+        }
     }
 
     /// Turns the view by `radians` (x: right, y: up).

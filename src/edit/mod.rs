@@ -584,17 +584,20 @@ pub fn entity_bounds(engine: &mut Engine, place: LevelEntity) -> Option<(Vec3, V
     bounds
 }
 
+/// Where `ray` first meets the level's pickable geometry.
+pub fn level_point(engine: &Engine, ray: &Ray) -> Option<Vec3> {
+    let scene = engine.render_scene();
+    let hit = scene
+        .accel
+        .intersect(ray, InstanceMask::PICKABLE, &scene.alpha())?;
+    Some((ray.origin + ray.direction * hit.t).into())
+}
+
 /// Where `ray` first meets the level's pickable geometry, else the ground plane y = 0
 /// (where the palette places what it holds).
 pub fn surface_point(engine: &Engine, ray: &Ray) -> Option<Vec3> {
-    let scene = engine.render_scene();
-    let t = match scene
-        .accel
-        .intersect(ray, InstanceMask::PICKABLE, &scene.alpha())
-    {
-        Some(hit) => hit.t,
-        None if ray.direction.y < -1e-6 => -ray.origin.y / ray.direction.y,
-        None => return None,
-    };
-    Some((ray.origin + ray.direction * t).into())
+    level_point(engine, ray).or_else(|| {
+        (ray.direction.y < -1e-6)
+            .then(|| (ray.origin + ray.direction * (-ray.origin.y / ray.direction.y)).into())
+    })
 }

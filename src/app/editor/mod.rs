@@ -32,7 +32,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, anyhow};
 use glam::Vec2;
-use pixels::{Pixels, PixelsBuilder, SurfaceTexture};
+use pixels::Pixels;
 use winit::application::ApplicationHandler;
 use winit::dpi::LogicalSize;
 use winit::event::{DeviceEvent, DeviceId, WindowEvent};
@@ -203,8 +203,8 @@ impl EditOptions {
     pub fn for_level(level: PathBuf) -> EditOptions {
         EditOptions {
             level,
-            width: 480,
-            height: 270,
+            width: super::DEFAULT_WIDTH,
+            height: super::DEFAULT_HEIGHT,
             frames: None,
         }
     }
@@ -274,13 +274,7 @@ impl EditorApp {
         // The floor under the camera, if the camera is over the level: else the level's
         // own start is kept (a camera out in the void would drop the player into it).
         let down = Ray::new(self.camera.position.into(), glam::Vec3A::NEG_Y);
-        let floor = {
-            let scene = self.engine.render_scene();
-            scene
-                .accel
-                .intersect(&down, crate::accel::InstanceMask::PICKABLE, &scene.alpha())
-                .map(|hit| self.camera.position - glam::Vec3::Y * hit.t)
-        };
+        let floor = crate::edit::level_point(&self.engine, &down);
         let has_start = level.entities.iter().any(|e| e.player_spawn.is_some());
         let from = match (floor, has_start) {
             (Some(feet), _) => {
@@ -405,11 +399,11 @@ impl EditorApp {
         let result: anyhow::Result<Option<String>> = match command {
             Command::Pick { ray, add } => {
                 let picked = editor.select_by_ray(engine, &ray, add);
-                Ok(picked.map(|place| format!("selected {}", self.panels.name_of(place))))
+                Ok(picked.map(|place| format!("selected {}", entity_name(engine, place))))
             }
             Command::Select { place, add } => {
                 editor.select(place, add);
-                Ok(Some(format!("selected {}", self.panels.name_of(place))))
+                Ok(Some(format!("selected {}", entity_name(engine, place))))
             }
             Command::ClearSelection => {
                 editor.selection.clear();
@@ -828,30 +822,13 @@ impl ApplicationHandler for EditorApp {
         if self.window.is_some() {
             return;
         }
-        let attributes = Window::default_attributes()
-            .with_title(self.title())
-            .with_inner_size(LogicalSize::new(1280, 760));
-        let window = match event_loop.create_window(attributes) {
-            Ok(window) => Arc::new(window),
-            Err(error) => {
-                return self.fail(event_loop, anyhow!("cannot create the window: {error}"));
-            }
-        };
-        let size = window.inner_size();
-        let surface =
-            SurfaceTexture::new(size.width.max(1), size.height.max(1), Arc::clone(&window));
-        let pixels = match PixelsBuilder::new(self.options.width, self.options.height, surface)
-            .enable_vsync(true)
-            .build()
-        {
-            Ok(pixels) => pixels,
-            Err(error) => {
-                return self.fail(
-                    event_loop,
-                    anyhow!("cannot start the editor's window surface: {error}"),
-                );
-            }
-        };
+        let buffer = (self.options.width, self.options.height);
+        let size = LogicalSize::new(1280, 760);
+        let (window, pixels) =
+            match super::open_window(event_loop, self.title(), size, buffer, true) {
+                Ok(opened) => opened,
+                Err(error) => return self.fail(event_loop, error),
+            };
         self.gui = Some(gui::Gui::new(event_loop, &window, &pixels));
         self.pixels = Some(pixels);
         self.window = Some(window);
@@ -923,13 +900,7 @@ impl ApplicationHandler for EditorApp {
 
 /// Where a click at `at` (0..1 across the view, from the top-left) looks into the level.
 pub fn view_ray(camera: &FlyCamera, width: u32, height: u32, at: Vec2) -> Ray {
-    let placement = crate::scene::world::CameraPlacement {
-        name: String::new(),
-        yfov: camera.yfov,
-        znear: camera.znear,
-        world_from_camera: camera.world_from_camera(),
-    };
-    let film = crate::render::Camera::new(&placement, width, height);
+    let film = crate::render::Camera::new(&camera.placement(), width, height);
     film.ray(at * Vec2::new(width as f32, height as f32), Vec2::ZERO)
 }
 

@@ -4,7 +4,6 @@
 //! with draggable waypoints, the gizmo). It reads a snapshot of the level (`FrameInput`)
 //! and only queues `Command`s: the window runs them after.
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -160,7 +159,6 @@ pub struct Panels {
     gizmo: Gizmo,
     /// The waypoint being dragged: (warden's name, index in its route).
     waypoint: Option<(String, usize)>,
-    names: HashMap<LevelEntity, String>,
 }
 
 impl Panels {
@@ -191,15 +189,7 @@ impl Panels {
             path_field: level.display().to_string(),
             gizmo: Gizmo::default(),
             waypoint: None,
-            names: HashMap::new(),
         }
-    }
-
-    pub fn name_of(&self, place: LevelEntity) -> String {
-        self.names
-            .get(&place)
-            .cloned()
-            .unwrap_or_else(|| format!("entity {}", place.0))
     }
 
     pub fn ui(
@@ -213,11 +203,6 @@ impl Panels {
     ) {
         let ctx = ui.ctx().clone();
         self.primary_down = ctx.input(|i| i.pointer.primary_down());
-        self.names = frame
-            .defs
-            .iter()
-            .map(|(place, def)| (*place, def.name.clone()))
-            .collect();
         self.shortcuts(&ctx, out);
         egui::Panel::top("menu").show_inside(ui, |ui| self.menu_bar(ui, frame, view, out));
         egui::Panel::bottom("status").show_inside(ui, |ui| self.status(ui, frame, view));
@@ -962,14 +947,8 @@ struct ViewProjection {
 
 impl ViewProjection {
     fn new(camera: &FlyCamera, view: &ViewState, rect: Rect) -> ViewProjection {
-        let placement = crate::scene::world::CameraPlacement {
-            name: String::new(),
-            yfov: camera.yfov,
-            znear: camera.znear,
-            world_from_camera: camera.world_from_camera(),
-        };
         ViewProjection {
-            projection: crate::render::Camera::new(&placement, view.width, view.height)
+            projection: crate::render::Camera::new(&camera.placement(), view.width, view.height)
                 .projection(),
             film: Vec2::new(view.width as f32, view.height as f32),
             rect,
