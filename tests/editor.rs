@@ -13,7 +13,7 @@ use gloam::frame::Engine;
 use gloam::game::level_io::entity_defs;
 use gloam::render::RenderSettings;
 use gloam::scene::Scene;
-use gloam::scene::level::EntityDef;
+use gloam::scene::level::{EntityDef, MaterialOverride};
 
 /// first-light copied into a scratch `levels/` beside the real `assets/` (its asset paths
 /// are relative), loaded into an engine.
@@ -386,4 +386,53 @@ fn a_changed_asset_is_imported_again_in_place_and_a_broken_one_changes_nothing()
         .unwrap_err();
     assert!(format!("{error:#}").contains("crate.glb"), "{error:#}");
     assert_eq!(crate_top(&engine), after);
+}
+
+/// The inspector's material overrides: one the level did not have is added to an instance
+/// (a floor tile made to glow red), reaches the renderer's materials and its light set and
+/// is written to the file; undo takes it away, and the level saves as the file it was.
+#[test]
+fn a_new_material_override_reaches_the_renderer_and_the_file_and_undoes() {
+    let (path, text, mut engine) = open_first_light("editor-materials");
+    let mut editor = Editor::new();
+    let (tile, _) = entity_defs(&mut engine.world)
+        .into_iter()
+        .find(|(_, def)| def.name == "floor 22")
+        .unwrap();
+    editor.select(tile, false);
+    let glow = Vec3::new(4.7, 0.0, 0.0);
+    let glows = |engine: &Engine| {
+        engine
+            .render_scene()
+            .materials
+            .iter()
+            .any(|material| material.emissive == glow)
+    };
+    let lights_before = engine.render_scene().lights.lights.len();
+    assert!(!glows(&engine));
+
+    editor
+        .modify(&mut engine, |def| {
+            let change = MaterialOverride {
+                emissive: Some(glow),
+                ..MaterialOverride::default()
+            };
+            let instance = def.instance.as_mut().unwrap();
+            instance
+                .material_overrides
+                .insert("floor tiles".to_owned(), change);
+        })
+        .unwrap();
+    assert!(glows(&engine), "the renderer's materials have the override");
+    assert!(
+        engine.render_scene().lights.lights.len() > lights_before,
+        "the glowing tile is a light"
+    );
+    let saved = saved_text(&mut editor, &mut engine, &path);
+    assert!(saved.contains("\"floor tiles\": (\n"), "{saved}");
+    assert!(saved.contains("emissive: (4.7, 0.0, 0.0),"), "{saved}");
+
+    assert!(editor.undo(&mut engine).unwrap());
+    assert!(!glows(&engine));
+    assert_eq!(saved_text(&mut editor, &mut engine, &path), text);
 }

@@ -357,9 +357,12 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
     );
     let lines = lines_of(editor.0.stdout.take().unwrap());
     let next_line = |what: &str| {
-        lines
+        let line = lines
             .recv_timeout(Duration::from_secs(30))
-            .unwrap_or_else(|_| panic!("no line saying {what}"))
+            .unwrap_or_else(|_| panic!("no line saying {what}"));
+        // What the editor said, in the test's output should a later step fail.
+        println!("editor: {line}");
+        line
     };
     let id = gloam_window(&display);
     let xdotool = |args: &[&str]| {
@@ -371,12 +374,23 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
         assert!(output.status.success(), "xdotool {args:?}");
         String::from_utf8_lossy(&output.stdout).trim().to_owned()
     };
-    let title = || xdotool(&["getwindowname", &id]);
     let key = |key: &str| {
         focus_window(&display, &id);
         xdotool(&["key", key]);
     };
-    assert_eq!(title(), "first-light.ron - Gloam editor");
+    // The title follows the frame that ran the command, a moment after its line.
+    let title_of_becomes = |window: &str, expected: &str| {
+        let title = || xdotool(&["getwindowname", window]);
+        for _ in 0..40 {
+            if title() == expected {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        assert_eq!(title(), expected);
+    };
+    let title_becomes = |expected: &str| title_of_becomes(&id, expected);
+    title_becomes("first-light.ron - Gloam editor");
     // The first frames: the window's interface settles, then a click in the middle of the
     // view picks what is there (the level's overview looks down on the hall).
     std::thread::sleep(Duration::from_secs(2));
@@ -394,7 +408,7 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
 
     key("Delete");
     assert_eq!(next_line("the delete"), "deleted 1");
-    assert!(title().starts_with('*'), "{}", title());
+    title_becomes("*first-light.ron - Gloam editor");
     key("ctrl+s");
     assert_eq!(next_line("the save"), format!("saved {}", level.display()));
     let saved = std::fs::read_to_string(&level).unwrap();
@@ -403,7 +417,7 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
         std::fs::read_to_string(levels.join("first-light.ron.bak")).unwrap(),
         original
     );
-    assert_eq!(title(), "first-light.ron - Gloam editor");
+    title_becomes("first-light.ron - Gloam editor");
 
     key("ctrl+z");
     assert_eq!(next_line("the undo"), "undone");
@@ -463,7 +477,8 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
     xdotool(&["mousemove", "--window", &id, "610", "420"]);
     std::thread::sleep(Duration::from_millis(300));
     xdotool(&["click", "1"]);
-    next_line("the second selection");
+    let second = next_line("the second selection");
+    let second = format!("name: \"{}\"", second.trim_start_matches("selected "));
     key("Delete");
     assert_eq!(next_line("the delete"), "deleted 1");
     key("F5");
@@ -492,6 +507,63 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
         map.starts_with("exposure map at 0 s: darkest route peaks at "),
         "{map}"
     );
+
+    let key_back = |key: &str| {
+        focus_window(&display, &back);
+        xdotool(&["key", key]);
+    };
+    // Someone else saves the level while the edit is unsaved: the editor asks, and Enter
+    // takes the answer that has the keyboard, keeping the edits; the next save replaces
+    // their file, which .bak then holds.
+    let theirs = original.replacen("intensity: 25.0,", "intensity: 40.0,", 1);
+    std::fs::write(&level, &theirs).unwrap();
+    assert_eq!(
+        next_line("the conflict"),
+        format!(
+            "{} changed on disk while there are unsaved edits",
+            level.display()
+        )
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    key_back("Return");
+    assert_eq!(
+        next_line("the answer"),
+        "kept the edits; saving will replace the file on disk"
+    );
+    key_back("ctrl+s");
+    assert_eq!(
+        next_line("the save over their file"),
+        format!("saved {}", level.display())
+    );
+    let saved = std::fs::read_to_string(&level).unwrap();
+    assert!(
+        !saved.contains(&second),
+        "the edit was kept: {second} is gone"
+    );
+    assert_eq!(
+        std::fs::read_to_string(levels.join("first-light.ron.bak")).unwrap(),
+        theirs,
+        "their version is kept as .bak"
+    );
+
+    // File > Open through the path field (always there, dialog or not): the menu stays
+    // open while the field is clicked and typed in.
+    let other = levels.join("other.ron");
+    std::fs::write(&other, &original).unwrap();
+    xdotool(&["mousemove", "--window", &back, "19", "11"]);
+    std::thread::sleep(Duration::from_millis(300));
+    xdotool(&["click", "1"]);
+    std::thread::sleep(Duration::from_millis(500));
+    xdotool(&["mousemove", "--window", &back, "150", "84"]);
+    std::thread::sleep(Duration::from_millis(300));
+    xdotool(&["click", "1"]);
+    key_back("ctrl+a");
+    xdotool(&["type", "--delay", "20", &other.display().to_string()]);
+    xdotool(&["mousemove", "--window", &back, "55", "106"]);
+    std::thread::sleep(Duration::from_millis(300));
+    xdotool(&["click", "1"]);
+    assert_eq!(next_line("the open"), format!("opened {}", other.display()));
+    title_of_becomes(&back, "other.ron - Gloam editor");
     println!("screenshot: {}", shot.display());
 }
 

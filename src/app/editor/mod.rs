@@ -16,13 +16,15 @@
 //! 5. present: the film is tone mapped into pixels' buffer, whose texture the interface
 //!    draws as the view.
 //!
-//! Every few minutes unsaved edits go to the level's autosave file; closing with unsaved
-//! edits asks first. The level file and its assets are watched (`scene::watch`): a level
+//! Every few minutes unsaved edits go to the level's autosave file; closing, or opening
+//! another level (the File menu's path field, or the desktop's dialog: `dialogs`), with
+//! unsaved edits asks first. The level file and its assets are watched (`scene::watch`): a level
 //! changed on disk by someone else is loaded (or, with unsaved edits, the designer is asked
 //! which to keep), a changed asset is imported again in place, and a file that does not
 //! load leaves the level as it is and shows its `file:line:column: message` over the view
 //! until it is fixed. The editor's own saves are recognised by their bytes and ignored.
 
+mod dialogs;
 mod gui;
 mod panels;
 
@@ -54,6 +56,7 @@ use crate::scene::files::absolute;
 use crate::scene::level::EntityDef;
 use crate::scene::level::Level;
 use crate::scene::watch::FileWatch;
+use dialogs::{DialogKind, PendingDialog};
 use panels::Panels;
 use std::sync::mpsc::Receiver;
 
@@ -117,14 +120,16 @@ pub enum Command {
     Save,
     /// Save to another file, which becomes the level being edited.
     SaveAs(PathBuf),
+    /// Show the desktop's file dialog for Open or Save as.
+    Browse(DialogKind),
     /// Read the file again, dropping unsaved edits.
     Revert,
     /// Converging view <-> the game's filtered view.
     ToggleView,
-    /// Close the window now, whatever is unsaved (the quit prompt's answer).
-    Quit,
-    /// Save, then close.
-    SaveAndQuit,
+    /// Quit or open another level now, whatever is unsaved (asked first when there is).
+    Leave(Leave),
+    /// Save, then quit or open another level.
+    SaveAndLeave(Leave),
     /// The file changed on disk while there were unsaved edits: keep the edits (a save
     /// will replace the file, which `.bak` then keeps).
     KeepEdits,
@@ -132,6 +137,15 @@ pub enum Command {
     TakeFile,
     /// Play the level as edited from the editor's camera (F5); Esc comes back.
     PlayTest,
+}
+
+/// Where the editor goes when it leaves the level being edited.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Leave {
+    /// Close the window.
+    Quit,
+    /// Edit this level file instead.
+    Open(PathBuf),
 }
 
 /// What a frame did, for the frame-time report.
@@ -242,6 +256,7 @@ impl EditorApp {
             exposure: None,
             exposure_job: None,
             exposure_for: None,
+            dialog: None,
         };
         match FileWatch::new([app.path.clone()]) {
             Ok(watch) => app.watch = Some(watch),
@@ -369,6 +384,8 @@ pub struct EditorApp {
     exposure: Option<Exposure>,
     exposure_job: Option<Receiver<Result<Exposure, String>>>,
     exposure_for: Option<(Level, f32)>,
+    /// The desktop's file dialog, while it is open.
+    dialog: Option<PendingDialog>,
 }
 
 impl EditorApp {
@@ -445,19 +462,26 @@ impl EditorApp {
             Command::Redo => editor
                 .redo(engine)
                 .map(|done| Some(if done { "redone" } else { "nothing to redo" }.to_owned())),
-            Command::Save | Command::SaveAndQuit => {
-                let quit = matches!(command, Command::SaveAndQuit);
-                match self.save_to(self.path.clone()) {
-                    Ok(line) => {
-                        if quit {
-                            event_loop.exit();
-                        }
-                        Ok(Some(line))
-                    }
-                    Err(error) => Err(error),
-                }
-            }
+            Command::Save => self.save_to(self.path.clone()).map(Some),
+            Command::SaveAndLeave(leave) => match self.save_to(self.path.clone()) {
+                Ok(saved) => self.leave(event_loop, leave).map(|left| {
+                    Some(match left {
+                        Some(left) => format!("{saved}; {left}"),
+                        None => saved,
+                    })
+                }),
+                Err(error) => Err(error),
+            },
+            Command::Leave(leave) => self.leave(event_loop, leave),
             Command::SaveAs(path) => self.save_to(path).map(Some),
+            Command::Browse(kind) => match &self.window {
+                Some(window) => {
+                    self.dialog = Some(PendingDialog::show(kind, window, &self.path));
+                    self.panels.dialog_open = true;
+                    Ok(None)
+                }
+                None => Ok(None),
+            },
             Command::Revert => self.force_reload().map(|line| Some(line.to_owned())),
             Command::ToggleView => {
                 let film = &mut self.engine.film;
@@ -468,10 +492,6 @@ impl EditorApp {
                 film.filter.reset();
                 film.reset = true;
                 Ok(Some(format!("view: {}", view_name(film.filter.mode))))
-            }
-            Command::Quit => {
-                event_loop.exit();
-                Ok(None)
             }
             Command::PlayTest => self.play_test(event_loop),
             Command::KeepEdits => {
@@ -506,6 +526,64 @@ impl EditorApp {
             Ok(Some(line)) => self.notify(line),
             Ok(None) => {}
             Err(error) => self.notify(format!("{error:#}")),
+        }
+    }
+
+    /// Quits, or opens another level (on an error the level shown stays).
+    fn leave(
+        &mut self,
+        event_loop: &ActiveEventLoop,
+        leave: Leave,
+    ) -> anyhow::Result<Option<String>> {
+        match leave {
+            Leave::Quit => {
+                event_loop.exit();
+                Ok(None)
+            }
+            Leave::Open(path) => self.open_level(path).map(Some),
+        }
+    }
+
+    /// Edits the level in `path` instead of this one: a new world, history and camera,
+    /// the same window. Nothing changes if it does not load.
+    fn open_level(&mut self, path: PathBuf) -> anyhow::Result<String> {
+        let scene = Scene::load(&path)?;
+        let disk = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        self.engine = editor_engine(&scene, &self.options);
+        self.camera = FlyCamera::from_view(&self.engine);
+        self.camera.install(&mut self.engine.world);
+        self.editor = Editor::new();
+        self.disk = disk;
+        self.panels.opened(&path);
+        self.exposure = None;
+        self.exposure_job = None;
+        self.exposure_for = None;
+        self.autosaved = Instant::now();
+        self.options.level = path.clone();
+        self.path = path;
+        self.watch_files();
+        Ok(format!("opened {}", self.path.display()))
+    }
+
+    /// The desktop's file dialog has closed: what was chosen is opened or saved to.
+    fn dialog_answered(&mut self, event_loop: &ActiveEventLoop) {
+        let Some(answer) = self.dialog.as_ref().and_then(PendingDialog::poll) else {
+            return;
+        };
+        let kind = self.dialog.take().map(|dialog| dialog.kind);
+        self.panels.dialog_open = false;
+        match (kind, answer) {
+            (_, None) => self.notify("no file chosen".to_owned()),
+            (Some(DialogKind::SaveAs), Some(path)) => self.run(event_loop, Command::SaveAs(path)),
+            (Some(DialogKind::Open), Some(path)) => {
+                let mut commands = Vec::new();
+                let dirty = self.editor.is_dirty();
+                self.panels.leave(Leave::Open(path), dirty, &mut commands);
+                for command in commands {
+                    self.run(event_loop, command);
+                }
+            }
+            (None, Some(_)) => {}
         }
     }
 
@@ -700,6 +778,7 @@ impl EditorApp {
         let seconds = (start - self.last_frame).as_secs_f32().min(0.25);
         self.last_frame = start;
         self.update_exposure();
+        self.dialog_answered(event_loop);
         let (Some(window), Some(gui)) = (self.window.clone(), self.gui.as_mut()) else {
             return;
         };
@@ -846,7 +925,7 @@ impl ApplicationHandler for EditorApp {
         match event {
             WindowEvent::CloseRequested => {
                 if self.editor.is_dirty() {
-                    self.panels.quit_prompt = true;
+                    self.panels.leaving = Some(Leave::Quit);
                 } else {
                     event_loop.exit();
                 }

@@ -4,6 +4,7 @@
 //! with draggable waypoints, the gizmo). It reads a snapshot of the level (`FrameInput`)
 //! and only queues `Command`s: the window runs them after.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -13,18 +14,22 @@ use transform_gizmo_egui::config::GizmoModeKind;
 use transform_gizmo_egui::math::Transform as GizmoTransform;
 use transform_gizmo_egui::prelude::*;
 
-use super::{Command, view_ray};
+use super::dialogs::DialogKind;
+use super::{Command, Leave, view_ray};
 use crate::edit::camera::FlyCamera;
 use crate::edit::exposure::Exposure;
 use crate::edit::palette::{Prefab, asset_files, assets_folder};
 use crate::edit::{Editor, entity_bounds};
 use crate::film::FilterMode;
 use crate::frame::Engine;
+use crate::game::Assets;
 use crate::game::LevelEntity;
 use crate::game::level_io::entity_defs;
 use crate::scene::level::{
-    CameraDef, EntityDef, ExitDef, KnockDef, LightDef, MoverDef, PlayerSpawn, ShardDef, WardenDef,
+    CameraDef, EntityDef, ExitDef, KnockDef, LightDef, MaterialOverride, MoverDef, PlayerSpawn,
+    ShardDef, WardenDef,
 };
+use crate::scene::model::Material;
 
 /// What the interface reads of the level this frame.
 pub struct FrameInput {
@@ -35,6 +40,8 @@ pub struct FrameInput {
     pub dirty: bool,
     pub can_undo: bool,
     pub can_redo: bool,
+    /// The materials of the asset the one selected entity instances (for its overrides).
+    pub materials: Vec<Material>,
 }
 
 impl FrameInput {
@@ -44,8 +51,22 @@ impl FrameInput {
             .iter()
             .filter_map(|&place| entity_bounds(engine, place))
             .collect();
+        let defs = entity_defs(&mut engine.world);
+        let materials = match editor.selection.as_slice() {
+            [place] => defs
+                .iter()
+                .find(|(p, _)| p == place)
+                .and_then(|(_, def)| def.instance.as_ref())
+                .and_then(|instance| {
+                    let mut assets = engine.world.get_resource_mut::<Assets>()?;
+                    assets.0.load(&instance.asset).ok()
+                })
+                .map_or_else(Vec::new, |asset| asset.materials.clone()),
+            _ => Vec::new(),
+        };
         FrameInput {
-            defs: entity_defs(&mut engine.world),
+            defs,
+            materials,
             selection: editor.selection.clone(),
             bounds,
             dirty: editor.is_dirty(),
@@ -135,8 +156,12 @@ pub struct Panels {
     pub fly_keys: FlyKeys,
     /// The primary button is held (a drag in progress continues).
     pub primary_down: bool,
-    /// Closing with unsaved edits: ask first.
-    pub quit_prompt: bool,
+    /// Closing or opening another level with unsaved edits: ask first.
+    pub leaving: Option<Leave>,
+    /// The desktop can show file dialogs (Browse buttons beside the path field).
+    pub dialogs: bool,
+    /// A desktop file dialog is open (its Browse buttons wait).
+    pub dialog_open: bool,
     /// The last thing the editor did or failed to do.
     pub notice: Option<(Instant, String)>,
     /// The level changed on disk while there are unsaved edits: ask which to keep.
@@ -154,7 +179,8 @@ pub struct Panels {
     armed: Option<PaletteItem>,
     assets_folder: PathBuf,
     assets: Vec<PathBuf>,
-    /// The path field for Save as (always there, with or without a desktop file dialog).
+    /// The path field for Open and Save as (always there, with or without a desktop file
+    /// dialog).
     path_field: String,
     gizmo: Gizmo,
     /// The waypoint being dragged: (warden's name, index in its route).
@@ -168,7 +194,9 @@ impl Panels {
             flying: false,
             fly_keys: FlyKeys::default(),
             primary_down: false,
-            quit_prompt: false,
+            leaving: None,
+            dialogs: super::dialogs::available(),
+            dialog_open: false,
             notice: None,
             conflict: false,
             file_error: None,
@@ -190,6 +218,25 @@ impl Panels {
             gizmo: Gizmo::default(),
             waypoint: None,
         }
+    }
+
+    /// Another level is being edited: what belonged to the last one goes (the palette's
+    /// assets, the choice held, the path field, a file's error), the designer's tools stay.
+    pub fn opened(&mut self, level: &Path) {
+        let fresh = Panels::new(level);
+        *self = Panels {
+            notice: self.notice.take(),
+            exposure: ExposureControls {
+                status: String::new(),
+                ..self.exposure.clone()
+            },
+            tool: self.tool,
+            snapping: self.snapping,
+            grid: self.grid,
+            angle: self.angle,
+            dialogs: self.dialogs,
+            ..fresh
+        };
     }
 
     pub fn ui(
@@ -217,8 +264,8 @@ impl Panels {
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE.fill(Color32::from_gray(12)))
             .show_inside(ui, |ui| self.view(ui, frame, view, camera, exposure, out));
-        if self.quit_prompt {
-            self.quit_prompt(&ctx, out);
+        if self.leaving.is_some() {
+            self.leave_prompt(&ctx, out);
         } else if self.conflict {
             conflict_prompt(&ctx, out);
         }
@@ -295,35 +342,58 @@ impl Panels {
         out: &mut Vec<Command>,
     ) {
         egui::MenuBar::new().ui(ui, |ui| {
-            ui.menu_button("File", |ui| {
-                if ui.button("Save  (Ctrl+S)").clicked() {
-                    out.push(Command::Save);
-                    ui.close();
-                }
-                ui.separator();
-                ui.label("Save as:");
-                ui.text_edit_singleline(&mut self.path_field);
-                if ui.button("Save as this file").clicked() {
-                    out.push(Command::SaveAs(PathBuf::from(self.path_field.trim())));
-                    ui.close();
-                }
-                ui.separator();
-                if ui
-                    .add_enabled(frame.dirty, egui::Button::new("Revert to the file"))
-                    .clicked()
-                {
-                    out.push(Command::Revert);
-                    ui.close();
-                }
-                if ui.button("Quit").clicked() {
-                    if frame.dirty {
-                        self.quit_prompt = true;
-                    } else {
-                        out.push(Command::Quit);
+            // The File menu holds a text field: a click in it must not close the menu
+            // (each command closes it itself).
+            let file_menu = egui::containers::menu::MenuConfig::new()
+                .close_behavior(egui::PopupCloseBehavior::CloseOnClickOutside);
+            egui::containers::menu::MenuButton::new("File")
+                .config(file_menu)
+                .ui(ui, |ui| {
+                    if ui.button("Save  (Ctrl+S)").clicked() {
+                        out.push(Command::Save);
+                        ui.close();
                     }
-                    ui.close();
-                }
-            });
+                    ui.separator();
+                    ui.label("Level file:");
+                    ui.text_edit_singleline(&mut self.path_field);
+                    ui.horizontal(|ui| {
+                        if ui.button("Open this file").clicked() {
+                            let path = PathBuf::from(self.path_field.trim());
+                            self.leave(Leave::Open(path), frame.dirty, out);
+                            ui.close();
+                        }
+                        if ui.button("Save as this file").clicked() {
+                            out.push(Command::SaveAs(PathBuf::from(self.path_field.trim())));
+                            ui.close();
+                        }
+                    });
+                    if self.dialogs {
+                        ui.horizontal(|ui| {
+                            for (label, kind) in [
+                                ("Open...", DialogKind::Open),
+                                ("Save as...", DialogKind::SaveAs),
+                            ] {
+                                let button = egui::Button::new(label);
+                                if ui.add_enabled(!self.dialog_open, button).clicked() {
+                                    out.push(Command::Browse(kind));
+                                    ui.close();
+                                }
+                            }
+                        });
+                    }
+                    ui.separator();
+                    if ui
+                        .add_enabled(frame.dirty, egui::Button::new("Revert to the file"))
+                        .clicked()
+                    {
+                        out.push(Command::Revert);
+                        ui.close();
+                    }
+                    if ui.button("Quit").clicked() {
+                        self.leave(Leave::Quit, frame.dirty, out);
+                        ui.close();
+                    }
+                });
             ui.menu_button("Edit", |ui| {
                 let items = [
                     ("Undo  (Ctrl+Z)", frame.can_undo, Command::Undo),
@@ -487,7 +557,7 @@ impl Panels {
             [original] => {
                 egui::ScrollArea::vertical().show(ui, |ui| {
                     let mut def = (*original).clone();
-                    inspect(ui, &mut def);
+                    inspect(ui, &mut def, &frame.materials);
                     let taken = def.name != original.name
                         && frame.defs.iter().any(|(_, other)| other.name == def.name);
                     if taken || def.name.trim().is_empty() {
@@ -514,22 +584,37 @@ impl Panels {
         }
     }
 
-    fn quit_prompt(&mut self, ctx: &egui::Context, out: &mut Vec<Command>) {
-        egui::Modal::new(egui::Id::new("quit prompt")).show(ctx, |ui| {
+    /// Quits or opens another level now, or asks first if there are unsaved edits.
+    pub fn leave(&mut self, leave: Leave, dirty: bool, out: &mut Vec<Command>) {
+        if dirty {
+            self.leaving = Some(leave);
+        } else {
+            out.push(Command::Leave(leave));
+        }
+    }
+
+    /// Unsaved edits and the designer is leaving them: save, drop or stay. The answer
+    /// that loses nothing has the keyboard, so Enter saves.
+    fn leave_prompt(&mut self, ctx: &egui::Context, out: &mut Vec<Command>) {
+        let Some(leave) = self.leaving.clone() else {
+            return;
+        };
+        let (save, drop) = match leave {
+            Leave::Quit => ("Save and quit", "Quit without saving"),
+            Leave::Open(_) => ("Save and open", "Open without saving"),
+        };
+        egui::Modal::new(egui::Id::new("leave prompt")).show(ctx, |ui| {
             ui.heading("Unsaved changes");
             ui.label("The level has edits that are not saved.");
-            ui.horizontal(|ui| {
-                if ui.button("Save and quit").clicked() {
-                    out.push(Command::SaveAndQuit);
-                    self.quit_prompt = false;
-                }
-                if ui.button("Quit without saving").clicked() {
-                    out.push(Command::Quit);
-                }
-                if ui.button("Cancel").clicked() {
-                    self.quit_prompt = false;
-                }
-            });
+            let answer = prompt_answers(ui, &[save, drop, "Cancel"]);
+            match answer {
+                Some(0) => out.push(Command::SaveAndLeave(leave.clone())),
+                Some(1) => out.push(Command::Leave(leave.clone())),
+                _ => {}
+            }
+            if answer.is_some() {
+                self.leaving = None;
+            }
         });
     }
 
@@ -1011,18 +1096,38 @@ fn conflict_prompt(ctx: &egui::Context, out: &mut Vec<Command>) {
     egui::Modal::new(egui::Id::new("changed on disk")).show(ctx, |ui| {
         ui.heading("The level changed on disk");
         ui.label("Someone else saved the level file while you have unsaved edits.");
-        ui.horizontal(|ui| {
-            if ui.button("Keep my edits").clicked() {
-                out.push(Command::KeepEdits);
-            }
-            if ui
-                .button("Load the file (my edits go to the autosave file)")
-                .clicked()
-            {
-                out.push(Command::TakeFile);
-            }
-        });
+        let answers = [
+            "Keep my edits",
+            "Load the file (my edits go to the autosave file)",
+        ];
+        match prompt_answers(ui, &answers) {
+            Some(0) => out.push(Command::KeepEdits),
+            Some(_) => out.push(Command::TakeFile),
+            None => {}
+        }
     });
+}
+
+/// A prompt's answers in a row; which was clicked. The first, the one that loses nothing,
+/// has the keyboard while nothing else does, so Enter (or Space) picks it as in the
+/// desktop's own dialogs; once answered the keyboard is let go at once, so a shortcut
+/// pressed straight after reaches the editor.
+fn prompt_answers(ui: &mut egui::Ui, answers: &[&str]) -> Option<usize> {
+    ui.horizontal(|ui| {
+        let mut clicked = None;
+        for (index, answer) in answers.iter().enumerate() {
+            let button = ui.button(*answer);
+            if index == 0 && ui.memory(|memory| memory.focused().is_none()) {
+                button.request_focus();
+            }
+            if button.clicked() {
+                clicked = Some(index);
+                button.surrender_focus();
+            }
+        }
+        clicked
+    })
+    .inner
 }
 
 /// The colour and kind of the marker drawn for an entity that draws nothing.
@@ -1115,7 +1220,7 @@ pub fn euler_degrees(rotation: Quat) -> Vec3 {
 
 /// The inspector's fields for one entity: every component it has, and a box to add each
 /// one it has not.
-fn inspect(ui: &mut egui::Ui, def: &mut EntityDef) {
+fn inspect(ui: &mut egui::Ui, def: &mut EntityDef, materials: &[Material]) {
     ui.horizontal(|ui| {
         ui.label("Name");
         ui.text_edit_singleline(&mut def.name);
@@ -1134,23 +1239,7 @@ fn inspect(ui: &mut egui::Ui, def: &mut EntityDef) {
             .default_open(true)
             .show(ui, |ui| {
                 ui.label(&instance.asset);
-                for (material, change) in instance.material_overrides.iter_mut() {
-                    ui.label(format!("material '{material}'"));
-                    if let Some(colour) = &mut change.base_color {
-                        let mut rgb = colour.truncate().to_array();
-                        ui.horizontal(|ui| {
-                            ui.label("base colour");
-                            ui.color_edit_button_rgb(&mut rgb);
-                        });
-                        *colour = Vec3::from_array(rgb).extend(colour.w);
-                    }
-                    if let Some(value) = &mut change.metallic {
-                        slider(ui, "metallic", value, 0.0..=1.0);
-                    }
-                    if let Some(value) = &mut change.roughness {
-                        slider(ui, "roughness", value, 0.0..=1.0);
-                    }
-                }
+                material_overrides(ui, &mut instance.material_overrides, materials);
             });
     }
     component(
@@ -1361,6 +1450,127 @@ fn inspect(ui: &mut egui::Ui, def: &mut EntityDef) {
 }
 
 /// A component's section: a box that adds or removes it, and its fields while present.
+/// Each of the asset's materials, with a box per value the level may replace for this
+/// instance; ticking one starts from the asset's value, and an override with no value
+/// left is dropped, so the level file names only what differs.
+fn material_overrides(
+    ui: &mut egui::Ui,
+    overrides: &mut BTreeMap<String, MaterialOverride>,
+    materials: &[Material],
+) {
+    let mut shown = Vec::new();
+    for material in materials {
+        // Overrides are keyed by name: an unnamed material cannot be named by one, and a
+        // name the asset repeats names all its materials at once.
+        if material.name.is_empty() || shown.contains(&&material.name) {
+            continue;
+        }
+        shown.push(&material.name);
+        let mut change = overrides.get(&material.name).cloned().unwrap_or_default();
+        let changed = if change == MaterialOverride::default() {
+            ""
+        } else {
+            " (changed)"
+        };
+        egui::CollapsingHeader::new(format!("material '{}'{changed}", material.name))
+            .id_salt(&material.name)
+            .show(ui, |ui| material_fields(ui, &mut change, material));
+        if change == MaterialOverride::default() {
+            overrides.remove(&material.name);
+        } else {
+            overrides.insert(material.name.clone(), change);
+        }
+    }
+    if shown.len() < materials.len() {
+        ui.weak("(unnamed materials cannot be overridden)");
+    }
+}
+
+fn material_fields(ui: &mut egui::Ui, change: &mut MaterialOverride, asset: &Material) {
+    overridable(
+        ui,
+        "base colour",
+        &mut change.base_color,
+        asset.base_color,
+        |ui, colour| {
+            let mut rgb = colour.truncate().to_array();
+            ui.color_edit_button_rgb(&mut rgb);
+            *colour = Vec3::from_array(rgb).extend(colour.w);
+        },
+    );
+    let unit = |ui: &mut egui::Ui, value: &mut f32| {
+        ui.add(egui::Slider::new(value, 0.0..=1.0));
+    };
+    overridable(ui, "metallic", &mut change.metallic, asset.metallic, unit);
+    overridable(
+        ui,
+        "roughness",
+        &mut change.roughness,
+        asset.roughness,
+        unit,
+    );
+    overridable(
+        ui,
+        "transmission",
+        &mut change.transmission,
+        asset.transmission,
+        unit,
+    );
+    overridable(ui, "ior", &mut change.ior, asset.ior, |ui, ior| {
+        ui.add(egui::DragValue::new(ior).speed(0.01).range(1.0..=3.0));
+    });
+    overridable(
+        ui,
+        "emissive",
+        &mut change.emissive,
+        asset.emissive,
+        |ui, radiance| {
+            for channel in [&mut radiance.x, &mut radiance.y, &mut radiance.z] {
+                ui.add(
+                    egui::DragValue::new(channel)
+                        .speed(0.05)
+                        .range(0.0..=10_000.0),
+                );
+            }
+        },
+    );
+    overridable(
+        ui,
+        "double sided",
+        &mut change.double_sided,
+        asset.double_sided,
+        |ui, on| {
+            ui.checkbox(on, "");
+        },
+    );
+}
+
+/// One value of a material override: ticked, the level's value (starting from the
+/// asset's); not ticked, the asset's.
+fn overridable<T>(
+    ui: &mut egui::Ui,
+    label: &str,
+    value: &mut Option<T>,
+    asset: T,
+    edit: impl FnOnce(&mut egui::Ui, &mut T),
+) {
+    ui.horizontal(|ui| {
+        let mut on = value.is_some();
+        ui.checkbox(&mut on, label);
+        match (on, value.is_some()) {
+            (true, false) => *value = Some(asset),
+            (false, true) => *value = None,
+            _ => {}
+        }
+        match value {
+            Some(value) => edit(ui, value),
+            None => {
+                ui.weak("as the asset");
+            }
+        }
+    });
+}
+
 fn component<T>(
     ui: &mut egui::Ui,
     label: &str,
@@ -1406,13 +1616,6 @@ fn number(
                 .range(range)
                 .suffix(suffix),
         );
-    });
-}
-
-fn slider(ui: &mut egui::Ui, label: &str, value: &mut f32, range: std::ops::RangeInclusive<f32>) {
-    ui.horizontal(|ui| {
-        ui.label(label);
-        ui.add(egui::Slider::new(value, range));
     });
 }
 
