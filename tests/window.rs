@@ -557,6 +557,7 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
     xdotool(&["mousemove", "--window", &back, "150", "84"]);
     std::thread::sleep(Duration::from_millis(300));
     xdotool(&["click", "1"]);
+    std::thread::sleep(Duration::from_millis(300));
     key_back("ctrl+a");
     xdotool(&["type", "--delay", "20", &other.display().to_string()]);
     xdotool(&["mousemove", "--window", &back, "55", "106"]);

@@ -68,9 +68,28 @@ impl FileWatch {
         self.files.contains(&absolute(file))
     }
 
+    /// Whether watched files have changed since the last `poll` reported (settled or
+    /// not): a cheap check for a loop that only polls when there is news. Never blocks.
+    pub fn has_changes(&mut self) -> bool {
+        self.receive();
+        !self.changed.is_empty()
+    }
+
     /// The watched files that changed, once changes have stopped for `QUIET`; empty
     /// otherwise. Never blocks.
     pub fn poll(&mut self) -> Vec<PathBuf> {
+        self.receive();
+        match self.last_change {
+            Some(at) if at.elapsed() >= QUIET => {
+                self.last_change = None;
+                std::mem::take(&mut self.changed).into_iter().collect()
+            }
+            _ => Vec::new(),
+        }
+    }
+
+    /// Takes in the watcher's events so far.
+    fn receive(&mut self) {
         while let Ok(event) = self.events.try_recv() {
             let Ok(event) = event else { continue };
             if event.kind.is_access() {
@@ -83,13 +102,6 @@ impl FileWatch {
                     self.last_change = Some(Instant::now());
                 }
             }
-        }
-        match self.last_change {
-            Some(at) if at.elapsed() >= QUIET => {
-                self.last_change = None;
-                std::mem::take(&mut self.changed).into_iter().collect()
-            }
-            _ => Vec::new(),
         }
     }
 }
@@ -109,8 +121,10 @@ mod tests {
         assert!(watch.watches(&level));
         crate::scene::files::write_atomically(&level, b"two").unwrap();
         std::fs::write(&other, "not watched").unwrap();
+        let mut noticed = false;
         let mut reported = Vec::new();
         for _ in 0..100 {
+            noticed |= watch.has_changes();
             reported.extend(watch.poll());
             if !reported.is_empty() {
                 break;
@@ -118,7 +132,9 @@ mod tests {
             std::thread::sleep(Duration::from_millis(20));
         }
         assert_eq!(reported, [absolute(&level)]);
+        assert!(noticed, "has_changes saw it first");
         std::thread::sleep(QUIET * 2);
+        assert!(!watch.has_changes());
         assert!(watch.poll().is_empty(), "reported once");
         let _ = std::fs::remove_dir_all(&dir);
     }

@@ -11,8 +11,8 @@
 //!    or an inspector field is one undo step, ended when the button is let go);
 //! 4. the engine renders one frame of the still level (no simulation step runs): with the
 //!    view still the film converges, and it stops at `CONVERGED_SPP`, after which the
-//!    editor draws only on input or four times a second (`about_to_wait`); F4 shows the
-//!    game's 1-spp filtered view instead;
+//!    editor draws only on input or when a file changes on disk, a notice ends or an
+//!    autosave is due (`about_to_wait`); F4 shows the game's 1-spp filtered view instead;
 //! 5. present: the film is tone mapped into pixels' buffer, whose texture the interface
 //!    draws as the view.
 //!
@@ -73,7 +73,7 @@ pub struct EditOptions {
 /// visibly changes, and the editor leaves the cores to the designer.
 pub const CONVERGED_SPP: u32 = 1024;
 
-/// How far apart frames are drawn while the editor is idle (see `about_to_wait`).
+/// How often an idle editor looks for work that needs a frame (see `about_to_wait`).
 const IDLE_FRAME: Duration = Duration::from_millis(250);
 
 /// How often unsaved edits are written to the autosave file.
@@ -249,6 +249,8 @@ impl EditorApp {
             grabbed: false,
             last_frame: Instant::now(),
             autosaved: Instant::now(),
+            last_check: Instant::now(),
+            shows_converged: false,
             shown: 0,
             log: FrameLog::default(),
             error: None,
@@ -373,6 +375,10 @@ pub struct EditorApp {
     /// The cursor is grabbed for flying.
     grabbed: bool,
     last_frame: Instant,
+    /// When an idle editor last looked for work (`about_to_wait`).
+    last_check: Instant,
+    /// The last frame drawn showed the converged view (its status counts every sample).
+    shows_converged: bool,
     autosaved: Instant,
     shown: u32,
     log: FrameLog,
@@ -845,6 +851,7 @@ impl EditorApp {
         } else {
             FrameKind::Converging
         };
+        self.shows_converged = converged;
         if !converged || self.engine.film.reset {
             self.engine.advance(0.0);
         }
@@ -953,11 +960,15 @@ impl ApplicationHandler for EditorApp {
     }
 
     /// Frames are drawn back to back while anything moves (the view converging, the
-    /// camera flying, a drag, an exposure map on its way, egui animating); once all is
-    /// still the editor waits for input, waking `IDLE_FRAME` apart to notice files
-    /// changed on disk and end notices, so a converged view leaves the cores alone.
+    /// camera flying, a drag, an exposure map on its way, egui animating). Once all is
+    /// still the editor waits for input, waking `IDLE_FRAME` apart only to look for work
+    /// that needs a frame (a file changed on disk, a notice to take down, an autosave due,
+    /// a file dialog open), so a converged view leaves the cores alone. A measured run
+    /// (`--frames`) draws its idle frames on every wake-up instead, to time them and end.
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
-        let Some(window) = &self.window else { return };
+        let Some(window) = self.window.clone() else {
+            return;
+        };
         let busy = !self.converged()
             || self.panels.flying
             || self.panels.primary_down
@@ -966,14 +977,36 @@ impl ApplicationHandler for EditorApp {
         if busy {
             event_loop.set_control_flow(ControlFlow::Poll);
             window.request_redraw();
-        } else {
-            let next = self.last_frame + IDLE_FRAME;
-            if Instant::now() >= next {
-                window.request_redraw();
-            } else {
-                event_loop.set_control_flow(ControlFlow::WaitUntil(next));
-            }
+            return;
         }
+        let next = self.last_frame.max(self.last_check) + IDLE_FRAME;
+        if Instant::now() < next {
+            event_loop.set_control_flow(ControlFlow::WaitUntil(next));
+            return;
+        }
+        self.last_check = Instant::now();
+        if self.options.frames.is_some() || self.idle_work() {
+            window.request_redraw();
+        } else {
+            event_loop.set_control_flow(ControlFlow::WaitUntil(self.last_check + IDLE_FRAME));
+        }
+    }
+}
+
+impl EditorApp {
+    /// Whether an idle editor has something to do that needs a frame.
+    fn idle_work(&mut self) -> bool {
+        let notice_over = self
+            .panels
+            .notice
+            .as_ref()
+            .is_some_and(|(at, _)| at.elapsed().as_secs_f32() >= NOTICE_SECONDS);
+        if notice_over {
+            self.panels.notice = None;
+        }
+        let autosave_due = self.editor.is_dirty() && self.autosaved.elapsed() >= AUTOSAVE_EVERY;
+        let files = self.watch.as_mut().is_some_and(FileWatch::has_changes);
+        notice_over || autosave_due || files || self.dialog.is_some() || !self.shows_converged
     }
 }
 
