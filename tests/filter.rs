@@ -56,6 +56,15 @@ fn flythrough_filters_bring_one_sample_closer_to_the_reference() {
     assert!(rmse("temporal") < 0.75 * rmse("raw"), "{report}");
     assert!(rmse("full") < rmse("temporal"), "{report}");
     assert!(report["median_trail_rmse"]["full"].as_f64().unwrap() >= 0.0);
+    // The moving warden's own lamp lights a pool the figures follow.
+    let pool = &report["moving_lamp_pool"];
+    assert!(pool["pixels"].as_f64().unwrap() > 0.0, "{report}");
+    for kind in ["raw", "temporal", "full"] {
+        let kept = pool["luminance_kept"][kind].as_f64().unwrap();
+        assert!(kept > 0.0 && kept.is_finite(), "{report}");
+        assert!(pool["rmse_display"][kind].as_f64().unwrap() >= 0.0);
+    }
+    assert!(stdout.contains("moving lamp's pool ("), "{stdout}");
     for name in ["raw", "temporal", "full", "reference"] {
         let image = image::open(dir.join("images").join(format!("{name}.png"))).unwrap();
         assert_eq!((image.width(), image.height()), (96, 54));

@@ -10,6 +10,11 @@
 //! sRGB-encoded, in [0, 1]: the error a player sees; linear radiance would be dominated by
 //! the lamps) and on linear radiance. Ghosting is the RMSE over the warden's trail: pixels
 //! it covered in the previous 8 frames and does not cover now, where stale history shows.
+//! The moving lamp's pool is what survives of the light the mover's own lamp casts: a
+//! second reference of the same instant with that lamp dark tells which pixels it lights
+//! (more than half their luminance), and over those pixels each result's mean luminance is
+//! set against the reference's (1 is the whole pool, lower is a pool gone dim) with its
+//! RMSE there.
 
 use std::collections::VecDeque;
 use std::path::PathBuf;
@@ -26,6 +31,7 @@ use crate::film::denoise::{FilterMode, FrameFilter};
 use crate::frame::Engine;
 use crate::game::{Patrol, Transform, ViewCamera};
 use crate::render::film::display_value;
+use crate::render::light::{Light, luminance};
 use crate::render::{Film, Guides, RenderSettings, render, render_guided};
 use crate::scene::files::write_atomically;
 use crate::scene::world::Scene;
@@ -70,6 +76,10 @@ pub struct Options {
     pub sigma_luminance: Option<f32>,
 }
 
+/// A pixel is in the moving lamp's pool when that lamp gives more than this share of its
+/// luminance in the reference.
+const POOL_SHARE: f32 = 0.5;
+
 /// Trail length for the ghosting measure, in frames.
 const TRAIL_FRAMES: usize = 8;
 
@@ -80,6 +90,80 @@ struct Errors {
     display: f64,
     linear: f64,
     trail: f64,
+}
+
+/// What an image keeps of the moving lamp's pool of light.
+#[derive(Clone, Copy, Debug, Default)]
+struct Pool {
+    /// Mean luminance over the pool's pixels against the reference's.
+    kept: f64,
+    /// RMSE over the pool's pixels, on display values.
+    display: f64,
+}
+
+/// The pixels the moving lamp lights: in `reference`, more than `POOL_SHARE` of their
+/// luminance is missing from `unlit` (the same instant and seed with that lamp dark).
+fn pool_mask(reference: &Film, unlit: &Film) -> Vec<bool> {
+    reference
+        .pixels
+        .iter()
+        .zip(&unlit.pixels)
+        .map(|(lit, dark)| {
+            let (lit, dark) = (luminance(*lit), luminance(*dark));
+            lit > 0.0 && lit - dark > POOL_SHARE * lit
+        })
+        .collect()
+}
+
+fn pool(image: &Film, reference: &Film, in_pool: &[bool]) -> Pool {
+    let (mut image_sum, mut reference_sum, mut display, mut count) = (0.0, 0.0, 0.0, 0usize);
+    for ((a, b), _) in image
+        .pixels
+        .iter()
+        .zip(&reference.pixels)
+        .zip(in_pool)
+        .filter(|(_, inside)| **inside)
+    {
+        image_sum += f64::from(luminance(*a));
+        reference_sum += f64::from(luminance(*b));
+        display += (display_value(*a, 1.0) - display_value(*b, 1.0)).length_squared() as f64;
+        count += 1;
+    }
+    Pool {
+        kept: image_sum / reference_sum.max(f64::MIN_POSITIVE),
+        display: (display / (3 * count.max(1)) as f64).sqrt(),
+    }
+}
+
+/// Renders `settings` with punctual light `lamp` dark (its intensity zero for the one
+/// render; the light set's picking is left as it is, so the estimate stays unbiased).
+fn render_without(
+    engine: &mut Engine,
+    lamp: u32,
+    camera: &crate::render::Camera,
+    settings: &RenderSettings,
+) -> anyhow::Result<Film> {
+    let lit = {
+        let mut state = engine.render_state_mut();
+        let light = state
+            .scene
+            .lights
+            .lights
+            .get_mut(lamp as usize)
+            .context("the lamp's light is gone")?;
+        let lit = light.clone();
+        match light {
+            Light::Point { intensity, .. } | Light::Spot { intensity, .. } => {
+                *intensity = glam::Vec3::ZERO;
+            }
+            Light::Directional { irradiance, .. } => *irradiance = glam::Vec3::ZERO,
+            Light::Triangle { .. } => anyhow::bail!("the mover's lamp is not a punctual light"),
+        }
+        lit
+    };
+    let film = render(engine.render_scene(), camera, settings, &|_| {}).film;
+    engine.render_state_mut().scene.lights.lights[lamp as usize] = lit;
+    Ok(film)
 }
 
 fn errors(image: &Film, reference: &Film, trail: &[bool]) -> Errors {
@@ -158,7 +242,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         .world
         .entity_mut(mover)
         .insert(Patrol::new(mover_start, 1.5, 4.0));
-    let mover_instances = instances_under(&mut engine, mover);
+    let mover_instances = instances_under(&engine, mover);
     if mover_instances.is_empty() {
         anyhow::bail!("{}: {mover_name:?} has no mesh to move", level.display());
     }
@@ -181,6 +265,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     let mut rows = Vec::new();
     let (mut render_ms, mut temporal_ms, mut full_ms) = (Vec::new(), Vec::new(), Vec::new());
     let mut last_images = None;
+    // Per compared frame: the pool's size, and what raw, temporal and full keep of it.
+    let (mut pool_pixels, mut pool_rows): (Vec<f64>, Vec<[Pool; 3]>) = (Vec::new(), Vec::new());
     let step = 1.0 / crate::game::SIMULATION_HZ;
     println!(
         "{:>5}{:>10}{:>10}{:>10}{:>12}{:>12}{:>12}",
@@ -235,6 +321,22 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         let raw = errors(&output.film, &reference, &trail);
         let temporal_errors = errors(&temporal_image, &reference, &trail);
         let full_errors = errors(&full_image, &reference, &trail);
+        // The mover's own lamp (a warden carries one): the first lit punctual light under
+        // it, looked up each time as the light set may have been renumbered.
+        let pools = match lamps_under(&engine, mover).first().copied() {
+            Some(lamp) => {
+                let unlit = render_without(&mut engine, lamp, &camera, &reference_settings)?;
+                let in_pool = pool_mask(&reference, &unlit);
+                pool_pixels.push(in_pool.iter().filter(|inside| **inside).count() as f64);
+                Some([
+                    pool(&output.film, &reference, &in_pool),
+                    pool(&temporal_image, &reference, &in_pool),
+                    pool(&full_image, &reference, &in_pool),
+                ])
+            }
+            None => None,
+        };
+        pool_rows.extend(pools);
         bar.suspend(|| {
             println!(
                 "{frame:>5}{:>10.4}{:>10.4}{:>10.4}{:>12.4}{:>12.4}{:>12.4}",
@@ -282,6 +384,24 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         100.0 * full_median / (render_median + full_median)
     );
 
+    let pool_summary = (!pool_rows.is_empty()).then(|| {
+        let of = |index: usize, pick: fn(&Pool) -> f64| {
+            median(pool_rows.iter().map(|row| pick(&row[index])).collect())
+        };
+        let kept = [0, 1, 2].map(|index| of(index, |p| p.kept));
+        let display = [0, 1, 2].map(|index| of(index, |p| p.display));
+        (median(pool_pixels.clone()), kept, display)
+    });
+    match &pool_summary {
+        Some((pixels, kept, display)) => println!(
+            "moving lamp's pool ({pixels:.0} pixels, median): luminance kept raw {:.2}, \
+             temporal {:.2}, temporal+spatial {:.2}; RMSE (display) there raw {:.4}, \
+             temporal {:.4}, temporal+spatial {:.4}",
+            kept[0], kept[1], kept[2], display[0], display[1], display[2]
+        ),
+        None => println!("moving lamp's pool: {mover_name:?} carries no lamp"),
+    }
+
     if let Some(path) = &options.json {
         let row_json =
             |e: &Errors| json!({"display": e.display, "linear": e.linear, "trail": e.trail});
@@ -301,6 +421,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
                 "full": column(&|r| r.3.trail),
             },
             "ratio_full_to_raw": full_rmse / raw,
+            "moving_lamp_pool": pool_summary.map(|(pixels, kept, display)| json!({
+                "pixels": pixels,
+                "luminance_kept": {"raw": kept[0], "temporal": kept[1], "full": kept[2]},
+                "rmse_display": {"raw": display[0], "temporal": display[1], "full": display[2]},
+            })),
             "ratio_temporal_to_raw": temporal_rmse / raw,
             "median_ms": {"render": render_median, "temporal": temporal_median, "full": full_median},
             "compared": rows.iter().map(|(frame, raw, temporal, full)| json!({
@@ -331,23 +456,35 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The accel instances of `root` and everything under it.
-fn instances_under(engine: &mut Engine, root: Entity) -> Vec<u32> {
+/// `root` and every entity under it.
+fn family(engine: &Engine, root: Entity) -> Vec<Entity> {
     let mut found = Vec::new();
     let mut stack = vec![root];
     while let Some(entity) = stack.pop() {
-        if let Some(instance) = engine
-            .world
-            .resource::<crate::extract::RenderState>()
-            .instance_of(entity)
-        {
-            found.push(instance);
-        }
+        found.push(entity);
         if let Some(children) = engine.world.get::<Children>(entity) {
             stack.extend(children.iter());
         }
     }
     found
+}
+
+/// The accel instances of `root` and everything under it.
+fn instances_under(engine: &Engine, root: Entity) -> Vec<u32> {
+    let state = engine.world.resource::<crate::extract::RenderState>();
+    family(engine, root)
+        .into_iter()
+        .filter_map(|entity| state.instance_of(entity))
+        .collect()
+}
+
+/// The light-set indices of the lit punctual lights at `root` and under it.
+fn lamps_under(engine: &Engine, root: Entity) -> Vec<u32> {
+    let state = engine.world.resource::<crate::extract::RenderState>();
+    family(engine, root)
+        .into_iter()
+        .filter_map(|entity| state.light_of(entity))
+        .collect()
 }
 
 /// Pixels whose first hit is one of `instances`.
@@ -357,4 +494,34 @@ fn mover_mask(guides: &Guides, instances: &[u32]) -> Vec<bool> {
         .iter()
         .map(|instance| instances.contains(instance))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn film(pixels: &[f32]) -> Film {
+        Film {
+            width: pixels.len() as u32,
+            height: 1,
+            pixels: pixels.iter().map(|&v| Vec3::splat(v)).collect(),
+        }
+    }
+
+    #[test]
+    fn the_pool_is_where_the_lamp_gives_most_of_the_light_and_its_share_is_measured() {
+        // Pixel 0: all from the lamp; 1: the lamp gives 0.6 of it; 2: only 0.4; 3: dark.
+        let reference = film(&[2.0, 1.0, 1.0, 0.0]);
+        let unlit = film(&[0.0, 0.4, 0.6, 0.0]);
+        let mask = pool_mask(&reference, &unlit);
+        assert_eq!(mask, [true, true, false, false]);
+
+        let same = pool(&reference, &reference, &mask);
+        assert!((same.kept - 1.0).abs() < 1e-9 && same.display == 0.0);
+        // Half the pool's light gone, whatever happens outside it.
+        let dim = pool(&film(&[1.0, 0.5, 9.0, 9.0]), &reference, &mask);
+        assert!((dim.kept - 0.5).abs() < 1e-6, "{dim:?}");
+        assert!(dim.display > 0.0);
+    }
 }

@@ -193,6 +193,14 @@ impl RenderState {
         self.instance_of.get(&entity).copied()
     }
 
+    /// The light set's index of punctual light `entity`, while it is lit.
+    pub fn light_of(&self, entity: Entity) -> Option<u32> {
+        self.light_of
+            .iter()
+            .find(|(lit, _)| *lit == entity)
+            .map(|&(_, index)| index)
+    }
+
     /// Re-forms the static batches now, over the instances as they stand.
     pub fn rebatch(&mut self) {
         self.scene.accel.rebatch();
