@@ -256,6 +256,9 @@ pub struct BlueNoiseMask {
     pub size: usize,
     /// `(rank + 0.5) / (size * size)` per pixel, row-major: every value appears once.
     pub values: Vec<f32>,
+    /// `values` in 0.32 fixed point, as the sampler adds them to its rank-1 sequences
+    /// (converting per value read was 3% of a render's instructions).
+    fixed: Vec<u32>,
 }
 
 impl BlueNoiseMask {
@@ -277,8 +280,16 @@ impl BlueNoiseMask {
         let values = ranks
             .iter()
             .map(|&rank| ((f64::from(rank) + 0.5) / pixel_count) as f32)
+            .collect::<Vec<f32>>();
+        let fixed = values
+            .iter()
+            .map(|&value| (value as f64 * 4_294_967_296.0) as u32)
             .collect();
-        Self { size, values }
+        Self {
+            size,
+            values,
+            fixed,
+        }
     }
 
     /// The value at pixel (`x`, `y`), tiling the plane (coordinates wrap around).
@@ -288,6 +299,15 @@ impl BlueNoiseMask {
         let x = x as usize & wrap;
         let y = y as usize & wrap;
         self.values[y * self.size + x]
+    }
+
+    /// `value(x, y)` in 0.32 fixed point.
+    #[inline]
+    pub fn value_fixed(&self, x: u32, y: u32) -> u32 {
+        let wrap = self.size - 1;
+        let x = x as usize & wrap;
+        let y = y as usize & wrap;
+        self.fixed[y * self.size + x]
     }
 
     /// The mask shipped with Gloam (`assets/blue-noise/blue-noise-128.png`, embedded in the

@@ -57,7 +57,7 @@ use integrator::{
     NextHit, PathState, ShadowQuery, VertexOutcome, camera_sample, next_hit, next_hits,
     path_vertex, reference_radiance,
 };
-use sampler::PixelSampler;
+use sampler::{BlueNoise, PixelSampler};
 use scene::SceneAlpha;
 
 const TILE: u32 = 16;
@@ -272,8 +272,8 @@ fn render_tiles(
     let tiles: Vec<(u32, u32)> = (0..tiles_x * height.div_ceil(TILE))
         .map(|t| (t % tiles_x * TILE, t / tiles_x * TILE))
         .collect();
-    let mask =
-        (settings.sampler == SamplerKind::BlueNoise).then(blue_noise::BlueNoiseMask::shipped);
+    let blue = (settings.sampler == SamplerKind::BlueNoise)
+        .then(|| BlueNoise::new(blue_noise::BlueNoiseMask::shipped(), settings.seed));
     let finished = AtomicUsize::new(0);
 
     let results: Vec<TileResult> = tiles
@@ -283,7 +283,7 @@ fn render_tiles(
                 scene,
                 camera,
                 settings,
-                mask,
+                blue: blue.as_ref(),
                 width,
                 height,
                 want_guides,
@@ -366,24 +366,24 @@ struct Tile<'a> {
     scene: &'a RenderScene,
     camera: &'a Camera,
     settings: &'a RenderSettings,
-    mask: Option<&'static blue_noise::BlueNoiseMask>,
+    blue: Option<&'a BlueNoise<'static>>,
     width: u32,
     height: u32,
     want_guides: bool,
 }
 
-impl Tile<'_> {
+impl<'a> Tile<'a> {
     /// The tile's pixels (x, y), row by row.
     fn pixels(&self, (x0, y0): (u32, u32)) -> impl Iterator<Item = (u32, u32)> + use<> {
         let (x1, y1) = ((x0 + TILE).min(self.width), (y0 + TILE).min(self.height));
         (y0..y1).flat_map(move |y| (x0..x1).map(move |x| (x, y)))
     }
 
-    fn sampler(&self, (x, y): (u32, u32), sample: u32) -> PixelSampler<'static> {
+    fn sampler(&self, (x, y): (u32, u32), sample: u32) -> PixelSampler<'a> {
         let settings = self.settings;
         PixelSampler::new(
             settings.sampler,
-            self.mask,
+            self.blue,
             settings.seed,
             settings.frame,
             (x, y),
@@ -399,7 +399,7 @@ impl Tile<'_> {
     }
 
     /// The path integrator over one tile, phase by phase (see the module doc).
-    fn path_traced(&self, origin: (u32, u32), scratch: &mut TileScratch<'static>) -> TileResult {
+    fn path_traced(&self, origin: (u32, u32), scratch: &mut TileScratch<'a>) -> TileResult {
         let (scene, settings) = (self.scene, self.settings);
         let alpha = scene.alpha();
         let mut counts = RayCounts::default();
@@ -616,7 +616,7 @@ mod tests {
             scene: &scene,
             camera: &camera,
             settings: &settings,
-            mask: None,
+            blue: None,
             width: settings.width,
             height: settings.height,
             want_guides: false,
