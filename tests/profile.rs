@@ -94,6 +94,23 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
         assert!(report["frame"][field].as_f64().is_some_and(|v| v > 0.0));
     }
     assert!(report["mrays_per_s"].as_f64().is_some_and(|v| v > 0.0));
+    // The accel alone, beside the renderer: three positive rates, their harmonic mean
+    // between the slowest and the fastest, and the renderer's share of it.
+    let accel = &report["accel_mrays_per_s"];
+    let rates: Vec<f64> = ["camera", "shadow", "bounce"]
+        .iter()
+        .map(|kind| accel[kind].as_f64().unwrap_or(0.0))
+        .collect();
+    assert!(rates.iter().all(|&rate| rate > 0.0), "{accel}");
+    let harmonic = accel["harmonic_mean"].as_f64().unwrap();
+    let (slowest, fastest) = (
+        rates.iter().copied().fold(f64::INFINITY, f64::min),
+        rates.iter().copied().fold(0.0, f64::max),
+    );
+    assert!(slowest <= harmonic && harmonic <= fastest, "{accel}");
+    let ratio = report["renderer_vs_accel"].as_f64().unwrap();
+    let expected = report["mrays_per_s"].as_f64().unwrap() / harmonic;
+    assert!((ratio - expected).abs() <= 1e-9 * expected, "{ratio} against {expected}");
     // Wardens walk in first-light: animation and refits take time every frame.
     assert!(report["stages"]["animation"]["mean_ms"].as_f64().unwrap() > 0.0);
     assert!(report["stages"]["blas_refit"]["mean_ms"].as_f64().unwrap() > 0.0);

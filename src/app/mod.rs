@@ -116,7 +116,7 @@ impl StageLog {
                 width: options.width,
                 height: options.height,
                 threads: rayon::current_num_threads(),
-                frames: Vec::new(),
+                ..Profile::default()
             },
             keep: options.frames.is_none().then_some(2 * overlay::HISTORY),
             ..StageLog::default()

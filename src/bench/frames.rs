@@ -149,8 +149,13 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         .num_threads(threads)
         .build()
         .context("starting the worker threads")?;
-    let (profile, churn) =
+    let (mut profile, churn) =
         pool.install(|| measure(&scene, &level, recording.as_ref(), threads, options))?;
+    // The level's accel alone on the same threads, after the frames (so the two never
+    // share the cores): raybench's rays, traced the renderer's way.
+    let spinner = super::progress::spinner("tracing the accel alone");
+    profile.accel_rays = Some(super::raybench::renderer_rays(&scene, threads)?);
+    spinner.finish_and_clear();
     print!("{}", profile.table());
     // Extract + accel (extract, blas_refit, tlas_build) per kind of frame.
     let world_ms = |frame: &crate::profile::FrameSample| {
@@ -255,6 +260,7 @@ fn measure(
         height: options.height,
         threads,
         frames: Vec::with_capacity(options.frames as usize),
+        accel_rays: None,
     };
     let mut churn: Vec<(Churn, f64)> = Vec::with_capacity(options.frames as usize);
     let mut spawned: Vec<Entity> = Vec::new();

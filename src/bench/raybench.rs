@@ -31,6 +31,7 @@ use crate::accel::{
     Ray, RefitOutcome, Traversal, WideBvh,
 };
 use crate::frame::render_scene;
+use crate::profile::AccelRays;
 use crate::render::light::Light;
 use crate::scene::files::write_atomically;
 use crate::scene::world::{CameraPlacement, Scene};
@@ -132,15 +133,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     let start = Instant::now();
     let render = render_scene(&scene);
     let blas_build_ms = milliseconds(start);
-    let emitters: Vec<[Vec3A; 3]> = render
-        .lights
-        .lights
-        .iter()
-        .filter_map(|light| match light {
-            Light::Triangle { vertices, .. } => Some(*vertices),
-            _ => None,
-        })
-        .collect();
+    let emitters = emitters(&render.lights.lights);
     let camera = render.camera.clone();
     let mut accel = render.accel;
     let scene_instances = accel.instances().len();
@@ -316,20 +309,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     // The renderer's own path first (its figures are the report's top level): camera rays
     // in packets, shadow rays in interleaved streams, bounces one at a time, as
     // render/mod.rs traces them.
-    let Contender { diffuse, .. } = Contender::one_by_one(
-        "gloam_renderer",
-        blas_build_ms,
-        single_closest(&accel),
-        |ray: &Ray| accel.occluded(ray, InstanceMask::ALL, &Opaque),
-    );
     let mut contenders: Vec<Contender> = vec![
-        Contender {
-            name: "gloam_renderer",
-            build_ms: blas_build_ms,
-            primary: packet_closest(&accel),
-            shadow: stream_any(&accel),
-            diffuse,
-        },
+        Contender::renderer("gloam_renderer", blas_build_ms, &accel),
         Contender {
             primary: packet_closest(&unbatched),
             ..Contender::one_by_one(
@@ -582,6 +563,45 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Primary rays per side and timed rounds of `renderer_rays`: 262k camera rays a round,
+/// 5 rounds' medians.
+const RENDERER_RAYS_SIZE: u32 = 512;
+const RENDERER_RAYS_ROUNDS: usize = 5;
+
+/// What `scene`'s accel alone traces on `threads` threads, the renderer's way
+/// (`Contender::renderer`), over this tool's rays (`make_rays`): `gloam bench` sets it
+/// beside the renderer's own rays per second.
+pub fn renderer_rays(scene: &Scene, threads: usize) -> anyhow::Result<AccelRays> {
+    let render = render_scene(scene);
+    let mut accel = render.accel;
+    accel.rebuild_tlas();
+    let rays = make_rays(
+        &accel,
+        &render.camera,
+        &emitters(&render.lights.lights),
+        RENDERER_RAYS_SIZE,
+    );
+    let contender = Contender::renderer("gloam_renderer", 0.0, &accel);
+    let measured = measure_interleaved(&rays, threads, RENDERER_RAYS_ROUNDS, &[contender])?;
+    let throughput = measured.first().copied().unwrap_or_default();
+    Ok(AccelRays {
+        camera: throughput.primary,
+        shadow: throughput.shadow,
+        bounce: throughput.diffuse,
+    })
+}
+
+/// The emissive triangles of `lights` (shadow rays aim at them).
+fn emitters(lights: &[Light]) -> Vec<[Vec3A; 3]> {
+    lights
+        .iter()
+        .filter_map(|light| match light {
+            Light::Triangle { vertices, .. } => Some(*vertices),
+            _ => None,
+        })
+        .collect()
+}
+
 /// A way of tracing a batch of rays: how many of them hit.
 type Tracer<'a> = Box<dyn Fn(&[Ray]) -> usize + Sync + 'a>;
 
@@ -596,6 +616,18 @@ struct Contender<'a> {
 }
 
 impl<'a> Contender<'a> {
+    /// As render/mod.rs traces: camera rays in packets, shadow rays in interleaved
+    /// streams, bounces one at a time.
+    fn renderer(name: &'static str, build_ms: f64, scene: &'a AccelScene) -> Contender<'a> {
+        Contender {
+            primary: packet_closest(scene),
+            shadow: stream_any(scene),
+            ..Contender::one_by_one(name, build_ms, single_closest(scene), |ray: &Ray| {
+                scene.occluded(ray, InstanceMask::ALL, &Opaque)
+            })
+        }
+    }
+
     /// A contender tracing every ray type through `scene` in packets.
     fn packets(name: &'static str, build_ms: f64, scene: &'a AccelScene) -> Contender<'a> {
         Contender {

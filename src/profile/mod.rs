@@ -354,6 +354,29 @@ pub struct Profile {
     pub height: u32,
     pub threads: usize,
     pub frames: Vec<FrameSample>,
+    /// What the level's accel alone traces on the same threads (`gloam bench` measures
+    /// it after the frames), to set beside the renderer's rays per second.
+    pub accel_rays: Option<AccelRays>,
+}
+
+/// Millions of rays a second the accel traces of each kind, the renderer's way (camera
+/// rays in packets, shadow rays in streams, bounce rays one at a time) but with no shading.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AccelRays {
+    pub camera: f64,
+    pub shadow: f64,
+    pub bounce: f64,
+}
+
+impl AccelRays {
+    /// The harmonic mean of the three: the rate of a frame tracing equally many of each.
+    pub fn harmonic_mean(&self) -> f64 {
+        let rates = [self.camera, self.shadow, self.bounce];
+        if rates.iter().any(|&rate| rate <= 0.0) {
+            return 0.0;
+        }
+        3.0 / rates.iter().map(|rate| 1.0 / rate).sum::<f64>()
+    }
 }
 
 impl Profile {
@@ -396,6 +419,13 @@ impl Profile {
         rays as f64 / seconds.max(1e-9) / 1e6
     }
 
+    /// The renderer's rays per second against the harmonic mean of what its accel alone
+    /// traces (`accel_rays`): 1 would be a renderer that costs nothing but its rays.
+    pub fn renderer_vs_accel(&self) -> Option<f64> {
+        let accel = self.accel_rays?.harmonic_mean();
+        (accel > 0.0).then(|| self.mrays_per_s() / accel)
+    }
+
     /// The `bench --json` report (README), and the rays of each frame.
     pub fn to_json(&self) -> Value {
         let stages: serde_json::Map<String, Value> = STAGES
@@ -414,6 +444,15 @@ impl Profile {
             "mrays_per_s": self.mrays_per_s(),
             "rays_per_frame": self.frames.iter().map(|f| f.rays).collect::<Vec<_>>(),
         });
+        if let Some(accel) = &self.accel_rays {
+            report["accel_mrays_per_s"] = json!({
+                "camera": accel.camera,
+                "shadow": accel.shadow,
+                "bounce": accel.bounce,
+                "harmonic_mean": accel.harmonic_mean(),
+            });
+            report["renderer_vs_accel"] = json!(self.renderer_vs_accel());
+        }
         // "gameplay_phases", "render_phases" and "film_phases": each phase's summary.
         for (stage, summaries) in self.phase_summaries() {
             let phases: serde_json::Map<String, Value> = summaries
@@ -460,6 +499,18 @@ impl Profile {
             text += &format!(
                 "{name:<12}{:>10.3}{:>10.3}{:>10.3}{:>10.3}{:>10.3}\n",
                 s.mean, s.p50, s.p95, s.p99, s.max
+            );
+        }
+        if let (Some(accel), Some(ratio)) = (&self.accel_rays, self.renderer_vs_accel()) {
+            text += &format!(
+                "rays: the renderer {:.2} Mrays/s (rays traced / render time); its accel alone \
+                 {:.2} (camera {:.2}, shadow {:.2}, bounce {:.2}; harmonic mean): {:.2}x\n",
+                self.mrays_per_s(),
+                accel.harmonic_mean(),
+                accel.camera,
+                accel.shadow,
+                accel.bounce,
+                ratio
             );
         }
         text
@@ -607,6 +658,31 @@ impl Profile {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn accel_rays_average_harmonically() {
+        let rays = AccelRays {
+            camera: 10.0,
+            shadow: 20.0,
+            bounce: 40.0,
+        };
+        // Equal counts of each: 3 rays take 1/10 + 1/20 + 1/40 us.
+        assert!((rays.harmonic_mean() - 3.0 / 0.175).abs() < 1e-12);
+        let none = AccelRays { shadow: 0.0, ..rays };
+        assert_eq!(none.harmonic_mean(), 0.0);
+        let mut profile = Profile {
+            frames: vec![FrameSample {
+                rays: 3_000,
+                ..FrameSample::default()
+            }],
+            accel_rays: Some(rays),
+            ..Profile::default()
+        };
+        profile.frames[0].stages[Stage::Render.index()] = 1.0;
+        // 3,000 rays in 1 ms: 3 Mrays/s, against 17.14.
+        let ratio = profile.renderer_vs_accel().unwrap();
+        assert!((ratio - 3.0 / (3.0 / 0.175)).abs() < 1e-9, "{ratio}");
+    }
 
     #[test]
     fn percentiles_are_nearest_rank_frames_that_happened() {
