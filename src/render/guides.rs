@@ -248,18 +248,27 @@ pub struct GuideBand<'a> {
 }
 
 impl GuideBand<'_> {
-    /// Sets pixel `index` (row-major in the whole image; it must lie in the band).
-    pub fn set(&mut self, index: usize, guide: &GuidePixel) {
-        let local = index - self.first_index;
-        let start = local / self.width * GUIDE_PLANES * self.width + local % self.width;
-        for (stored, value) in self.planes[start..]
-            .iter_mut()
-            .step_by(self.width)
-            .zip(pixel_planes(guide))
-        {
-            *stored = value;
+    /// Sets the pixels of a rectangle `rect_width` wide whose top-left pixel is
+    /// (`x0`, `y0`) (in the whole image; the rectangle must lie in the band) from
+    /// `guides`, row-major. Row by row, with no division per pixel: set one pixel at a
+    /// time from its row-major index (two 64-bit divisions each), the guides took 5% of
+    /// a 640x360 frame's CPU time.
+    pub fn set_rect(&mut self, (x0, y0): (usize, usize), rect_width: usize, guides: &[GuidePixel]) {
+        let width = self.width;
+        let first_row = self.first_index / width;
+        for (row, pixels) in guides.chunks(rect_width.max(1)).enumerate() {
+            let local_row = y0 + row - first_row;
+            let planes = &mut self.planes[local_row * GUIDE_PLANES * width..][..GUIDE_PLANES * width];
+            for (x, pixel) in (x0..).zip(pixels) {
+                for (plane, value) in pixel_planes(pixel).into_iter().enumerate() {
+                    planes[plane * width + x] = value;
+                }
+            }
+            let instances = &mut self.instances[local_row * width + x0..][..pixels.len()];
+            for (stored, pixel) in instances.iter_mut().zip(pixels) {
+                *stored = pixel.instance;
+            }
         }
-        self.instances[local] = guide.instance;
     }
 }
 
@@ -320,14 +329,32 @@ mod tests {
         assert_eq!(guides.row(1, DEPTH)[3], 4.5);
         assert_eq!(guides.row(1, EMISSION_G)[3], 5.0);
         assert_eq!(guides.surface_at(3, 1), (pixel.position, pixel.normal));
-        // Set through bands of rows (pixel 8 is in the first, rows 0 and 1): the same.
+        // Set through bands of rows (pixel 8, (3, 1), is in the first, rows 0 and 1): the
+        // same.
         let mut banded = Guides::new(5, 3);
         banded.bands_mut(2).for_each(|mut band| {
             if band.first_index == 0 {
-                band.set(8, &pixel);
+                band.set_rect((3, 1), 1, &[pixel]);
             }
         });
         assert_eq!(banded, guides);
+        // A 2 x 2 rectangle across two bands of one row each, set band by band.
+        let (mut whole, mut by_band) = (Guides::new(5, 3), Guides::new(5, 3));
+        let other = GuidePixel {
+            depth: 9.0,
+            instance: 2,
+            ..pixel
+        };
+        let rect = [pixel, other, other, pixel];
+        for (index, guide) in [(6, pixel), (7, other), (11, other), (12, pixel)] {
+            whole.set(index, &guide);
+        }
+        by_band.bands_mut(1).for_each(|mut band| match band.first_index / 5 {
+            1 => band.set_rect((1, 1), 2, &rect[..2]),
+            2 => band.set_rect((1, 2), 2, &rect[2..]),
+            _ => {}
+        });
+        assert_eq!(by_band, whole);
         // A row modulated at once is each pixel modulated alone.
         let illumination = [[0.5f32; 5], [2.0; 5], [0.0; 5]];
         let mut row = [Vec3::ZERO; 5];

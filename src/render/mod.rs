@@ -156,6 +156,9 @@ impl PhaseTimes {
 
 /// One tile's mean radiance per pixel (film index, value) and its ray counts.
 struct TileResult {
+    /// The tile's top-left pixel, and its width (less at the image's right edge).
+    origin: (usize, usize),
+    width: usize,
     pixels: Vec<(u32, Vec3)>,
     /// Sample 0's guides per pixel, in `pixels` order (empty unless asked for).
     guides: Vec<GuidePixel>,
@@ -336,9 +339,7 @@ fn render_tiles(
             .zip(results.par_chunks(tiles_x as usize))
             .for_each(|(mut band, tiles)| {
                 for tile in tiles {
-                    for ((index, _), guide) in tile.pixels.iter().zip(&tile.guides) {
-                        band.set(*index as usize, guide);
-                    }
+                    band.set_rect(tile.origin, tile.width, &tile.guides);
                 }
             });
     }
@@ -373,6 +374,11 @@ struct Tile<'a> {
 }
 
 impl<'a> Tile<'a> {
+    /// The width of the tile at `origin` (less than TILE at the image's right edge).
+    fn tile_width(&self, (x0, _): (u32, u32)) -> usize {
+        ((x0 + TILE).min(self.width) - x0) as usize
+    }
+
     /// The tile's pixels (x, y), row by row.
     fn pixels(&self, (x0, y0): (u32, u32)) -> impl Iterator<Item = (u32, u32)> + use<> {
         let (x1, y1) = ((x0 + TILE).min(self.width), (y0 + TILE).min(self.height));
@@ -522,6 +528,8 @@ impl<'a> Tile<'a> {
             .map(|((x, y), sum)| (y * self.width + x, *sum / spp))
             .collect();
         TileResult {
+            origin: (origin.0 as usize, origin.1 as usize),
+            width: self.tile_width(origin),
             pixels,
             guides,
             counts,
@@ -567,6 +575,8 @@ impl<'a> Tile<'a> {
             })
             .collect();
         TileResult {
+            origin: (origin.0 as usize, origin.1 as usize),
+            width: self.tile_width(origin),
             pixels,
             guides,
             counts,
