@@ -252,6 +252,41 @@ fn check_accepts_the_shared_samples() {
 }
 
 #[test]
+fn convergence_prints_how_blue_whole_paths_are() {
+    let output = gloam(&[
+        "convergence",
+        "levels/cornell.ron",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--reference-spp",
+        "64",
+        "--seeds",
+        "2",
+        "--max-depth",
+        "64",
+    ]);
+    assert!(
+        output.status.success(),
+        "{}{}",
+        text(&output.stdout),
+        text(&output.stderr)
+    );
+    let stdout = text(&output.stdout);
+    let line = stdout
+        .lines()
+        .find(|line| line.starts_with("blue noise over whole paths"))
+        .unwrap_or_else(|| panic!("no whole-path line in: {stdout}"));
+    let ratio: f64 = line
+        .rsplit("= ")
+        .next()
+        .and_then(|ratio| ratio.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no ratio in: {line}"));
+    assert!(ratio.is_finite() && ratio > 0.0, "{line}");
+}
+
+#[test]
 fn raybench_writes_the_documented_json() {
     let dir = common::scratch_dir("cli-raybench");
     let json = dir.join("nested/raybench.json");

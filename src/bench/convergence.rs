@@ -4,13 +4,18 @@
 //! integrator, blue noise, `--reference-spp`), then prints the RMSE against it of:
 //! 1. the path integrator at 1, 4 and 16 spp with the white, stratified and blue samplers;
 //! 2. path (16 spp, stratified and blue) against reference (white) given the same
-//!    wall-clock time, the reference's sample count calibrated from a timed trial.
+//!    wall-clock time, the reference's sample count calibrated from a timed trial;
+//! 3. how blue the blue sampler's error is over whole paths: the power of the 1-spp
+//!    luminance error below 1/8 of the image size (radii to a quarter of Nyquist,
+//!    `spectrum::low_frequency_power`), blue against white, over the seeds.
 
 use std::path::PathBuf;
 
 use crate::render::{
     Camera, Film, IntegratorKind, RenderScene, RenderSettings, SamplerKind, render,
 };
+use crate::render::light::luminance;
+use crate::render::spectrum::low_frequency_power;
 use crate::scene::world::Scene;
 
 #[derive(Debug, clap::Args)]
@@ -74,8 +79,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         };
     // Samples per pixel of every render below (the equal-time references are added when
     // their counts are known).
-    let planned =
-        options.reference_spp + 3 * 21 * options.seeds + 16 + 2 * 16 * (1 + options.seeds);
+    let planned = options.reference_spp
+        + 3 * 21 * options.seeds
+        + 16
+        + 2 * 16 * (1 + options.seeds)
+        + 2 * options.seeds;
     let bar = super::progress::bar(u64::from(planned), "spp rendered");
     let (converged, seconds, _) = timed(
         &render_scene,
@@ -188,6 +196,40 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             path_rmse / reference_rmse.max(1e-12)
         );
     }
+
+    // Whole paths at 1 spp: the low band of each seed's luminance error, blue over white.
+    let low_band = |sampler: SamplerKind| -> f64 {
+        (1..=options.seeds)
+            .map(|seed| {
+                let (film, _, _) = timed(
+                    &render_scene,
+                    &camera,
+                    &settings(1, IntegratorKind::Path, sampler, seed),
+                    &bar,
+                );
+                f64::from(low_band_error_power(&film, &converged))
+            })
+            .sum::<f64>()
+            / f64::from(options.seeds.max(1))
+    };
+    let (blue, white) = (low_band(SamplerKind::BlueNoise), low_band(SamplerKind::White));
     bar.finish_and_clear();
+    println!(
+        "blue noise over whole paths (1 spp, {} seeds): power of the luminance error below 1/8 of the image size, blue {blue:.3e} / white {white:.3e} = {:.3}",
+        options.seeds,
+        blue / white.max(1e-30)
+    );
     Ok(())
+}
+
+/// The mean power of `film`'s luminance error against `converged` over the radii below
+/// 1/8 of the image size (a quarter of Nyquist).
+fn low_band_error_power(film: &Film, converged: &Film) -> f32 {
+    let error: Vec<f32> = film
+        .pixels
+        .iter()
+        .zip(&converged.pixels)
+        .map(|(value, truth)| luminance(*value - *truth))
+        .collect();
+    low_frequency_power(&error, film.width as usize, film.height as usize, 0.25)
 }
