@@ -126,10 +126,7 @@ impl Light {
                 let offset = *position - point;
                 let distance2 = offset.length_squared().max(f32::MIN_POSITIVE);
                 let wi = offset / distance2.sqrt();
-                // KHR_lights_punctual's recommended falloff: a squared linear ramp in cos.
-                let scale = 1.0 / (cos_inner - cos_outer).max(1e-3);
-                let ramp = ((direction.dot(-wi) - cos_outer) * scale).clamp(0.0, 1.0);
-                let attenuation = ramp * ramp;
+                let attenuation = spot_falloff(direction.dot(-wi), *cos_inner, *cos_outer);
                 (attenuation > 0.0).then(|| LightSample {
                     wi,
                     point: *position,
@@ -238,6 +235,15 @@ impl AliasTable {
     }
 }
 
+/// KHR_lights_punctual's recommended spot falloff at `cos` from the axis: a squared
+/// linear ramp from 0 at `cos_outer` to 1 at `cos_inner`.
+#[inline]
+fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
+    let scale = 1.0 / (cos_inner - cos_outer).max(1e-3);
+    let ramp = ((cos - cos_outer) * scale).clamp(0.0, 1.0);
+    ramp * ramp
+}
+
 /// A punctual light as the pick by irradiance reads it, unpacked from its `Light` once
 /// per light set (the pick weighs every punctual light at every shading point: read
 /// through the `Light` enum this was 7% of a real-time frame's instructions).
@@ -252,9 +258,9 @@ struct PunctualImportance {
     /// The luminance of its intensity (W/sr; points and spots) or irradiance (W/m^2;
     /// directional lights).
     luminance: f32,
-    /// The cone's ramp: 0 at cos = `cos_outer`, 1 from `cos_outer + 1/per_cos` on.
+    /// A spot's cone (`spot_falloff`); a cone no direction falls outside otherwise.
+    cos_inner: f32,
     cos_outer: f32,
-    per_cos: f32,
     directional: bool,
 }
 
@@ -265,9 +271,9 @@ impl PunctualImportance {
             position: Vec3A::ZERO,
             direction: Vec3A::ZERO,
             luminance: 0.0,
-            // A cone that lets everything through: the ramp is clamped to 1.
-            cos_outer: -2.0,
-            per_cos: 1.0,
+            // A cone that lets everything through: any cos is past its inner edge.
+            cos_inner: -2.0,
+            cos_outer: -3.0,
             directional: false,
         };
         Some(match *light {
@@ -290,8 +296,8 @@ impl PunctualImportance {
                 position,
                 direction,
                 luminance: luminance(intensity),
+                cos_inner,
                 cos_outer,
-                per_cos: 1.0 / (cos_inner - cos_outer).max(1e-3),
                 ..unlit
             },
             Light::Directional { irradiance, .. } => PunctualImportance {
@@ -303,8 +309,8 @@ impl PunctualImportance {
     }
 
     /// The luminance of the irradiance this light gives `point`, unshadowed and before the
-    /// receiver's cosine: I ramp(cos)^2 / d^2 (zero outside a spot's cone, the ramp 1 for
-    /// a point light), or E for a directional light.
+    /// receiver's cosine: I falloff(cos) / d^2 (zero outside a spot's cone, 1 for a point
+    /// light), or E for a directional light.
     #[inline]
     fn irradiance_at(&self, point: Vec3A) -> f32 {
         if self.directional {
@@ -313,8 +319,7 @@ impl PunctualImportance {
         let offset = self.position - point;
         let distance2 = offset.length_squared().max(1e-8);
         let cos = self.direction.dot(-offset) / distance2.sqrt();
-        let ramp = ((cos - self.cos_outer) * self.per_cos).clamp(0.0, 1.0);
-        self.luminance * ramp * ramp / distance2
+        self.luminance * spot_falloff(cos, self.cos_inner, self.cos_outer) / distance2
     }
 }
 
