@@ -110,7 +110,10 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
     assert!(slowest <= harmonic && harmonic <= fastest, "{accel}");
     let ratio = report["renderer_vs_accel"].as_f64().unwrap();
     let expected = report["mrays_per_s"].as_f64().unwrap() / harmonic;
-    assert!((ratio - expected).abs() <= 1e-9 * expected, "{ratio} against {expected}");
+    assert!(
+        (ratio - expected).abs() <= 1e-9 * expected,
+        "{ratio} against {expected}"
+    );
     // Wardens walk in first-light: animation and refits take time every frame.
     assert!(report["stages"]["animation"]["mean_ms"].as_f64().unwrap() > 0.0);
     assert!(report["stages"]["blas_refit"]["mean_ms"].as_f64().unwrap() > 0.0);

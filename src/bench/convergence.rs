@@ -11,11 +11,11 @@
 
 use std::path::PathBuf;
 
+use crate::render::light::luminance;
+use crate::render::spectrum::low_frequency_power;
 use crate::render::{
     Camera, Film, IntegratorKind, RenderScene, RenderSettings, SamplerKind, render,
 };
-use crate::render::light::luminance;
-use crate::render::spectrum::low_frequency_power;
 use crate::scene::world::Scene;
 
 #[derive(Debug, clap::Args)]
@@ -212,7 +212,10 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             .sum::<f64>()
             / f64::from(options.seeds.max(1))
     };
-    let (blue, white) = (low_band(SamplerKind::BlueNoise), low_band(SamplerKind::White));
+    let (blue, white) = (
+        low_band(SamplerKind::BlueNoise),
+        low_band(SamplerKind::White),
+    );
     bar.finish_and_clear();
     println!(
         "blue noise over whole paths (1 spp, {} seeds): power of the luminance error below 1/8 of the image size, blue {blue:.3e} / white {white:.3e} = {:.3}",

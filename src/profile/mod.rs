@@ -668,7 +668,10 @@ mod tests {
         };
         // Equal counts of each: 3 rays take 1/10 + 1/20 + 1/40 us.
         assert!((rays.harmonic_mean() - 3.0 / 0.175).abs() < 1e-12);
-        let none = AccelRays { shadow: 0.0, ..rays };
+        let none = AccelRays {
+            shadow: 0.0,
+            ..rays
+        };
         assert_eq!(none.harmonic_mean(), 0.0);
         let mut profile = Profile {
             frames: vec![FrameSample {

@@ -258,7 +258,8 @@ impl GuideBand<'_> {
         let first_row = self.first_index / width;
         for (row, pixels) in guides.chunks(rect_width.max(1)).enumerate() {
             let local_row = y0 + row - first_row;
-            let planes = &mut self.planes[local_row * GUIDE_PLANES * width..][..GUIDE_PLANES * width];
+            let planes =
+                &mut self.planes[local_row * GUIDE_PLANES * width..][..GUIDE_PLANES * width];
             for (x, pixel) in (x0..).zip(pixels) {
                 for (plane, value) in pixel_planes(pixel).into_iter().enumerate() {
                     planes[plane * width + x] = value;
@@ -349,11 +350,13 @@ mod tests {
         for (index, guide) in [(6, pixel), (7, other), (11, other), (12, pixel)] {
             whole.set(index, &guide);
         }
-        by_band.bands_mut(1).for_each(|mut band| match band.first_index / 5 {
-            1 => band.set_rect((1, 1), 2, &rect[..2]),
-            2 => band.set_rect((1, 2), 2, &rect[2..]),
-            _ => {}
-        });
+        by_band
+            .bands_mut(1)
+            .for_each(|mut band| match band.first_index / 5 {
+                1 => band.set_rect((1, 1), 2, &rect[..2]),
+                2 => band.set_rect((1, 2), 2, &rect[2..]),
+                _ => {}
+            });
         assert_eq!(by_band, whole);
         // A row modulated at once is each pixel modulated alone.
         let illumination = [[0.5f32; 5], [2.0; 5], [0.0; 5]];

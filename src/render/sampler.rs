@@ -206,9 +206,11 @@ impl<'a> PixelSampler<'a> {
                 let (blue, keys) = self.blue_keys(dimension);
                 let index = self.padded_index(keys.padding);
                 // R2 sequence: alpha = (1/g, 1/g^2), g the plastic number 1.3247...
-                let x = self.mask_value(blue, keys.shifts[0])
+                let x = self
+                    .mask_value(blue, keys.shifts[0])
                     .wrapping_add(index.wrapping_mul(R2_FIXED[0]));
-                let y = self.mask_value(blue, keys.shifts[1])
+                let y = self
+                    .mask_value(blue, keys.shifts[1])
                     .wrapping_add(index.wrapping_mul(R2_FIXED[1]));
                 Vec2::new(fixed_to_unit(x), fixed_to_unit(y))
             }
