@@ -572,9 +572,9 @@ const RENDERER_RAYS_ROUNDS: usize = 5;
 /// (`Contender::renderer`), over this tool's rays (`make_rays`): `gloam bench` sets it
 /// beside the renderer's own rays per second.
 pub fn renderer_rays(scene: &Scene, threads: usize) -> anyhow::Result<AccelRays> {
+    // The engine's accel, its TLAS built as a frame leaves it.
     let render = render_scene(scene);
-    let mut accel = render.accel;
-    accel.rebuild_tlas();
+    let accel = render.accel;
     let rays = make_rays(
         &accel,
         &render.camera,

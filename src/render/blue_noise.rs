@@ -295,19 +295,20 @@ impl BlueNoiseMask {
     /// The value at pixel (`x`, `y`), tiling the plane (coordinates wrap around).
     #[inline]
     pub fn value(&self, x: u32, y: u32) -> f32 {
-        let wrap = self.size - 1;
-        let x = x as usize & wrap;
-        let y = y as usize & wrap;
-        self.values[y * self.size + x]
+        self.values[self.index(x, y)]
     }
 
     /// `value(x, y)` in 0.32 fixed point.
     #[inline]
     pub fn value_fixed(&self, x: u32, y: u32) -> u32 {
+        self.fixed[self.index(x, y)]
+    }
+
+    /// Pixel (`x`, `y`)'s index in `values`, the coordinates wrapped onto the mask.
+    #[inline]
+    fn index(&self, x: u32, y: u32) -> usize {
         let wrap = self.size - 1;
-        let x = x as usize & wrap;
-        let y = y as usize & wrap;
-        self.fixed[y * self.size + x]
+        (y as usize & wrap) * self.size + (x as usize & wrap)
     }
 
     /// The mask shipped with Gloam (`assets/blue-noise/blue-noise-128.png`, embedded in the
