@@ -164,6 +164,9 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
             "film.{step} took no time"
         );
     }
+    // Rendered at the size shown: nothing to upscale.
+    assert_eq!(steps["upscale"]["mean_ms"].as_f64(), Some(0.0));
+    assert_eq!(report["render_width"], report["width"]);
 
     // CSV: a header and a row per frame, a column per stage.
     let lines: Vec<&str> = csv.lines().collect();
@@ -263,7 +266,39 @@ fn the_same_bench_does_the_same_work_every_run() {
 }
 
 #[test]
+fn a_lowered_render_is_upscaled_to_the_size_asked_for() {
+    let dir = common::scratch_dir("bench-upscaled");
+    let (report, _) = bench(&dir, "half", &["--render-scale", "0.5"]);
+    assert_eq!(
+        (report["width"].as_u64(), report["height"].as_u64()),
+        (Some(96), Some(54))
+    );
+    assert_eq!(
+        (
+            report["render_width"].as_u64(),
+            report["render_height"].as_u64()
+        ),
+        (Some(48), Some(27))
+    );
+    let upscale = report["film_phases"]["upscale"]["mean_ms"]
+        .as_f64()
+        .unwrap();
+    assert!(upscale > 0.0, "film.upscale took no time");
+}
+
+#[test]
 fn bad_bench_flags_are_one_line_errors() {
+    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .args(["bench", "levels/first-light.ron", "--render-scale", "0"])
+        .current_dir(common::repo())
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("--render-scale") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
     let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
         .args(["bench", "levels/first-light.ron", "--chart", "chart.jpg"])
         .current_dir(common::repo())

@@ -6,11 +6,12 @@
 //! 2. `RedrawRequested`: the engine advances by the real time since the last frame (fixed
 //!    60 Hz simulation, then extract -> accel -> render -> film accumulation), unless a
 //!    menu holds it;
-//! 3. present: the accumulated image is tone mapped (the film's tone mapper, scaled by the
-//!    brightness setting) into pixels' frame buffer at the internal render resolution, the
-//!    HUD is drawn over it (the light gem, the shards, each warden's state mark projected
-//!    over its head), or the open menu over the darkened image, and pixels scales it to
-//!    the window;
+//! 3. present: the film's image (with the filters on, upscaled by the film from a lowered
+//!    internal resolution to the configured one) is tone mapped (the film's tone mapper,
+//!    scaled by the brightness setting) into pixels' frame buffer at the configured
+//!    resolution, the HUD is drawn over it (the light gem, the shards, each warden's state
+//!    mark projected over its head), or the open menu over the darkened image, and pixels
+//!    scales it to the window;
 //! 4. when a warden has caught the player, the level starts again at once from the loaded
 //!    `Scene`; when the player gets out, the best time is kept and the end page opens (a
 //!    watched recording stays on its last frame instead);
@@ -972,8 +973,8 @@ impl App {
         };
         match engine {
             Some(engine) => {
-                // The buffer keeps the configured size; a lowered internal resolution is
-                // scaled up.
+                // The buffer keeps the configured size: the filtered film is upscaled to
+                // it already; still frames summed at a lowered resolution are resized.
                 let image = engine.film.image().resized(width, height);
                 for (rgba, radiance) in frame.chunks_exact_mut(4).zip(&image.pixels) {
                     let [r, g, b] = tone_map(*radiance, brightness);

@@ -4,7 +4,9 @@
 //! Per frame: the view follows `bench`'s camera path, one warden patrols back and forth
 //! across the view (the moving object), one 60 Hz step runs, and one frame is rendered at
 //! 1 spp with its guides. That same frame goes through three film steps: raw, temporal
-//! only, and temporal + spatial (each with its own history). Every `--every` frames after
+//! only, and temporal + spatial (each with its own history). Beside them, what the player
+//! sees: a second frame rendered at `--render-scale` of the resolution, filtered
+//! (temporal + spatial) and upscaled to it (`film::upscale`), as the game shows it. Every `--every` frames after
 //! the warm-up, a converged reference of the same instant (`--reference-spp`, another seed)
 //! is rendered and each result's RMSE against it printed, on display values (tone mapped,
 //! sRGB-encoded, in [0, 1]: the error a player sees; linear radiance would be dominated by
@@ -28,6 +30,8 @@ use serde_json::json;
 
 use super::frames::camera_path;
 use crate::film::denoise::{FilterMode, FrameFilter};
+use crate::film::temporal::TemporalSettings;
+use crate::film::upscale::{DEFAULT_RENDER_SCALE, UpscaleSettings, Upscaler};
 use crate::frame::Engine;
 use crate::game::{Patrol, Transform, ViewCamera};
 use crate::render::film::display_value;
@@ -71,6 +75,13 @@ pub struct Options {
     /// Tuning: the newest frame's least weight in the temporal average, in (0, 1].
     #[arg(long, value_parser = crate::cli::values::unit)]
     pub alpha_min: Option<f32>,
+    /// The player's view renders at this scale of --width x --height per axis and is
+    /// upscaled (the game's default when omitted; 1 shows the native pipeline again).
+    #[arg(long, value_parser = crate::cli::values::unit)]
+    pub render_scale: Option<f32>,
+    /// Tuning: the upscaler's history cap, in samples.
+    #[arg(long, value_parser = crate::cli::values::positive_f32)]
+    pub max_history: Option<f32>,
     /// Tuning: the a-trous luminance edge's width, in standard deviations.
     #[arg(long, value_parser = crate::cli::values::positive_f32)]
     pub sigma_luminance: Option<f32>,
@@ -79,6 +90,12 @@ pub struct Options {
 /// A pixel is in the moving lamp's pool when that lamp gives more than this share of its
 /// luminance in the reference.
 const POOL_SHARE: f32 = 0.5;
+
+/// The images compared, in the order every figure lists them: the native frame raw,
+/// temporal only, temporal + spatial; the frame rendered at the render scale, filtered
+/// and resized bilinearly (as the game showed a lowered resolution before `upscale`);
+/// and the player's view, that frame filtered and upscaled.
+const IMAGES: [&str; 5] = ["raw", "temporal", "full", "resized", "player"];
 
 /// Trail length for the ghosting measure, in frames.
 const TRAIL_FRAMES: usize = 8;
@@ -201,6 +218,11 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             "--sigma-luminance {sigma}: must be positive"
         );
     }
+    let render_scale = options.render_scale.unwrap_or(DEFAULT_RENDER_SCALE);
+    anyhow::ensure!(
+        render_scale > 0.0,
+        "--render-scale {render_scale}: must be above 0"
+    );
     if options.every == 0 || options.reference_spp == 0 {
         anyhow::bail!("--every and --reference-spp must be at least 1");
     }
@@ -249,6 +271,16 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
 
     let mut temporal = FrameFilter::new(FilterMode::Temporal);
     let mut full = FrameFilter::new(FilterMode::Full);
+    let mut player_filter = FrameFilter::new(FilterMode::Full);
+    let mut resized_filter = FrameFilter::new(FilterMode::Full);
+    let mut upscaler = Upscaler::new(UpscaleSettings::default());
+    if let Some(max_history) = options.max_history {
+        upscaler.settings.max_history = max_history;
+    }
+    let render_size = (
+        ((width as f32 * render_scale).round() as u32).max(1),
+        ((height as f32 * render_scale).round() as u32).max(1),
+    );
     for filter in [&mut temporal, &mut full] {
         if let Some(alpha) = options.alpha_min {
             filter.temporal.settings.alpha_min = alpha;
@@ -260,17 +292,34 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             filter.atrous.sigma_luminance = sigma;
         }
     }
+    // The player's filter is the game's as it runs under the upscaler (the tuning flags
+    // are for the native filters).
+    player_filter.temporal.settings = TemporalSettings::for_upscaling(true);
     let mut settings = RenderSettings::real_time(width, height);
+    let mut player_settings = RenderSettings::real_time(render_size.0, render_size.1);
+    let (mut player_render, mut player_image) = (Film::new(0, 0), Film::new(0, 0));
+    let mut resized_render = Film::new(0, 0);
     let mut trail_masks: VecDeque<Vec<bool>> = VecDeque::new();
     let mut rows = Vec::new();
     let (mut render_ms, mut temporal_ms, mut full_ms) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut player_render_ms, mut player_film_ms, mut upscale_ms) =
+        (Vec::new(), Vec::new(), Vec::new());
     let mut last_images = None;
-    // Per compared frame: the pool's size, and what raw, temporal and full keep of it.
-    let (mut pool_pixels, mut pool_rows): (Vec<f64>, Vec<[Pool; 3]>) = (Vec::new(), Vec::new());
+    // Per compared frame: the pool's size, and what each image (`IMAGES`) keeps of it.
+    let (mut pool_pixels, mut pool_rows): (Vec<f64>, Vec<[Pool; IMAGES.len()]>) =
+        (Vec::new(), Vec::new());
     let step = 1.0 / crate::game::SIMULATION_HZ;
     println!(
-        "{:>5}{:>10}{:>10}{:>10}{:>12}{:>12}{:>12}",
-        "frame", "raw", "temporal", "full", "trail raw", "trail temp", "trail full"
+        "player's view: {}x{} rendered, upscaled to {width}x{height}",
+        render_size.0, render_size.1
+    );
+    println!(
+        "{:>5}{}{}",
+        "frame",
+        IMAGES.map(|name| format!("{name:>10}")).concat(),
+        IMAGES
+            .map(|name| format!(" {:>13}", format!("trail {name}")))
+            .concat()
     );
     let bar = super::progress::bar(u64::from(options.frames), "frames");
     for frame in 0..options.frames {
@@ -300,6 +349,43 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         let full_image = full.apply(&output.film, guides, &camera, &instances);
         full_ms.push(started.elapsed().as_secs_f64() * 1e3);
 
+        // The player's view: rendered smaller, filtered, upscaled.
+        let player_camera = engine.view_camera(render_size.0, render_size.1);
+        player_settings.frame = frame;
+        let started = Instant::now();
+        let player_output = render_guided(engine.render_scene(), &player_camera, &player_settings);
+        player_render_ms.push(started.elapsed().as_secs_f64() * 1e3);
+        let player_guides = player_output.guides.as_ref().context("guides")?;
+        let started = Instant::now();
+        player_filter.apply_into(
+            &player_output.film,
+            player_guides,
+            &player_camera,
+            &instances,
+            &mut player_render,
+        );
+        let filtered_at = Instant::now();
+        upscaler.apply_into(
+            &player_render,
+            player_guides,
+            &player_camera,
+            &instances,
+            (width, height),
+            &mut player_image,
+        );
+        player_film_ms.push(started.elapsed().as_secs_f64() * 1e3);
+        upscale_ms.push(filtered_at.elapsed().as_secs_f64() * 1e3);
+        // The same small frame as the game showed it before it had the upscaler: filtered
+        // as at full resolution, then resized bilinearly.
+        resized_filter.apply_into(
+            &player_output.film,
+            player_guides,
+            &player_camera,
+            &instances,
+            &mut resized_render,
+        );
+        let resized_image = resized_render.resized(width, height);
+
         let covered = mover_mask(guides, &mover_instances);
         let trail: Vec<bool> = (0..covered.len())
             .map(|i| !covered[i] && trail_masks.iter().any(|mask| mask[i]))
@@ -318,9 +404,14 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             ..settings.clone()
         };
         let reference = render(engine.render_scene(), &camera, &reference_settings, &|_| {}).film;
-        let raw = errors(&output.film, &reference, &trail);
-        let temporal_errors = errors(&temporal_image, &reference, &trail);
-        let full_errors = errors(&full_image, &reference, &trail);
+        let images = [
+            &output.film,
+            &temporal_image,
+            &full_image,
+            &resized_image,
+            &player_image,
+        ];
+        let compared = images.map(|image| errors(image, &reference, &trail));
         // The mover's own lamp (a warden carries one): the first lit punctual light under
         // it, looked up each time as the light set may have been renumbered.
         let pools = match lamps_under(&engine, mover).first().copied() {
@@ -328,28 +419,27 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
                 let unlit = render_without(&mut engine, lamp, &camera, &reference_settings)?;
                 let in_pool = pool_mask(&reference, &unlit);
                 pool_pixels.push(in_pool.iter().filter(|inside| **inside).count() as f64);
-                Some([
-                    pool(&output.film, &reference, &in_pool),
-                    pool(&temporal_image, &reference, &in_pool),
-                    pool(&full_image, &reference, &in_pool),
-                ])
+                Some(images.map(|image| pool(image, &reference, &in_pool)))
             }
             None => None,
         };
         pool_rows.extend(pools);
         bar.suspend(|| {
-            println!(
-                "{frame:>5}{:>10.4}{:>10.4}{:>10.4}{:>12.4}{:>12.4}{:>12.4}",
-                raw.display,
-                temporal_errors.display,
-                full_errors.display,
-                raw.trail,
-                temporal_errors.trail,
-                full_errors.trail
-            )
+            let display = compared.map(|e| format!("{:>10.4}", e.display)).concat();
+            let trail = compared.map(|e| format!("{:>14.4}", e.trail)).concat();
+            println!("{frame:>5}{display}{trail}")
         });
-        rows.push((frame, raw, temporal_errors, full_errors));
-        last_images = Some((output.film, temporal_image, full_image, reference));
+        rows.push((frame, compared));
+        last_images = Some((
+            [
+                output.film,
+                temporal_image,
+                full_image,
+                resized_image,
+                player_image.clone(),
+            ],
+            reference,
+        ));
     }
     bar.finish_and_clear();
 
@@ -358,14 +448,28 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         sorted.sort_by(f64::total_cmp);
         sorted[sorted.len() / 2]
     };
-    let column = |pick: &dyn Fn(&(u32, Errors, Errors, Errors)) -> f64| {
-        median(rows.iter().map(pick).collect())
+    // Per image (`IMAGES`), the median over the compared frames of one figure.
+    let column = |pick: fn(&Errors) -> f64| {
+        std::array::from_fn::<f64, { IMAGES.len() }, _>(|image| {
+            median(
+                rows.iter()
+                    .map(|(_, errors)| pick(&errors[image]))
+                    .collect(),
+            )
+        })
     };
-    let raw = column(&|r| r.1.display);
-    let temporal_rmse = column(&|r| r.2.display);
-    let full_rmse = column(&|r| r.3.display);
+    let (display, linear, trail) = (
+        column(|e| e.display),
+        column(|e| e.linear),
+        column(|e| e.trail),
+    );
+    let [raw, temporal_rmse, full_rmse, resized_rmse, player_rmse] = display;
     let render_median = median(render_ms.clone());
     let (temporal_median, full_median) = (median(temporal_ms.clone()), median(full_ms.clone()));
+    let (player_render_median, player_film_median) = (
+        median(player_render_ms.clone()),
+        median(player_film_ms.clone()),
+    );
     println!(
         "median RMSE (display): raw {raw:.4}, temporal {temporal_rmse:.4} ({:.2}x raw), \
          temporal+spatial {full_rmse:.4} ({:.2}x raw)",
@@ -373,83 +477,110 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         full_rmse / raw
     );
     println!(
-        "median trail RMSE (ghosting): raw {:.4}, temporal {:.4}, temporal+spatial {:.4}",
-        column(&|r| r.1.trail),
-        column(&|r| r.2.trail),
-        column(&|r| r.3.trail)
+        "player's view ({}x{} upscaled) against the native pipeline (temporal+spatial): \
+         {player_rmse:.4} / {full_rmse:.4} = {:.2}x; against the same frame resized \
+         bilinearly: {player_rmse:.4} / {resized_rmse:.4} = {:.2}x",
+        render_size.0,
+        render_size.1,
+        player_rmse / full_rmse,
+        player_rmse / resized_rmse
     );
+    let listed = |values: &[f64; IMAGES.len()], precision: usize| {
+        IMAGES
+            .iter()
+            .zip(values)
+            .map(|(name, value)| format!("{name} {value:.precision$}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    println!("median trail RMSE (ghosting): {}", listed(&trail, 4));
     println!(
         "median ms per frame: render {render_median:.2}, temporal filter {temporal_median:.2}, \
-         temporal+spatial filter {full_median:.2} ({:.1}% of render + filter)",
-        100.0 * full_median / (render_median + full_median)
+         temporal+spatial filter {full_median:.2} ({:.1}% of render + filter); player's view: \
+         render {player_render_median:.2}, filter + upscale {player_film_median:.2} (upscale \
+         {:.2})",
+        100.0 * full_median / (render_median + full_median),
+        median(upscale_ms.clone())
     );
 
     let pool_summary = (!pool_rows.is_empty()).then(|| {
         let of = |index: usize, pick: fn(&Pool) -> f64| {
             median(pool_rows.iter().map(|row| pick(&row[index])).collect())
         };
-        let kept = [0, 1, 2].map(|index| of(index, |p| p.kept));
-        let display = [0, 1, 2].map(|index| of(index, |p| p.display));
+        let kept: [f64; IMAGES.len()] = std::array::from_fn(|index| of(index, |p| p.kept));
+        let display: [f64; IMAGES.len()] = std::array::from_fn(|index| of(index, |p| p.display));
         (median(pool_pixels.clone()), kept, display)
     });
     match &pool_summary {
         Some((pixels, kept, display)) => println!(
-            "moving lamp's pool ({pixels:.0} pixels, median): luminance kept raw {:.2}, \
-             temporal {:.2}, temporal+spatial {:.2}; RMSE (display) there raw {:.4}, \
-             temporal {:.4}, temporal+spatial {:.4}",
-            kept[0], kept[1], kept[2], display[0], display[1], display[2]
+            "moving lamp's pool ({pixels:.0} pixels, median): luminance kept {}; RMSE (display) \
+             there {}",
+            listed(kept, 2),
+            listed(display, 4)
         ),
         None => println!("moving lamp's pool: {mover_name:?} carries no lamp"),
     }
 
     if let Some(path) = &options.json {
+        let by_image = |values: &[f64; IMAGES.len()]| {
+            serde_json::Value::Object(
+                IMAGES
+                    .iter()
+                    .zip(values)
+                    .map(|(name, value)| (name.to_string(), json!(value)))
+                    .collect(),
+            )
+        };
         let row_json =
             |e: &Errors| json!({"display": e.display, "linear": e.linear, "trail": e.trail});
         let report = json!({
             "level": level.display().to_string(),
             "width": width, "height": height, "frames": options.frames,
+            "render_scale": render_scale,
+            "player_render_size": [render_size.0, render_size.1],
             "reference_spp": options.reference_spp,
-            "median_rmse_display": {"raw": raw, "temporal": temporal_rmse, "full": full_rmse},
-            "median_rmse_linear": {
-                "raw": column(&|r| r.1.linear),
-                "temporal": column(&|r| r.2.linear),
-                "full": column(&|r| r.3.linear),
-            },
-            "median_trail_rmse": {
-                "raw": column(&|r| r.1.trail),
-                "temporal": column(&|r| r.2.trail),
-                "full": column(&|r| r.3.trail),
-            },
+            "median_rmse_display": by_image(&display),
+            "median_rmse_linear": by_image(&linear),
+            "median_trail_rmse": by_image(&trail),
             "ratio_full_to_raw": full_rmse / raw,
+            "ratio_player_to_full": player_rmse / full_rmse,
+            "ratio_player_to_resized": player_rmse / resized_rmse,
             "moving_lamp_pool": pool_summary.map(|(pixels, kept, display)| json!({
                 "pixels": pixels,
-                "luminance_kept": {"raw": kept[0], "temporal": kept[1], "full": kept[2]},
-                "rmse_display": {"raw": display[0], "temporal": display[1], "full": display[2]},
+                "luminance_kept": by_image(&kept),
+                "rmse_display": by_image(&display),
             })),
             "ratio_temporal_to_raw": temporal_rmse / raw,
-            "median_ms": {"render": render_median, "temporal": temporal_median, "full": full_median},
-            "compared": rows.iter().map(|(frame, raw, temporal, full)| json!({
-                "frame": frame, "raw": row_json(raw), "temporal": row_json(temporal),
-                "full": row_json(full),
-            })).collect::<Vec<_>>(),
+            "median_ms": {
+                "render": render_median, "temporal": temporal_median, "full": full_median,
+                "player_render": player_render_median, "player_film": player_film_median,
+            },
+            "compared": rows.iter().map(|(frame, errors)| {
+                let mut row = serde_json::Map::new();
+                row.insert("frame".into(), json!(frame));
+                for (name, errors) in IMAGES.iter().zip(errors) {
+                    row.insert(name.to_string(), row_json(errors));
+                }
+                serde_json::Value::Object(row)
+            }).collect::<Vec<_>>(),
         });
         write_atomically(path, serde_json::to_string_pretty(&report)?.as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
         println!("wrote {}", path.display());
     }
-    if let (Some(dir), Some((raw, temporal, full, reference))) = (&options.out, last_images) {
+    if let (Some(dir), Some((images, reference))) = (&options.out, last_images) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        for (name, image) in [
-            ("raw", raw),
-            ("temporal", temporal),
-            ("full", full),
-            ("reference", reference),
-        ] {
+        for (name, image) in IMAGES
+            .iter()
+            .zip(&images)
+            .chain([("reference", &reference)].iter().map(|(n, i)| (n, *i)))
+        {
             let path = dir.join(format!("{name}.png"));
             image.write(&path, 1.0)?;
         }
         println!(
-            "wrote raw, temporal, full and reference PNGs to {}",
+            "wrote {} and reference PNGs to {}",
+            IMAGES.join(", "),
             dir.display()
         );
     }

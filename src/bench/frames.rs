@@ -55,6 +55,11 @@ pub struct Options {
     /// Write a PNG chart: stages stacked per frame, and a frame-time histogram.
     #[arg(long)]
     pub chart: Option<PathBuf>,
+    /// Render at this scale of --width x --height per axis, and upscale the filtered
+    /// frames to it (`film::upscale`), as the game does when its adaptive resolution
+    /// lowers the render's; 1 renders at --width x --height.
+    #[arg(long, default_value_t = 1.0, value_parser = crate::cli::values::unit)]
+    pub render_scale: f32,
     /// The film's filters, as in `play` (their cost is the `film` stage).
     #[arg(long, value_enum, default_value_t = super::FilterArg::Full)]
     pub filter: super::FilterArg,
@@ -96,10 +101,21 @@ pub fn camera_path(start: &Transform, seconds: f64) -> Transform {
     }
 }
 
+/// The render's resolution: --width x --height at --render-scale.
+fn render_size(options: &Options) -> (u32, u32) {
+    let scaled = |n: u32| ((n as f32 * options.render_scale).round() as u32).max(1);
+    (scaled(options.width), scaled(options.height))
+}
+
 pub fn run(options: &Options) -> anyhow::Result<()> {
     if options.width == 0 || options.height == 0 || options.frames == 0 {
         anyhow::bail!("--width, --height and --frames must be at least 1");
     }
+    anyhow::ensure!(
+        options.render_scale > 0.0,
+        "--render-scale {}: must be above 0",
+        options.render_scale
+    );
     for path in [&options.json, &options.csv, &options.trace]
         .into_iter()
         .flatten()
@@ -226,6 +242,8 @@ fn measure(
         RenderSettings::real_time(options.width, options.height),
     );
     engine.film.filter.mode = options.filter.mode();
+    let (render_width, render_height) = render_size(options);
+    engine.film.set_resolution(render_width, render_height);
     // A replay is seen through the player's eyes; otherwise the view takes its path.
     let view = if recording.is_some() {
         spawn_player(&mut engine.world)
@@ -258,6 +276,7 @@ fn measure(
         scene: level.display().to_string(),
         width: options.width,
         height: options.height,
+        render_size: Some(render_size(options)),
         threads,
         frames: Vec::with_capacity(options.frames as usize),
         accel_rays: None,

@@ -350,7 +350,9 @@ impl Editor {
         if scene.level == level_from_world(&mut engine.world) {
             return Ok(Reloaded::Unchanged);
         }
+        let shown = engine.film.shown;
         *engine = Engine::new(&scene, engine.film.settings.clone());
+        engine.film.shown = shown;
         engine.pose_at(self.time);
         let time = self.time;
         *self = Editor::new();

@@ -64,14 +64,17 @@ pub struct FilmPhaseTimes {
     pub spatial: f64,
     /// Step 3: remodulation, and the first pass's output fed back into the history.
     pub remodulate: f64,
+    /// After the chain, rendering below the shown resolution: `upscale` (set by
+    /// `Accumulation`, which runs it).
+    pub upscale: f64,
 }
 
 impl FilmPhaseTimes {
     /// The steps' names, in `as_array` order (the profiler's `film.*` rows).
-    pub const NAMES: [&str; 3] = ["temporal", "spatial", "remodulate"];
+    pub const NAMES: [&str; 4] = ["temporal", "spatial", "remodulate", "upscale"];
 
-    pub fn as_array(&self) -> [f64; 3] {
-        [self.temporal, self.spatial, self.remodulate]
+    pub fn as_array(&self) -> [f64; 4] {
+        [self.temporal, self.spatial, self.remodulate, self.upscale]
     }
 }
 

@@ -5,7 +5,8 @@
 //! - the real-time chain (`denoise::FrameFilter`, used by the window and `bench`):
 //!   `temporal` reprojection (`reproject` carries last frame's pixels through each
 //!   instance's and the camera's motion), then the `atrous` wavelet filter, then
-//!   remodulation by the surface's albedo.
+//!   remodulation by the surface's albedo, then (rendering below the shown resolution)
+//!   `upscale`'s temporal upscaling to it.
 //!
 //! The image itself (`render::Film`), its tone mapper and its file writers and readers
 //! are in `render::film`: render writes that buffer and everything downstream reads it.
@@ -15,10 +16,14 @@ pub mod atrous;
 pub mod denoise;
 mod reproject;
 pub mod temporal;
+pub mod upscale;
 
 use glam::Vec3;
 
 pub use denoise::{FilmPhaseTimes, FilterMode, FrameFilter};
+pub use upscale::{UpscaleSettings, Upscaler};
+
+use temporal::TemporalSettings;
 
 use crate::profile::{Stage, StageTimes, TileSpan, since};
 use crate::render::scene::SceneChanges;
@@ -39,6 +44,12 @@ pub struct Accumulation {
     filtered: Option<Film>,
     /// The last filtered frame's render, whose buffers the next one reuses.
     rendered: Option<RenderOutput>,
+    /// The resolution shown: the filtered frames are upscaled to it when the render's is
+    /// lower (still frames summed without the filter are shown at the render's).
+    pub shown: (u32, u32),
+    pub upscaler: Upscaler,
+    /// The last filtered frame at the render's resolution, before upscaling.
+    filtered_render: Film,
     /// Set when anything visible changed: the next frame starts a new sum.
     pub reset: bool,
     /// The view the sum was rendered from.
@@ -51,6 +62,9 @@ impl Accumulation {
     pub fn new(settings: RenderSettings) -> Accumulation {
         let pixels = (settings.width * settings.height) as usize;
         Accumulation {
+            shown: (settings.width, settings.height),
+            upscaler: Upscaler::new(UpscaleSettings::default()),
+            filtered_render: Film::new(0, 0),
             settings,
             sum: vec![Vec3::ZERO; pixels],
             frames: 0,
@@ -64,7 +78,7 @@ impl Accumulation {
     }
 
     /// Renders at `width` x `height` from the next frame on, starting the image and the
-    /// filter's history again.
+    /// filter's history again (the upscaler's, at the shown resolution, goes on).
     pub fn set_resolution(&mut self, width: u32, height: u32) {
         let (width, height) = (width.max(1), height.max(1));
         if (width, height) == (self.settings.width, self.settings.height) {
@@ -88,6 +102,7 @@ impl Accumulation {
         }
         if let Some(new_index) = &changes.renumbered {
             self.filter.renumber_instances(new_index);
+            self.upscaler.renumber_instances(new_index);
         }
     }
 
@@ -158,8 +173,26 @@ impl Accumulation {
                 .collect();
             // Last frame's image is overwritten (a fresh buffer a frame costs page faults).
             let mut image = self.filtered.take().unwrap_or_else(|| Film::new(0, 0));
-            self.filter
-                .apply_into(&output.film, guides, &camera, &instances, &mut image);
+            let upscaling = self.shown != (settings.width, settings.height);
+            let temporal = TemporalSettings::for_upscaling(upscaling);
+            if self.filter.temporal.settings != temporal {
+                self.filter.temporal.settings = temporal;
+            }
+            let upscale_ms = if !upscaling {
+                self.filter
+                    .apply_into(&output.film, guides, &camera, &instances, &mut image);
+                0.0
+            } else {
+                let filtered = &mut self.filtered_render;
+                self.filter
+                    .apply_into(&output.film, guides, &camera, &instances, filtered);
+                let start = std::time::Instant::now();
+                profiling::scope!("film.upscale");
+                self.upscaler.apply_into(
+                    filtered, guides, &camera, &instances, self.shown, &mut image,
+                );
+                since(start)
+            };
             self.filtered = Some(image);
             self.rendered = Some(output);
             self.frames += 1;
@@ -167,12 +200,16 @@ impl Accumulation {
             times.add(Stage::Film, film_ms);
             // The steps' own times, with the little around them (the instances' transforms
             // gathered) shared out so they add up to the stage.
-            let steps = self.filter.last_times.as_array();
+            let steps = FilmPhaseTimes {
+                upscale: upscale_ms,
+                ..self.filter.last_times
+            }
+            .as_array();
             let timed: f64 = steps.iter().sum();
             times.film_phases = if timed > 0.0 {
                 steps.map(|step| film_ms * step / timed)
             } else {
-                [0.0; 3]
+                [0.0; FilmPhaseTimes::NAMES.len()]
             };
             return;
         }
@@ -181,6 +218,6 @@ impl Accumulation {
         }
         self.frames += 1;
         times.add(Stage::Film, since(start));
-        times.film_phases = [0.0; 3];
+        times.film_phases = [0.0; FilmPhaseTimes::NAMES.len()];
     }
 }

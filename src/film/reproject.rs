@@ -82,6 +82,48 @@ pub(super) enum Motion {
     New,
 }
 
+/// Each instance's world-from-object transform last frame, by index (None: spawned
+/// since), as the film's filters keep it to tell how everything moved.
+#[derive(Clone, Debug, Default)]
+pub(super) struct LastTransforms(Vec<Option<Affine3A>>);
+
+impl LastTransforms {
+    /// How each of this frame's instances (at `now`) moved since last frame.
+    pub fn motions(&self, now: &[Affine3A]) -> Vec<Motion> {
+        now.iter()
+            .enumerate()
+            .map(|(index, now)| match self.0.get(index).copied().flatten() {
+                Some(before) if before == *now => Motion::Still,
+                Some(before) => Motion::Moved(before * now.inverse()),
+                None => Motion::New,
+            })
+            .collect()
+    }
+
+    /// Keeps `now` for the next frame.
+    pub fn record(&mut self, now: &[Affine3A]) {
+        self.0.clear();
+        self.0.extend(now.iter().copied().map(Some));
+    }
+
+    pub fn clear(&mut self) {
+        self.0.clear();
+    }
+
+    /// The instances were numbered anew: `new_index[old]` is each old instance's new
+    /// index (None: gone).
+    pub fn renumber(&mut self, new_index: &[Option<u32>]) {
+        let count = new_index.iter().flatten().map(|&i| i as usize + 1).max();
+        let mut renumbered = vec![None; count.unwrap_or(0)];
+        for (old, new) in new_index.iter().enumerate() {
+            if let (Some(new), Some(before)) = (new, self.0.get(old).copied().flatten()) {
+                renumbered[*new as usize] = Some(before);
+            }
+        }
+        self.0 = renumbered;
+    }
+}
+
 /// Last frame, as this frame's pixels find it.
 pub(super) struct Reprojection<'a> {
     /// Last frame's camera.

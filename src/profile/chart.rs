@@ -338,7 +338,7 @@ mod tests {
         let mut frame = FrameSample {
             frame_ms: 22.0,
             render_phases: [5.0; 4],
-            film_phases: [1.0, 0.5, 0.5],
+            film_phases: [1.0, 0.5, 0.5, 0.0],
             ..FrameSample::default()
         };
         frame.stages[Stage::Render.index()] = 20.0;

@@ -248,7 +248,7 @@ pub const RENDER_PHASES: [&str; 4] = ["primary", "shade", "shadow", "bounces"];
 
 /// The steps inside `film` (film/denoise.rs's filter chain), nested under it as
 /// `film.<step>`: the same names as `render::FilmPhaseTimes::NAMES`.
-pub const FILM_PHASES: [&str; 3] = ["temporal", "spatial", "remodulate"];
+pub const FILM_PHASES: [&str; 4] = ["temporal", "spatial", "remodulate", "upscale"];
 
 /// A frame's phase times of a stage that has phases: `gameplay`'s, `render`'s or `film`'s.
 type PhasesOf = fn(&FrameSample) -> &[f64];
@@ -350,8 +350,11 @@ impl Summary {
 #[derive(Clone, Debug, Default)]
 pub struct Profile {
     pub scene: String,
+    /// The resolution shown ...
     pub width: u32,
     pub height: u32,
+    /// ... and rendered (below the shown, the film upscales; None: the same).
+    pub render_size: Option<(u32, u32)>,
     pub threads: usize,
     pub frames: Vec<FrameSample>,
     /// What the level's accel alone traces on the same threads (`gloam bench` measures
@@ -438,6 +441,8 @@ impl Profile {
             "frames": self.frames.len(),
             "width": self.width,
             "height": self.height,
+            "render_width": self.render_size.map_or(self.width, |size| size.0),
+            "render_height": self.render_size.map_or(self.height, |size| size.1),
             "threads": self.threads,
             "stages": stages,
             "frame": self.frame().json(),
@@ -466,8 +471,14 @@ impl Profile {
 
     /// The table `gloam bench` prints: a row per stage.
     pub fn table(&self) -> String {
+        let rendered = match self.render_size {
+            Some((width, height)) if (width, height) != (self.width, self.height) => {
+                format!(" (rendered at {width}x{height}, upscaled)")
+            }
+            _ => String::new(),
+        };
         let mut text = format!(
-            "{} frames of {} at {}x{} on {} threads; {:.2} Mrays/s\n{:<12}{:>10}{:>10}{:>10}{:>10}{:>10}\n",
+            "{} frames of {} at {}x{}{rendered} on {} threads; {:.2} Mrays/s\n{:<12}{:>10}{:>10}{:>10}{:>10}{:>10}\n",
             self.frames.len(),
             self.scene,
             self.width,
@@ -709,7 +720,7 @@ mod tests {
         let frame = |render: f64| FrameSample {
             stages: [0.1, 0.0, 0.2, 0.1, 0.0, 0.3, 0.1, render, 0.2, 0.0],
             render_phases: [render * 0.4, render * 0.1, render * 0.2, render * 0.3],
-            film_phases: [0.1, 0.05, 0.05],
+            film_phases: [0.1, 0.05, 0.05, 0.0],
             gameplay_phases: [0.0, 0.0, 0.0, 0.0],
             frame_ms: render + 1.5,
             rays: 10,

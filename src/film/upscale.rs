@@ -1,0 +1,668 @@
+//! Frame step `film`, last filter: temporal upscaling, from the render's resolution to the
+//! one shown (after the TAAU of Karis 2014, "High Quality Temporal Supersampling", and
+//! AMD's FidelityFX Super Resolution 2: a history kept at the shown resolution, fed each
+//! frame by the render's samples where they fell).
+//!
+//! Owns the history at the shown resolution (radiance and how much weight it holds), last
+//! frame's camera and instance transforms. Per frame:
+//! 1. samples: every render pixel's remodulated colour is a point sample of the image
+//!    where its camera ray went (the sampler jitters it inside the pixel, anew each frame),
+//!    which is where its first hit projects; and where that point of the surface was on
+//!    last frame's film (carried back through its instance's motion);
+//! 2. bounds: each render pixel's 3 x 3 neighbourhood's least and greatest colour;
+//! 3. per shown pixel, a row at a time: the render's samples within `radius` of its centre,
+//!    weighted by distance; last frame's history where the nearest sample's surface was,
+//!    clamped to the bounds around it (stale light and disocclusions are pulled to what
+//!    the frame shows now); and a little of the render bilinearly interpolated, so a pixel
+//!    no sample fell near has a value. Their weighted mean is the pixel and its history.
+//!
+//! With the render's remodulated colour, each sample carries its own surface's albedo:
+//! texture and edges sharpen to the shown resolution over a few frames, while the lighting
+//! (smooth after the filters) comes from the render's resolution.
+//!
+//! Reads a frame rendered with `render_guided` and filtered by `denoise::FrameFilter`;
+//! the same inputs give the same bits on any thread count.
+
+use glam::{Affine3A, Vec2, Vec3, Vec3A, Vec4};
+use rayon::prelude::*;
+
+use super::reproject::{LastTransforms, Motion};
+use crate::render::camera::Camera;
+use crate::render::film::Film;
+use crate::render::guides::{Guides, NO_INSTANCE, POSITION_X, POSITION_Y, POSITION_Z};
+
+/// The render's resolution per axis against the shown one that the real-time
+/// measurements (`bench`, `flythrough`) take unless told: where the game's adaptive
+/// resolution settles on two cores at 640 x 360.
+pub const DEFAULT_RENDER_SCALE: f32 = 0.5;
+
+/// How the history is kept; the defaults are what `gloam flythrough` measured best.
+#[derive(Clone, Debug, PartialEq)]
+pub struct UpscaleSettings {
+    /// A sample counts towards the shown pixels whose centres are within this many shown
+    /// pixels of it.
+    pub radius: f32,
+    /// The history's weight is capped here (in samples at the pixel's centre): the lower,
+    /// the faster it follows change, the noisier it stays.
+    pub max_history: f32,
+    /// A pixel whose history and samples weigh less than this (its history was lost and
+    /// no sample fell near) is made up to it with the render, bilinearly interpolated.
+    pub interpolated: f32,
+}
+
+impl Default for UpscaleSettings {
+    fn default() -> Self {
+        UpscaleSettings {
+            radius: 1.0,
+            max_history: 1.0,
+            interpolated: 0.05,
+        }
+    }
+}
+
+/// One render pixel's sample, as the shown film sees it.
+#[derive(Clone, Copy, Debug, Default)]
+struct Sample {
+    /// Its remodulated colour (w unused: 16 bytes, so the arithmetic is in lanes).
+    colour: Vec4,
+    /// Where it fell (shown pixels from the top-left).
+    at: Vec2,
+    /// How far its surface moved on the film since last frame: where it was is `at` less
+    /// this (NaN: not there, or no last frame).
+    moved: Vec2,
+}
+
+/// One shown pixel's render pixels along one axis (the same for every row, or every
+/// column, so worked out once a frame).
+#[derive(Clone, Copy, Debug, Default)]
+struct AxisTaps {
+    /// The render pixels whose samples can be within the radius (`first..end`).
+    first: u32,
+    end: u32,
+    /// The render pixel under the shown pixel's centre.
+    under: u32,
+    /// The bilinear taps between render pixel centres, and the weight of `high`.
+    low: u32,
+    high: u32,
+    fraction: f32,
+}
+
+/// `AxisTaps` for each of `shown` pixels along an axis `render` pixels long.
+fn axis_taps(shown: usize, render: usize, radius: f32) -> Vec<AxisTaps> {
+    let to_render = render as f32 / shown as f32;
+    let last = render as f32 - 1.0;
+    (0..shown)
+        .map(|pixel| {
+            let centre = pixel as f32 + 0.5;
+            let under = centre * to_render;
+            let corner = (under - 0.5).clamp(0.0, last);
+            let low = corner as u32;
+            AxisTaps {
+                first: ((centre - radius) * to_render).clamp(0.0, last) as u32,
+                end: ((centre + radius) * to_render).clamp(0.0, last) as u32 + 1,
+                under: under.min(last) as u32,
+                low,
+                high: (low + 1).min(render as u32 - 1),
+                fraction: corner - low as f32,
+            }
+        })
+        .collect()
+}
+
+#[derive(Default)]
+pub struct Upscaler {
+    pub settings: UpscaleSettings,
+    /// The shown resolution.
+    width: u32,
+    height: u32,
+    /// Per shown pixel: radiance, and in w the weight behind it.
+    history: Vec<Vec4>,
+    next: Vec<Vec4>,
+    /// Last frame's camera, at the shown resolution.
+    camera: Option<Camera>,
+    instances: LastTransforms,
+    /// Per render pixel, steps 1 and 2.
+    samples: Vec<Sample>,
+    bounds: Vec<(Vec4, Vec4)>,
+    /// Step 2's first half: the bounds of 3 across.
+    rows_bounds: Vec<(Vec4, Vec4)>,
+}
+
+impl Upscaler {
+    pub fn new(settings: UpscaleSettings) -> Upscaler {
+        Upscaler {
+            settings,
+            ..Upscaler::default()
+        }
+    }
+
+    /// Forgets the history (a new level): the next frame starts afresh. A new render
+    /// resolution needs none of this: the history is kept at the shown one.
+    pub fn reset(&mut self) {
+        self.history.clear();
+        self.camera = None;
+        self.instances.clear();
+    }
+
+    /// The instances were numbered anew (`TemporalFilter::renumber_instances`).
+    pub fn renumber_instances(&mut self, new_index: &[Option<u32>]) {
+        self.instances.renumber(new_index);
+    }
+
+    /// Upscales `image` (the filtered render, seen by `camera` with `guides`, the scene's
+    /// instances at `instances`) into `out`, `width` x `height`.
+    pub fn apply_into(
+        &mut self,
+        image: &Film,
+        guides: &Guides,
+        camera: &Camera,
+        instances: &[Affine3A],
+        (width, height): (u32, u32),
+        out: &mut Film,
+    ) {
+        debug_assert_eq!((image.width, image.height), (guides.width, guides.height));
+        if (width, height) != (self.width, self.height) {
+            self.reset();
+            (self.width, self.height) = (width, height);
+        }
+        let shown_camera = Camera {
+            width,
+            height,
+            ..camera.clone()
+        };
+        let motions = self.instances.motions(instances);
+        self.take_samples(image, guides, camera, &shown_camera, &motions);
+        self.take_bounds(image.width as usize, image.height as usize);
+        self.blend(image.width as usize, image.height as usize, out);
+        std::mem::swap(&mut self.history, &mut self.next);
+        self.camera = Some(shown_camera);
+        self.instances.record(instances);
+    }
+
+    /// Step 1.
+    fn take_samples(
+        &mut self,
+        image: &Film,
+        guides: &Guides,
+        camera: &Camera,
+        shown: &Camera,
+        motions: &[Motion],
+    ) {
+        let (render_width, render_height) = (image.width as usize, image.height as usize);
+        let to_shown = Vec2::new(
+            shown.width as f32 / render_width as f32,
+            shown.height as f32 / render_height as f32,
+        );
+        let projection = shown.projection();
+        let last = self.camera.as_ref().map(Camera::projection);
+        self.samples
+            .resize(render_width * render_height, Sample::default());
+        self.samples
+            .par_chunks_mut(render_width)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let (position_x, position_y, position_z) = (
+                    guides.row(y, POSITION_X),
+                    guides.row(y, POSITION_Y),
+                    guides.row(y, POSITION_Z),
+                );
+                let instances = &guides.instances()[y * render_width..][..render_width];
+                let colours = &image.pixels[y * render_width..][..render_width];
+                for (x, sample) in row.iter_mut().enumerate() {
+                    let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                    let instance = instances[x];
+                    // The sky: where the pixel's centre looks, as far as f32 keeps the
+                    // direction (the sample's own jitter is not kept for it).
+                    let (at, point, motion) = if instance == NO_INSTANCE {
+                        let ray = camera.ray(centre, Vec2::ZERO);
+                        let point = ray.origin + ray.direction * 1e4;
+                        (centre * to_shown, point, Motion::Still)
+                    } else {
+                        let point = Vec3A::new(position_x[x], position_y[x], position_z[x]);
+                        let motion = motions.get(instance as usize).copied();
+                        let at = projection.project(point).unwrap_or(centre * to_shown);
+                        (at, point, motion.unwrap_or(Motion::New))
+                    };
+                    let before = match motion {
+                        Motion::Still => Some(point),
+                        Motion::Moved(before_from_now) => {
+                            Some(before_from_now.transform_point3a(point))
+                        }
+                        Motion::New => None,
+                    };
+                    let was = before
+                        .zip(last.as_ref())
+                        .and_then(|(point, last)| last.project(point))
+                        .unwrap_or(Vec2::NAN);
+                    *sample = Sample {
+                        colour: colours[x].extend(0.0),
+                        at,
+                        moved: at - was,
+                    };
+                }
+            });
+    }
+
+    /// Step 2: the least and greatest of 3 across, then of those 3 down.
+    fn take_bounds(&mut self, render_width: usize, render_height: usize) {
+        let samples = &self.samples;
+        let across = |y: usize| {
+            let row = &samples[y * render_width..][..render_width];
+            (0..render_width).map(move |x| {
+                let (left, right) = (x.saturating_sub(1), (x + 1).min(render_width - 1));
+                let (a, b, c) = (row[left].colour, row[x].colour, row[right].colour);
+                (a.min(b).min(c), a.max(b).max(c))
+            })
+        };
+        self.rows_bounds
+            .resize(samples.len(), (Vec4::ZERO, Vec4::ZERO));
+        self.rows_bounds
+            .par_chunks_mut(render_width)
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (bounds, found) in row.iter_mut().zip(across(y)) {
+                    *bounds = found;
+                }
+            });
+        let across = &self.rows_bounds;
+        self.bounds.resize(samples.len(), (Vec4::ZERO, Vec4::ZERO));
+        self.bounds
+            .par_chunks_mut(render_width)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let (up, down) = (y.saturating_sub(1), (y + 1).min(render_height - 1));
+                let (up, here, down) = (
+                    &across[up * render_width..][..render_width],
+                    &across[y * render_width..][..render_width],
+                    &across[down * render_width..][..render_width],
+                );
+                for (x, bounds) in row.iter_mut().enumerate() {
+                    *bounds = (
+                        up[x].0.min(here[x].0).min(down[x].0),
+                        up[x].1.max(here[x].1).max(down[x].1),
+                    );
+                }
+            });
+    }
+
+    /// Step 3, into `out` and the next history.
+    fn blend(&mut self, render_width: usize, render_height: usize, out: &mut Film) {
+        let (width, height) = (self.width as usize, self.height as usize);
+        out.width = self.width;
+        out.height = self.height;
+        out.pixels.resize(width * height, Vec3::ZERO);
+        self.next.resize(width * height, Vec4::ZERO);
+        let blend = Blend {
+            history: (self.history.len() == width * height).then_some(&self.history[..]),
+            samples: &self.samples,
+            bounds: &self.bounds,
+            settings: &self.settings,
+            columns: axis_taps(width, render_width, self.settings.radius),
+            width,
+            height,
+            render_width,
+        };
+        let rows = axis_taps(height, render_height, self.settings.radius);
+        self.next
+            .par_chunks_mut(width)
+            .zip(out.pixels.par_chunks_mut(width))
+            .zip(rows)
+            .enumerate()
+            .for_each(|(y, ((next, shown), row))| blend.row(y, &row, next, shown));
+    }
+}
+
+/// What step 3 reads.
+struct Blend<'a> {
+    /// Last frame's (None: none at this resolution).
+    history: Option<&'a [Vec4]>,
+    samples: &'a [Sample],
+    bounds: &'a [(Vec4, Vec4)],
+    settings: &'a UpscaleSettings,
+    columns: Vec<AxisTaps>,
+    width: usize,
+    height: usize,
+    render_width: usize,
+}
+
+impl Blend<'_> {
+    /// Shown row `y` (whose render rows are `row`) into its `next` history and `shown`.
+    #[inline(never)]
+    fn row(&self, y: usize, row: &AxisTaps, next: &mut [Vec4], shown: &mut [Vec3]) {
+        let Blend {
+            history,
+            samples,
+            bounds,
+            settings,
+            ref columns,
+            width,
+            height,
+            render_width,
+        } = *self;
+        let inverse_radius_squared = 1.0 / (settings.radius * settings.radius);
+        let centre_y = y as f32 + 0.5;
+        let bounds_row = &bounds[row.under as usize * render_width..][..render_width];
+        for (x, ((next, shown), column)) in next
+            .iter_mut()
+            .zip(shown.iter_mut())
+            .zip(&columns[..width])
+            .enumerate()
+        {
+            let centre = Vec2::new(x as f32 + 0.5, centre_y);
+            let (mut sum, mut weight) = (Vec4::ZERO, 0.0f32);
+            let (mut nearest, mut moved) = (f32::INFINITY, Vec2::NAN);
+            for render_y in row.first as usize..row.end as usize {
+                let samples = &samples[render_y * render_width..][..render_width];
+                for sample in &samples[column.first as usize..column.end as usize] {
+                    let distance_squared = (sample.at - centre).length_squared();
+                    // Selected, not branched on: which sample is nearest is a coin toss
+                    // the branch predictor loses.
+                    let closer = glam::BVec2::splat(distance_squared < nearest);
+                    moved = Vec2::select(closer, sample.moved, moved);
+                    nearest = nearest.min(distance_squared);
+                    // A smooth bump: 1 at the centre, 0 at the radius.
+                    let falloff = (1.0 - distance_squared * inverse_radius_squared).max(0.0);
+                    sum += sample.colour * (falloff * falloff);
+                    weight += falloff * falloff;
+                }
+            }
+            if let Some(last) =
+                history.and_then(|history| catmull_rom(history, width, height, centre - moved))
+            {
+                // Clamped to the neighbourhood of the render pixel under the centre.
+                let (low, high) = bounds_row[column.under as usize];
+                let kept = last.w.min(settings.max_history);
+                sum += last.clamp(low, high) * kept;
+                weight += kept;
+            }
+            if weight < settings.interpolated {
+                // Neither history nor a sample near: the render, interpolated.
+                let (low, high) = (column.low as usize, column.high as usize);
+                let (low_row, high_row) = (
+                    &samples[row.low as usize * render_width..][..render_width],
+                    &samples[row.high as usize * render_width..][..render_width],
+                );
+                let interpolated = low_row[low]
+                    .colour
+                    .lerp(low_row[high].colour, column.fraction)
+                    .lerp(
+                        high_row[low]
+                            .colour
+                            .lerp(high_row[high].colour, column.fraction),
+                        row.fraction,
+                    );
+                sum += interpolated * (settings.interpolated - weight);
+                weight = settings.interpolated;
+            }
+            let colour = sum / weight;
+            *next = colour.truncate().extend(weight);
+            *shown = colour.truncate();
+        }
+    }
+}
+
+/// `history` (shown pixels) at film point `at`, through Catmull-Rom's cubic between pixel
+/// centres (4 x 4 taps); None off the film by more than half a pixel (or NaN: nothing to
+/// carry). Bilinear taps instead blur the history a little each frame it moves, which
+/// adds up: `gloam flythrough`'s player RMSE was 0.0247 with them, 0.0236 with these.
+#[inline(always)]
+fn catmull_rom(history: &[Vec4], width: usize, height: usize, at: Vec2) -> Option<Vec4> {
+    let corner = at - 0.5;
+    // The comparisons are false for NaN; within them the casts below stay in range.
+    if !(corner.x >= -0.5
+        && corner.y >= -0.5
+        && corner.x <= width as f32 - 0.5
+        && corner.y <= height as f32 - 0.5)
+    {
+        return None;
+    }
+    let corner = corner
+        .max(Vec2::ZERO)
+        .min(Vec2::new(width as f32 - 1.0, height as f32 - 1.0));
+    let (x1, y1) = (corner.x as usize, corner.y as usize);
+    let (wx, wy) = (
+        catmull_rom_weights(corner.x - x1 as f32),
+        catmull_rom_weights(corner.y - y1 as f32),
+    );
+    let mut sum = Vec4::ZERO;
+    if x1 >= 1 && x1 + 2 < width && y1 >= 1 && y1 + 2 < height {
+        // Inside the film: four taps in a row of each of four rows.
+        for (j, wy) in wy.into_iter().enumerate() {
+            let row = &history[(y1 + j - 1) * width + x1 - 1..][..4];
+            let across = row[0] * wx[0] + row[1] * wx[1] + row[2] * wx[2] + row[3] * wx[3];
+            sum += across * wy;
+        }
+    } else {
+        // At an edge the edge pixels are repeated.
+        for (j, wy) in wy.into_iter().enumerate() {
+            let y = (y1 + j).saturating_sub(1).min(height - 1);
+            for (i, wx) in wx.into_iter().enumerate() {
+                let x = (x1 + i).saturating_sub(1).min(width - 1);
+                sum += history[y * width + x] * (wx * wy);
+            }
+        }
+    }
+    // The cubic's lobes can undershoot next to a bright edge.
+    Some(sum.max(Vec4::ZERO))
+}
+
+/// Catmull-Rom's four weights at fraction `t` past the second tap.
+#[inline(always)]
+fn catmull_rom_weights(t: f32) -> [f32; 4] {
+    let (t2, t3) = (t * t, t * t * t);
+    [
+        -0.5 * t3 + t2 - 0.5 * t,
+        1.5 * t3 - 2.5 * t2 + 1.0,
+        -1.5 * t3 + 2.0 * t2 + 0.5 * t,
+        0.5 * t3 - 0.5 * t2,
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::GuidePixel;
+    use crate::scene::world::CameraPlacement;
+    use glam::Mat4;
+
+    const SHOWN: (u32, u32) = (32, 16);
+    const RENDER: (u32, u32) = (16, 8);
+
+    fn camera(x: f32, (width, height): (u32, u32)) -> Camera {
+        let placement = CameraPlacement {
+            name: String::new(),
+            yfov: 60f32.to_radians(),
+            znear: 0.1,
+            world_from_camera: Mat4::from_translation(glam::Vec3::new(x, 0.0, 0.0)),
+        };
+        Camera::new(&placement, width, height)
+    }
+
+    /// A shown pixel's width on the wall at z = -5.
+    fn shown_pixel() -> f32 {
+        2.0 * 5.0 * 30f32.to_radians().tan() / SHOWN.1 as f32
+    }
+
+    /// The wall carries stripes 1.5 shown pixels wide: finer than the render's Nyquist
+    /// limit (so one frame aliases them) but not the shown film's.
+    fn stripes(point: Vec3A) -> Vec3 {
+        if (point.x / (1.5 * shown_pixel())).floor().rem_euclid(2.0) == 0.0 {
+            Vec3::splat(0.8)
+        } else {
+            Vec3::splat(0.1)
+        }
+    }
+
+    /// Where the camera ray through film point `film` meets the wall.
+    fn on_wall(camera: &Camera, film: Vec2) -> Vec3A {
+        let ray = camera.ray(film, Vec2::ZERO);
+        ray.origin + ray.direction * (5.0 / -ray.direction.z)
+    }
+
+    /// One frame rendered at `RENDER`, each pixel's sample jittered (a small hash of the
+    /// frame and pixel), as the renderer's guides and remodulated image give it.
+    fn frame(camera: &Camera, frame: u32) -> (Film, Guides) {
+        let (mut film, mut guides) = (
+            Film::new(RENDER.0, RENDER.1),
+            Guides::new(RENDER.0, RENDER.1),
+        );
+        for y in 0..RENDER.1 {
+            for x in 0..RENDER.0 {
+                let hash = |salt: u32| {
+                    let mut h = (x * 73_856_093) ^ (y * 19_349_663) ^ (frame * 83_492_791) ^ salt;
+                    h ^= h >> 13;
+                    h = h.wrapping_mul(0x5bd1_e995);
+                    h ^= h >> 15;
+                    (h & 0xffff) as f32 / 65_536.0
+                };
+                let film_point = Vec2::new(x as f32 + hash(1), y as f32 + hash(2));
+                let position = on_wall(camera, film_point);
+                let index = (y * RENDER.0 + x) as usize;
+                film.pixels[index] = stripes(position);
+                let pixel = GuidePixel {
+                    position,
+                    normal: Vec3A::Z,
+                    depth: (position - camera.position).length(),
+                    instance: 0,
+                    albedo: stripes(position),
+                    emission: Vec3::ZERO,
+                };
+                guides.set(index, &pixel);
+            }
+        }
+        (film, guides)
+    }
+
+    /// The stripes as the shown film's pixel centres see them.
+    fn truth(camera: &Camera) -> Film {
+        let shown = Camera {
+            width: SHOWN.0,
+            height: SHOWN.1,
+            ..camera.clone()
+        };
+        let mut film = Film::new(SHOWN.0, SHOWN.1);
+        for y in 0..SHOWN.1 {
+            for x in 0..SHOWN.0 {
+                let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                film.pixels[(y * SHOWN.0 + x) as usize] = stripes(on_wall(&shown, centre));
+            }
+        }
+        film
+    }
+
+    /// Runs `frames` frames with the camera at `x(frame)`: the last output and its truth.
+    fn run(upscaler: &mut Upscaler, frames: u32, x: impl Fn(u32) -> f32) -> (Film, Film) {
+        let mut out = Film::new(0, 0);
+        let mut last_camera = camera(0.0, RENDER);
+        for index in 0..frames {
+            last_camera = camera(x(index), RENDER);
+            let (image, guides) = frame(&last_camera, index);
+            upscaler.apply_into(
+                &image,
+                &guides,
+                &last_camera,
+                &[Affine3A::IDENTITY],
+                SHOWN,
+                &mut out,
+            );
+        }
+        (out, truth(&last_camera))
+    }
+
+    #[test]
+    fn samples_gathered_over_frames_show_detail_finer_than_the_render() {
+        let mut upscaler = Upscaler::new(UpscaleSettings::default());
+        let (still, truth_still) = run(&mut upscaler, 24, |_| 0.0);
+        assert_eq!((still.width, still.height), SHOWN);
+        // What resizing one frame gives (the stripes alias away).
+        let (one, _) = frame(&camera(0.0, RENDER), 0);
+        let resized = one.resized(SHOWN.0, SHOWN.1);
+        let (upscaled_error, resized_error) =
+            (still.rmse(&truth_still), resized.rmse(&truth_still));
+        // Measured: 0.26 against 0.44 (0.59x).
+        assert!(
+            upscaled_error < 0.65 * resized_error,
+            "upscaled {upscaled_error}, resized {resized_error}"
+        );
+        // A camera panning a third of a shown pixel a frame: the history follows the
+        // wall, so the stripes stay.
+        let mut upscaler = Upscaler::new(UpscaleSettings::default());
+        let (panned, truth_panned) = run(&mut upscaler, 24, |frame| {
+            frame as f32 * shown_pixel() / 3.0
+        });
+        let panned_error = panned.rmse(&truth_panned);
+        // Measured: 0.31 (0.70x the resized frame's error).
+        assert!(
+            panned_error < 0.8 * resized_error,
+            "panned {panned_error}, resized {resized_error}"
+        );
+    }
+
+    #[test]
+    fn the_same_frames_give_the_same_bits_on_any_thread_count() {
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut upscaler = Upscaler::new(UpscaleSettings::default());
+                run(&mut upscaler, 6, |frame| frame as f32 * 0.05).0
+            })
+        };
+        let one = on(1);
+        assert_eq!(one.pixels.len(), (SHOWN.0 * SHOWN.1) as usize);
+        assert!(one.pixels.iter().all(|p| p.is_finite()));
+        assert_eq!(one, on(3));
+    }
+
+    #[test]
+    fn an_instance_spawned_since_has_no_history_to_carry() {
+        let camera = camera(0.0, RENDER);
+        let mut out = Film::new(0, 0);
+        let mut upscaler = Upscaler::new(UpscaleSettings::default());
+        for index in 0..4 {
+            let (image, guides) = frame(&camera, index);
+            // Frame 3: the wall is a new instance (renumbered: the old one is gone).
+            if index == 3 {
+                upscaler.renumber_instances(&[None]);
+            }
+            upscaler.apply_into(
+                &image,
+                &guides,
+                &camera,
+                &[Affine3A::IDENTITY],
+                SHOWN,
+                &mut out,
+            );
+        }
+        // Frame 3 alone, with nothing before it, weighs the same everywhere.
+        let mut fresh = Upscaler::new(UpscaleSettings::default());
+        let (image, guides) = frame(&camera, 3);
+        fresh.apply_into(
+            &image,
+            &guides,
+            &camera,
+            &[Affine3A::IDENTITY],
+            SHOWN,
+            &mut out,
+        );
+        let weights =
+            |upscaler: &Upscaler| upscaler.history.iter().map(|p| p.w).collect::<Vec<_>>();
+        assert_eq!(weights(&upscaler), weights(&fresh));
+        // ... and a frame with history behind it weighs more.
+        fresh.apply_into(
+            &image,
+            &guides,
+            &camera,
+            &[Affine3A::IDENTITY],
+            SHOWN,
+            &mut out,
+        );
+        let (one, two): (f32, f32) = (
+            weights(&upscaler).iter().sum(),
+            weights(&fresh).iter().sum(),
+        );
+        assert!(two > 1.5 * one, "{one} then {two}");
+    }
+}
