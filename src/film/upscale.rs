@@ -342,6 +342,7 @@ impl Blend<'_> {
         let inverse_radius_squared = 1.0 / (settings.radius * settings.radius);
         let centre_y = y as f32 + 0.5;
         let bounds_row = &bounds[row.under as usize * render_width..][..render_width];
+        let under_row = &samples[row.under as usize * render_width..][..render_width];
         for (x, ((next, shown), column)) in next
             .iter_mut()
             .zip(shown.iter_mut())
@@ -350,16 +351,12 @@ impl Blend<'_> {
         {
             let centre = Vec2::new(x as f32 + 0.5, centre_y);
             let (mut sum, mut weight) = (Vec4::ZERO, 0.0f32);
-            let (mut nearest, mut moved) = (f32::INFINITY, Vec2::NAN);
+            // The surface under the centre moved as the render pixel there saw it.
+            let moved = under_row[column.under as usize].moved;
             for render_y in row.first as usize..row.end as usize {
                 let samples = &samples[render_y * render_width..][..render_width];
                 for sample in &samples[column.first as usize..column.end as usize] {
                     let distance_squared = (sample.at - centre).length_squared();
-                    // Selected, not branched on: which sample is nearest is a coin toss
-                    // the branch predictor loses.
-                    let closer = glam::BVec2::splat(distance_squared < nearest);
-                    moved = Vec2::select(closer, sample.moved, moved);
-                    nearest = nearest.min(distance_squared);
                     // A smooth bump: 1 at the centre, 0 at the radius.
                     let falloff = (1.0 - distance_squared * inverse_radius_squared).max(0.0);
                     sum += sample.colour * (falloff * falloff);
@@ -419,7 +416,9 @@ fn catmull_rom(history: &[Vec4], width: usize, height: usize, at: Vec2) -> Optio
     let corner = corner
         .max(Vec2::ZERO)
         .min(Vec2::new(width as f32 - 1.0, height as f32 - 1.0));
-    let (x1, y1) = (corner.x as usize, corner.y as usize);
+    // Through i32: a float-to-usize cast saturates in a dozen instructions, to i32 in one
+    // (the corner is in range: checked above).
+    let (x1, y1) = (corner.x as i32 as usize, corner.y as i32 as usize);
     let (wx, wy) = (
         catmull_rom_weights(corner.x - x1 as f32),
         catmull_rom_weights(corner.y - y1 as f32),
