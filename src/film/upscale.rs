@@ -10,11 +10,11 @@
 //!    which is where its first hit projects; and where that point of the surface was on
 //!    last frame's film (carried back through its instance's motion);
 //! 2. bounds: each render pixel's 3 x 3 neighbourhood's least and greatest colour;
-//! 3. per shown pixel, a row at a time: the render's samples within `radius` of its centre,
-//!    weighted by distance; last frame's history where the nearest sample's surface was,
-//!    clamped to the bounds around it (stale light and disocclusions are pulled to what
-//!    the frame shows now); and a little of the render bilinearly interpolated, so a pixel
-//!    no sample fell near has a value. Their weighted mean is the pixel and its history.
+//! 3. per shown pixel, a row at a time: the render's samples within `radius` render pixels
+//!    of its centre, weighted by distance; last frame's history where the surface under
+//!    the centre was, clamped to the bounds around it (stale light and disocclusions are
+//!    pulled to what the frame shows now); and, where these weigh next to nothing, the
+//!    render bilinearly interpolated. Their weighted mean is the pixel and its history.
 //!
 //! With the render's remodulated colour, each sample carries its own surface's albedo:
 //! texture and edges sharpen to the shown resolution over a few frames, while the lighting
@@ -39,8 +39,8 @@ pub const DEFAULT_RENDER_SCALE: f32 = 0.5;
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
 #[derive(Clone, Debug, PartialEq)]
 pub struct UpscaleSettings {
-    /// A sample counts towards the shown pixels whose centres are within this many shown
-    /// pixels of it.
+    /// A sample counts towards the shown pixels whose centres are within this many render
+    /// pixels of it (0.5: one shown pixel at half the resolution).
     pub radius: f32,
     /// The history's weight is capped here (in samples at the pixel's centre): the lower,
     /// the faster it follows change, the noisier it stays.
@@ -53,7 +53,7 @@ pub struct UpscaleSettings {
 impl Default for UpscaleSettings {
     fn default() -> Self {
         UpscaleSettings {
-            radius: 1.0,
+            radius: 0.5,
             max_history: 1.0,
             interpolated: 0.05,
         }
@@ -292,17 +292,23 @@ impl Upscaler {
         out.height = self.height;
         out.pixels.resize(width * height, Vec3::ZERO);
         self.next.resize(width * height, Vec4::ZERO);
+        // In shown pixels: the same share of a render pixel at any scale, so as many
+        // samples fall within it a frame.
+        let spacing =
+            (width as f32 / render_width as f32).max(height as f32 / render_height as f32);
+        let radius = self.settings.radius * spacing;
         let blend = Blend {
             history: (self.history.len() == width * height).then_some(&self.history[..]),
             samples: &self.samples,
             bounds: &self.bounds,
             settings: &self.settings,
-            columns: axis_taps(width, render_width, self.settings.radius),
+            columns: axis_taps(width, render_width, radius),
+            radius,
             width,
             height,
             render_width,
         };
-        let rows = axis_taps(height, render_height, self.settings.radius);
+        let rows = axis_taps(height, render_height, radius);
         self.next
             .par_chunks_mut(width)
             .zip(out.pixels.par_chunks_mut(width))
@@ -320,6 +326,8 @@ struct Blend<'a> {
     bounds: &'a [(Vec4, Vec4)],
     settings: &'a UpscaleSettings,
     columns: Vec<AxisTaps>,
+    /// `UpscaleSettings::radius`, in shown pixels.
+    radius: f32,
     width: usize,
     height: usize,
     render_width: usize,
@@ -335,11 +343,12 @@ impl Blend<'_> {
             bounds,
             settings,
             ref columns,
+            radius,
             width,
             height,
             render_width,
         } = *self;
-        let inverse_radius_squared = 1.0 / (settings.radius * settings.radius);
+        let inverse_radius_squared = 1.0 / (radius * radius);
         let centre_y = y as f32 + 0.5;
         let bounds_row = &bounds[row.under as usize * render_width..][..render_width];
         let under_row = &samples[row.under as usize * render_width..][..render_width];
