@@ -288,28 +288,19 @@ fn a_lowered_render_is_upscaled_to_the_size_asked_for() {
 
 #[test]
 fn bad_bench_flags_are_one_line_errors() {
-    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
-        .args(["bench", "levels/first-light.ron", "--render-scale", "0"])
-        .current_dir(common::repo())
-        .output()
-        .unwrap();
-    assert_eq!(output.status.code(), Some(1));
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(
-        stderr.contains("--render-scale") && stderr.lines().count() == 1,
-        "{stderr}"
-    );
-    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
-        .args(["bench", "levels/first-light.ron", "--chart", "chart.jpg"])
-        .current_dir(common::repo())
-        .output()
-        .unwrap();
-    assert_eq!(output.status.code(), Some(1));
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(
-        stderr.contains("chart.jpg") && stderr.lines().count() == 1,
-        "{stderr}"
-    );
+    for (flag, value) in [("--render-scale", "0"), ("--chart", "chart.jpg")] {
+        let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
+            .args(["bench", "levels/first-light.ron", flag, value])
+            .current_dir(common::repo())
+            .output()
+            .unwrap();
+        assert_eq!(output.status.code(), Some(1));
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            stderr.contains(value) && stderr.lines().count() == 1,
+            "{stderr}"
+        );
+    }
     let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
         .args(["bench", "levels/missing.ron"])
         .current_dir(common::repo())

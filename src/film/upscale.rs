@@ -628,45 +628,27 @@ mod tests {
     fn an_instance_spawned_since_has_no_history_to_carry() {
         let camera = camera(0.0, RENDER);
         let mut out = Film::new(0, 0);
+        let mut show = |upscaler: &mut Upscaler, index: u32| {
+            let (image, guides) = frame(&camera, index);
+            let still = [Affine3A::IDENTITY];
+            upscaler.apply_into(&image, &guides, &camera, &still, SHOWN, &mut out);
+        };
         let mut upscaler = Upscaler::new(UpscaleSettings::default());
         for index in 0..4 {
-            let (image, guides) = frame(&camera, index);
             // Frame 3: the wall is a new instance (renumbered: the old one is gone).
             if index == 3 {
                 upscaler.renumber_instances(&[None]);
             }
-            upscaler.apply_into(
-                &image,
-                &guides,
-                &camera,
-                &[Affine3A::IDENTITY],
-                SHOWN,
-                &mut out,
-            );
+            show(&mut upscaler, index);
         }
-        // Frame 3 alone, with nothing before it, weighs the same everywhere.
+        // Frame 3 alone, with nothing before it, weighs the same everywhere ...
         let mut fresh = Upscaler::new(UpscaleSettings::default());
-        let (image, guides) = frame(&camera, 3);
-        fresh.apply_into(
-            &image,
-            &guides,
-            &camera,
-            &[Affine3A::IDENTITY],
-            SHOWN,
-            &mut out,
-        );
+        show(&mut fresh, 3);
         let weights =
             |upscaler: &Upscaler| upscaler.history.iter().map(|p| p.w).collect::<Vec<_>>();
         assert_eq!(weights(&upscaler), weights(&fresh));
         // ... and a frame with history behind it weighs more.
-        fresh.apply_into(
-            &image,
-            &guides,
-            &camera,
-            &[Affine3A::IDENTITY],
-            SHOWN,
-            &mut out,
-        );
+        show(&mut fresh, 3);
         let (one, two): (f32, f32) = (
             weights(&upscaler).iter().sum(),
             weights(&fresh).iter().sum(),
