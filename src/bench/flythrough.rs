@@ -76,7 +76,7 @@ pub struct Options {
     #[arg(long, value_parser = crate::cli::values::unit)]
     pub alpha_min: Option<f32>,
     /// The player's view renders at this scale of --width x --height per axis and is
-    /// upscaled (the game's default when omitted; 1 shows the native pipeline again).
+    /// upscaled (0.5 when omitted).
     #[arg(long, value_parser = crate::cli::values::unit)]
     pub render_scale: Option<f32>,
     /// Tuning: the upscaler's history cap, in samples.

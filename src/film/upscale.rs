@@ -31,9 +31,9 @@ use crate::render::camera::Camera;
 use crate::render::film::Film;
 use crate::render::guides::{Guides, NO_INSTANCE, POSITION_X, POSITION_Y, POSITION_Z};
 
-/// The render's resolution per axis against the shown one that the real-time
-/// measurements (`bench`, `flythrough`) take unless told: where the game's adaptive
-/// resolution settles on two cores at 640 x 360.
+/// The render's resolution per axis against the shown one that `flythrough`'s player's
+/// view takes unless told: about where the game's adaptive resolution settles on two
+/// cores at 640 x 360 (0.4 to 0.5).
 pub const DEFAULT_RENDER_SCALE: f32 = 0.5;
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
