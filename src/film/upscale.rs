@@ -292,29 +292,27 @@ impl Upscaler {
         out.height = self.height;
         out.pixels.resize(width * height, Vec3::ZERO);
         self.next.resize(width * height, Vec4::ZERO);
-        // In shown pixels: the same share of a render pixel at any scale, so as many
-        // samples fall within it a frame.
-        let spacing =
-            (width as f32 / render_width as f32).max(height as f32 / render_height as f32);
-        let radius = self.settings.radius * spacing;
-        let blend = Blend {
-            history: (self.history.len() == width * height).then_some(&self.history[..]),
-            samples: &self.samples,
-            bounds: &self.bounds,
-            settings: &self.settings,
-            columns: axis_taps(width, render_width, radius),
-            radius,
-            width,
-            height,
-            render_width,
-        };
-        let rows = axis_taps(height, render_height, radius);
-        self.next
-            .par_chunks_mut(width)
-            .zip(out.pixels.par_chunks_mut(width))
-            .zip(rows)
-            .enumerate()
-            .for_each(|(y, ((next, shown), row))| blend.row(y, &row, next, shown));
+        let blend = Blend::new(
+            (self.history.len() == width * height).then_some(&self.history[..]),
+            &self.samples,
+            &self.bounds,
+            &self.settings,
+            (width, height),
+            (render_width, render_height),
+        );
+        if blend.at_half {
+            self.next
+                .par_chunks_mut(2 * width)
+                .zip(out.pixels.par_chunks_mut(2 * width))
+                .enumerate()
+                .for_each(|(j, (next, shown))| blend.rows_at_half(j, next, shown));
+        } else {
+            self.next
+                .par_chunks_mut(width)
+                .zip(out.pixels.par_chunks_mut(width))
+                .enumerate()
+                .for_each(|(y, (next, shown))| blend.row(y, next, shown));
+        }
     }
 }
 
@@ -331,80 +329,276 @@ struct Blend<'a> {
     width: usize,
     height: usize,
     render_width: usize,
+    render_height: usize,
+    rows: Vec<AxisTaps>,
+    /// Whether `rows_at_half` applies.
+    at_half: bool,
 }
 
-impl Blend<'_> {
-    /// Shown row `y` (whose render rows are `row`) into its `next` history and `shown`.
-    #[inline(never)]
-    fn row(&self, y: usize, row: &AxisTaps, next: &mut [Vec4], shown: &mut [Vec3]) {
-        let Blend {
+impl<'a> Blend<'a> {
+    fn new(
+        history: Option<&'a [Vec4]>,
+        samples: &'a [Sample],
+        bounds: &'a [(Vec4, Vec4)],
+        settings: &'a UpscaleSettings,
+        (width, height): (usize, usize),
+        (render_width, render_height): (usize, usize),
+    ) -> Self {
+        // In shown pixels: the same share of a render pixel at any scale, so as many
+        // samples fall within it a frame.
+        let spacing =
+            (width as f32 / render_width as f32).max(height as f32 / render_height as f32);
+        let radius = settings.radius * spacing;
+        Blend {
             history,
             samples,
             bounds,
             settings,
-            ref columns,
+            columns: axis_taps(width, render_width, radius),
+            rows: axis_taps(height, render_height, radius),
             radius,
             width,
             height,
             render_width,
-        } = *self;
-        let inverse_radius_squared = 1.0 / (radius * radius);
+            render_height,
+            at_half: width == 2 * render_width
+                && height == 2 * render_height
+                && render_width >= 3
+                && render_height >= 3
+                && settings.radius <= 0.5,
+        }
+    }
+
+    /// Shown row `y` into its `next` history and `shown`.
+    #[inline(never)]
+    fn row(&self, y: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
+        let row = &self.rows[y];
         let centre_y = y as f32 + 0.5;
-        let bounds_row = &bounds[row.under as usize * render_width..][..render_width];
-        let under_row = &samples[row.under as usize * render_width..][..render_width];
         for (x, ((next, shown), column)) in next
             .iter_mut()
             .zip(shown.iter_mut())
-            .zip(&columns[..width])
+            .zip(&self.columns[..self.width])
             .enumerate()
         {
-            let centre = Vec2::new(x as f32 + 0.5, centre_y);
-            let (mut sum, mut weight) = (Vec4::ZERO, 0.0f32);
-            // The surface under the centre moved as the render pixel there saw it.
-            let moved = under_row[column.under as usize].moved;
-            for render_y in row.first as usize..row.end as usize {
-                let samples = &samples[render_y * render_width..][..render_width];
-                for sample in &samples[column.first as usize..column.end as usize] {
-                    let distance_squared = (sample.at - centre).length_squared();
-                    // A smooth bump: 1 at the centre, 0 at the radius.
-                    let falloff = (1.0 - distance_squared * inverse_radius_squared).max(0.0);
-                    sum += sample.colour * (falloff * falloff);
-                    weight += falloff * falloff;
-                }
-            }
-            if let Some(last) =
-                history.and_then(|history| catmull_rom(history, width, height, centre - moved))
-            {
-                // Clamped to the neighbourhood of the render pixel under the centre.
-                let (low, high) = bounds_row[column.under as usize];
-                let kept = last.w.min(settings.max_history);
-                sum += last.clamp(low, high) * kept;
-                weight += kept;
-            }
-            if weight < settings.interpolated {
-                // Neither history nor a sample near: the render, interpolated.
-                let (low, high) = (column.low as usize, column.high as usize);
-                let (low_row, high_row) = (
-                    &samples[row.low as usize * render_width..][..render_width],
-                    &samples[row.high as usize * render_width..][..render_width],
-                );
-                let interpolated = low_row[low]
-                    .colour
-                    .lerp(low_row[high].colour, column.fraction)
-                    .lerp(
-                        high_row[low]
-                            .colour
-                            .lerp(high_row[high].colour, column.fraction),
-                        row.fraction,
-                    );
-                sum += interpolated * (settings.interpolated - weight);
-                weight = settings.interpolated;
-            }
-            let colour = sum / weight;
-            *next = colour.truncate().extend(weight);
-            *shown = colour.truncate();
+            let pixel = self.pixel(Vec2::new(x as f32 + 0.5, centre_y), row, column);
+            *next = pixel;
+            *shown = pixel.truncate();
         }
     }
+
+    /// Render row `j`'s two shown rows when the render is exactly half the shown size
+    /// (`UpscaleSettings::radius` at most half a render pixel): each render pixel's 2 x 2
+    /// shown pixels see the same 3 x 3 render samples, the same motion, the same bounds
+    /// and the same Catmull-Rom weights (their taps one pixel apart), so `block` works
+    /// them out once for the four. The film's edge is left to `row`.
+    #[inline(never)]
+    fn rows_at_half(&self, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
+        let (width, rows) = (self.width, &self.rows[2 * j..][..2]);
+        let (next_top, next_bottom) = next.split_at_mut(width);
+        let (shown_top, shown_bottom) = shown.split_at_mut(width);
+        if j == 0 || j + 1 == self.render_height {
+            self.row(2 * j, next_top, shown_top);
+            self.row(2 * j + 1, next_bottom, shown_bottom);
+            return;
+        }
+        let render_width = self.render_width;
+        for x in (0..2).chain(width - 2..width) {
+            for (b, (next, shown)) in [
+                (&mut *next_top, &mut *shown_top),
+                (&mut *next_bottom, &mut *shown_bottom),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let centre = Vec2::new(x as f32 + 0.5, (2 * j + b) as f32 + 0.5);
+                let pixel = self.pixel(centre, &rows[b], &self.columns[x]);
+                next[x] = pixel;
+                shown[x] = pixel.truncate();
+            }
+        }
+        let sample_rows: [&[Sample]; 3] =
+            std::array::from_fn(|r| &self.samples[(j + r - 1) * render_width..][..render_width]);
+        let blocks = next_top[2..width - 2]
+            .chunks_exact_mut(2)
+            .zip(next_bottom[2..width - 2].chunks_exact_mut(2))
+            .zip(shown_top[2..width - 2].chunks_exact_mut(2))
+            .zip(shown_bottom[2..width - 2].chunks_exact_mut(2));
+        for (i, (((next_top, next_bottom), shown_top), shown_bottom)) in (1..).zip(blocks) {
+            let pixels = self.block(i, j, &sample_rows);
+            for a in 0..2 {
+                next_top[a] = pixels[a];
+                next_bottom[a] = pixels[2 + a];
+                shown_top[a] = pixels[a].truncate();
+                shown_bottom[a] = pixels[2 + a].truncate();
+            }
+        }
+    }
+
+    /// The 2 x 2 shown pixels of render pixel (i, j), not on the render's edge, as `pixel`
+    /// gives them (to rounding in the history's address): top left, top right, bottom
+    /// left, bottom right.
+    #[inline(always)]
+    fn block(&self, i: usize, j: usize, sample_rows: &[&[Sample]; 3]) -> [Vec4; 4] {
+        let (width, render_width) = (self.width, self.render_width);
+        let (left, top) = (2.0 * i as f32 + 0.5, 2.0 * j as f32 + 0.5);
+        // The four centres in lanes, in the order returned.
+        let centres_x = Vec4::new(left, left + 1.0, left, left + 1.0);
+        let centres_y = Vec4::new(top, top, top + 1.0, top + 1.0);
+        let inverse_radius_squared = Vec4::splat(1.0 / (self.radius * self.radius));
+        let mut sums = [Vec4::ZERO; 4];
+        let mut weights = Vec4::ZERO;
+        // A sample two render pixels from a centre is beyond the radius: its falloff is
+        // zero there and adds nothing, so all nine are taken for all four, branch-free, in
+        // `pixel`'s order.
+        for row in sample_rows {
+            for sample in &row[i - 1..i + 2] {
+                let (dx, dy) = (
+                    Vec4::splat(sample.at.x) - centres_x,
+                    Vec4::splat(sample.at.y) - centres_y,
+                );
+                let falloff =
+                    (Vec4::ONE - (dx * dx + dy * dy) * inverse_radius_squared).max(Vec4::ZERO);
+                let weight = falloff * falloff;
+                sums[0] += sample.colour * weight.x;
+                sums[1] += sample.colour * weight.y;
+                sums[2] += sample.colour * weight.z;
+                sums[3] += sample.colour * weight.w;
+                weights += weight;
+            }
+        }
+        let weights = weights.to_array();
+        let under = j * render_width + i;
+        let moved = self.samples[under].moved;
+        let bounds = self.bounds[under];
+        let corner = Vec2::new(left, top) - moved - 0.5;
+        // The comparisons are false for NaN; within them the casts stay in range.
+        let inside = corner.x >= 1.0
+            && corner.y >= 1.0
+            && corner.x < (width - 3) as f32
+            && corner.y < (self.height - 3) as f32;
+        let mut pixels = [Vec4::ZERO; 4];
+        match self.history {
+            Some(history) if inside => {
+                let lasts = catmull_rom_block(history, width, corner);
+                for (k, pixel) in pixels.iter_mut().enumerate() {
+                    let (mut sum, mut weight) = (sums[k], weights[k]);
+                    self.add_history(lasts[k], bounds, &mut sum, &mut weight);
+                    *pixel = self.finish(sum, weight, (2 * i + (k & 1), 2 * j + (k >> 1)));
+                }
+            }
+            // Near the film's edge (or nothing to carry): tap by tap, as `pixel` does.
+            _ => {
+                for (k, pixel) in pixels.iter_mut().enumerate() {
+                    let (mut sum, mut weight) = (sums[k], weights[k]);
+                    let centre = Vec2::new(centres_x[k], centres_y[k]);
+                    if let Some(last) = self.history.and_then(|history| {
+                        catmull_rom(history, width, self.height, centre - moved)
+                    }) {
+                        self.add_history(last, bounds, &mut sum, &mut weight);
+                    }
+                    *pixel = self.finish(sum, weight, (2 * i + (k & 1), 2 * j + (k >> 1)));
+                }
+            }
+        }
+        pixels
+    }
+
+    /// One shown pixel, centred at `centre` (its render rows `row` and columns `column`):
+    /// its colour, and in w the weight behind it (its next history).
+    #[inline(always)]
+    fn pixel(&self, centre: Vec2, row: &AxisTaps, column: &AxisTaps) -> Vec4 {
+        let render_width = self.render_width;
+        let inverse_radius_squared = 1.0 / (self.radius * self.radius);
+        let (mut sum, mut weight) = (Vec4::ZERO, 0.0f32);
+        for render_y in row.first as usize..row.end as usize {
+            let samples = &self.samples[render_y * render_width..][..render_width];
+            for sample in &samples[column.first as usize..column.end as usize] {
+                let distance_squared = (sample.at - centre).length_squared();
+                // A smooth bump: 1 at the centre, 0 at the radius.
+                let falloff = (1.0 - distance_squared * inverse_radius_squared).max(0.0);
+                sum += sample.colour * (falloff * falloff);
+                weight += falloff * falloff;
+            }
+        }
+        // The surface under the centre moved as the render pixel there saw it.
+        let under = row.under as usize * render_width + column.under as usize;
+        let moved = self.samples[under].moved;
+        if let Some(last) = self
+            .history
+            .and_then(|history| catmull_rom(history, self.width, self.height, centre - moved))
+        {
+            self.add_history(last, self.bounds[under], &mut sum, &mut weight);
+        }
+        self.finish(sum, weight, (centre.x as usize, centre.y as usize))
+    }
+
+    /// Adds last frame's colour here, clamped to the neighbourhood of the render pixel
+    /// under the centre, its weight capped.
+    #[inline(always)]
+    fn add_history(&self, last: Vec4, (low, high): (Vec4, Vec4), sum: &mut Vec4, weight: &mut f32) {
+        let kept = last.w.min(self.settings.max_history);
+        *sum += last.clamp(low, high) * kept;
+        *weight += kept;
+    }
+
+    /// The weighted mean, made up with the render where it weighs next to nothing.
+    #[inline(always)]
+    fn finish(&self, mut sum: Vec4, mut weight: f32, (x, y): (usize, usize)) -> Vec4 {
+        let interpolated_weight = self.settings.interpolated;
+        if weight < interpolated_weight {
+            // Neither history nor a sample near: the render, interpolated.
+            let (row, column) = (&self.rows[y], &self.columns[x]);
+            let render_width = self.render_width;
+            let (low, high) = (column.low as usize, column.high as usize);
+            let (low_row, high_row) = (
+                &self.samples[row.low as usize * render_width..][..render_width],
+                &self.samples[row.high as usize * render_width..][..render_width],
+            );
+            let interpolated = low_row[low]
+                .colour
+                .lerp(low_row[high].colour, column.fraction)
+                .lerp(
+                    high_row[low]
+                        .colour
+                        .lerp(high_row[high].colour, column.fraction),
+                    row.fraction,
+                );
+            sum += interpolated * (interpolated_weight - weight);
+            weight = interpolated_weight;
+        }
+        (sum / weight).truncate().extend(weight)
+    }
+}
+
+/// `catmull_rom` at `corner` + 0.5 and the three points one pixel right, down, and both
+/// (top left, top right, bottom left, bottom right), `corner` at least one pixel inside
+/// the film's top-left edge and three inside its bottom-right: the four share weights and
+/// all but a row and a column of their taps, so each of the 5 rows is filtered across
+/// once for both columns.
+#[inline(always)]
+fn catmull_rom_block(history: &[Vec4], width: usize, corner: Vec2) -> [Vec4; 4] {
+    let (x1, y1) = (corner.x as i32 as usize, corner.y as i32 as usize);
+    let (wx, wy) = (
+        catmull_rom_weights(corner.x - x1 as f32),
+        catmull_rom_weights(corner.y - y1 as f32),
+    );
+    let first = (y1 - 1) * width + x1 - 1;
+    let (mut top, mut bottom) = ([Vec4::ZERO; 2], [Vec4::ZERO; 2]);
+    for r in 0..5 {
+        let row = &history[first + r * width..][..5];
+        let left = row[0] * wx[0] + row[1] * wx[1] + row[2] * wx[2] + row[3] * wx[3];
+        let right = row[1] * wx[0] + row[2] * wx[1] + row[3] * wx[2] + row[4] * wx[3];
+        // Rows 0..4 are the top pixels' taps, rows 1..5 the bottom ones'.
+        if r < 4 {
+            top[0] += left * wy[r];
+            top[1] += right * wy[r];
+        }
+        if r >= 1 {
+            bottom[0] += left * wy[r - 1];
+            bottom[1] += right * wy[r - 1];
+        }
+    }
+    [top[0], top[1], bottom[0], bottom[1]].map(|sum| sum.max(Vec4::ZERO))
 }
 
 /// `history` (shown pixels) at film point `at`, through Catmull-Rom's cubic between pixel
@@ -604,6 +798,45 @@ mod tests {
             panned_error < 0.8 * resized_error,
             "panned {panned_error}, resized {resized_error}"
         );
+    }
+
+    #[test]
+    fn at_half_the_size_the_shared_block_gives_what_each_pixel_would() {
+        // Frames panning, so the history is read between pixels and the blocks' shared
+        // address differs from each pixel's own in rounding alone.
+        let mut upscaler = Upscaler::new(UpscaleSettings::default());
+        run(&mut upscaler, 5, |frame| frame as f32 * 0.07);
+        let (width, height) = (SHOWN.0 as usize, SHOWN.1 as usize);
+        let blend = Blend::new(
+            Some(&upscaler.history),
+            &upscaler.samples,
+            &upscaler.bounds,
+            &upscaler.settings,
+            (width, height),
+            (RENDER.0 as usize, RENDER.1 as usize),
+        );
+        assert!(blend.at_half);
+        let mut by_pixel = (vec![Vec4::ZERO; width * 2], vec![Vec3::ZERO; width * 2]);
+        let mut by_block = by_pixel.clone();
+        let mut largest_difference = 0.0f32;
+        for j in 0..height / 2 {
+            for b in 0..2 {
+                let (next, shown) = (&mut by_pixel.0[b * width..], &mut by_pixel.1[b * width..]);
+                blend.row(2 * j + b, &mut next[..width], &mut shown[..width]);
+            }
+            blend.rows_at_half(j, &mut by_block.0, &mut by_block.1);
+            for (pixel, block) in by_pixel.0.iter().zip(&by_block.0) {
+                largest_difference = largest_difference.max((*pixel - *block).abs().max_element());
+            }
+            assert!(
+                by_block
+                    .1
+                    .iter()
+                    .zip(&by_block.0)
+                    .all(|(s, n)| *s == n.truncate())
+            );
+        }
+        assert!(largest_difference < 1e-5, "{largest_difference}");
     }
 
     #[test]
