@@ -276,7 +276,7 @@ fn render_tiles(
         .map(|t| (t % tiles_x * TILE, t / tiles_x * TILE))
         .collect();
     let blue = (settings.sampler == SamplerKind::BlueNoise)
-        .then(|| BlueNoise::new(blue_noise::BlueNoiseMask::shipped(), settings.seed));
+        .then(|| BlueNoise::new(settings.seed, settings.frame));
     let finished = AtomicUsize::new(0);
 
     let results: Vec<TileResult> = tiles
@@ -367,7 +367,7 @@ struct Tile<'a> {
     scene: &'a RenderScene,
     camera: &'a Camera,
     settings: &'a RenderSettings,
-    blue: Option<&'a BlueNoise<'static>>,
+    blue: Option<&'a BlueNoise>,
     width: u32,
     height: u32,
     want_guides: bool,
