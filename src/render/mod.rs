@@ -24,7 +24,6 @@
 //! (`integrator::continue_path` from the camera ray) does, so
 //! the wavefront and the one-path-at-a-time integrator give bit-identical images.
 
-pub mod blue_noise;
 pub mod bsdf;
 pub mod camera;
 pub mod film;

@@ -20,7 +20,7 @@
 //!   and columns (`PixelSampler::pixel_jitter`), since edges need their run of pixels
 //!   stratified rather than a tile. Each frame scrambles anew. On the Cornell box at max
 //!   depth 64 (`gloam convergence`), the 1-spp error's low-band power is 0.37 of white's
-//!   (per-dimension blue-noise masks, the previous method, gave 0.99), and 16 spp has
+//!   (per-dimension blue-noise masks, Georgiev & Fajardo 2016, give 0.99), and 16 spp has
 //!   0.65 of stratified's RMSE.
 //!
 //! Determinism (the project's rule): every value derives from (seed, frame, pixel, sample index,
