@@ -168,7 +168,7 @@ pub enum SamplerArg {
 
 #[derive(Debug, Subcommand)]
 pub enum Generate {
-    /// Regenerate every file under assets/ (src/scene/kit.rs, src/render/blue_noise.rs).
+    /// Regenerate every file under assets/ (src/scene/kit.rs).
     Assets {
         /// Output folder.
         #[arg(long, default_value = "assets")]
@@ -347,13 +347,8 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         }
         Command::Check { path } => Ok(check(&path)),
         Command::Generate(Generate::Assets { out }) => {
-            let mut files = crate::scene::kit::generate_assets(&out)
+            let files = crate::scene::kit::generate_assets(&out)
                 .with_context(|| format!("generating assets into {}", out.display()))?;
-            files.extend(
-                crate::render::blue_noise::generate_blue_noise_assets(&out).with_context(|| {
-                    format!("generating the blue-noise mask into {}", out.display())
-                })?,
-            );
             for file in &files {
                 println!("wrote {}", file.display());
             }

@@ -24,7 +24,6 @@
 //! (`integrator::continue_path` from the camera ray) does, so
 //! the wavefront and the one-path-at-a-time integrator give bit-identical images.
 
-pub mod blue_noise;
 pub mod bsdf;
 pub mod camera;
 pub mod film;
@@ -276,7 +275,7 @@ fn render_tiles(
         .map(|t| (t % tiles_x * TILE, t / tiles_x * TILE))
         .collect();
     let blue = (settings.sampler == SamplerKind::BlueNoise)
-        .then(|| BlueNoise::new(blue_noise::BlueNoiseMask::shipped(), settings.seed));
+        .then(|| BlueNoise::new(settings.seed, settings.frame));
     let finished = AtomicUsize::new(0);
 
     let results: Vec<TileResult> = tiles
@@ -367,7 +366,7 @@ struct Tile<'a> {
     scene: &'a RenderScene,
     camera: &'a Camera,
     settings: &'a RenderSettings,
-    blue: Option<&'a BlueNoise<'static>>,
+    blue: Option<&'a BlueNoise>,
     width: u32,
     height: u32,
     want_guides: bool,

@@ -1,6 +1,6 @@
 //! Fourier analysis of sample and error images: power spectra, their radial averages and
 //! the power in the low band. Used by tests and by the sampler-quality command to show that
-//! blue-noise masks and samplers push error to high frequencies; never per frame, so these
+//! the blue-noise sampler pushes error to high frequencies; never per frame, so these
 //! functions allocate freely.
 //!
 //! Conventions: images are row-major `width x height` arrays of `f32`; the DFT is the
@@ -213,7 +213,29 @@ impl Dft {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::blue_noise::SplitMix64;
+
+    /// SplitMix64 (Steele, Lea and Flood 2014): a tiny, fast, seedable generator, for the
+    /// white-noise images the tests compare with.
+    #[derive(Debug, Clone)]
+    struct SplitMix64 {
+        state: u64,
+    }
+
+    impl SplitMix64 {
+        /// A generator whose sequence is fixed by `seed`.
+        fn new(seed: u64) -> Self {
+            Self { state: seed }
+        }
+
+        /// The next 64 random bits.
+        fn next_u64(&mut self) -> u64 {
+            self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+    }
 
     fn cosine_image(width: usize, height: usize, cycles_x: usize, cycles_y: usize) -> Vec<f32> {
         let mut image = Vec::with_capacity(width * height);
