@@ -491,9 +491,7 @@ impl<'a> Blend<'a> {
                 for (k, pixel) in pixels.iter_mut().enumerate() {
                     let (mut sum, mut weight) = (sums[k], weights[k]);
                     let centre = Vec2::new(centres_x[k], centres_y[k]);
-                    if let Some(last) = self.history.and_then(|history| {
-                        catmull_rom(history, width, self.height, centre - moved)
-                    }) {
+                    if let Some(last) = self.last_at(centre - moved) {
                         self.add_history(last, bounds, &mut sum, &mut weight);
                     }
                     *pixel = self.finish(sum, weight, (2 * i + (k & 1), 2 * j + (k >> 1)));
@@ -523,13 +521,17 @@ impl<'a> Blend<'a> {
         // The surface under the centre moved as the render pixel there saw it.
         let under = row.under as usize * render_width + column.under as usize;
         let moved = self.samples[under].moved;
-        if let Some(last) = self
-            .history
-            .and_then(|history| catmull_rom(history, self.width, self.height, centre - moved))
-        {
+        if let Some(last) = self.last_at(centre - moved) {
             self.add_history(last, self.bounds[under], &mut sum, &mut weight);
         }
         self.finish(sum, weight, (centre.x as usize, centre.y as usize))
+    }
+
+    /// Last frame's history at film point `at` (`catmull_rom`), if there is one.
+    #[inline(always)]
+    fn last_at(&self, at: Vec2) -> Option<Vec4> {
+        self.history
+            .and_then(|history| catmull_rom(history, self.width, self.height, at))
     }
 
     /// Adds last frame's colour here, clamped to the neighbourhood of the render pixel
