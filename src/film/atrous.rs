@@ -651,7 +651,7 @@ mod tests {
                 depth: 3.0,
                 instance: 0,
                 albedo: Vec3::splat(0.5),
-                emission: Vec3::ZERO,
+                unfiltered: Vec3::ZERO,
             };
         }
         pixels

@@ -4,7 +4,8 @@
 //!    and the camera's, validate it, clamp it, blend;
 //! 2. `atrous`: edge-avoiding wavelet passes over the accumulated illumination, steered by
 //!    its variance (SVGF); the first pass's output goes back into the history;
-//! 3. remodulate: illumination x albedo + emission (`Guides::modulate_row`).
+//! 3. remodulate: illumination x albedo + the light left unfiltered (the hit's emission,
+//!    its dominant lamp's direct light: `GuidePixel::unfiltered`), `Guides::modulate_row`.
 //!
 //! Every step reads and writes images as rows of planes (`planes`, `Guides`), so each reads
 //! only the channels it needs and one step's output is the next one's input as it stands.
@@ -198,8 +199,8 @@ impl FrameFilter {
     }
 }
 
-/// Step 3: `image` = `illumination` x albedo + emission, pixel by pixel (sky: its own
-/// emission), a row at a time (`Guides::modulate_row`).
+/// Step 3: `image` = `illumination` x albedo + the unfiltered light, pixel by pixel (sky:
+/// its own radiance), a row at a time (`Guides::modulate_row`).
 fn remodulate(guides: &Guides, illumination: &SignalPlanes, image: &mut Film) {
     let width = guides.width as usize;
     image

@@ -334,7 +334,7 @@ mod tests {
                 depth: 1.0,
                 instance: 0,
                 albedo: Vec3::ONE,
-                emission: Vec3::ZERO,
+                unfiltered: Vec3::ZERO,
             };
             guides.set(index, &pixel);
         }

@@ -6,7 +6,7 @@
 //! Owns last frame's history (demodulated illumination, luminance moments, history length)
 //! and first hits (`reproject::LastPixel`), camera and instance transforms. Per frame, a
 //! band of rows at a time, for every pixel (steps 2 and 3 are `reproject`'s):
-//! 1. demodulate: illumination = (radiance - emission) / albedo (`GuidePixel::demodulate`);
+//! 1. demodulate: illumination = (radiance - unfiltered) / albedo (`GuidePixel::demodulate`);
 //! 2. motion: carry the first hit back through its instance's previous transform and
 //!    project it with the previous camera; that film point is where history is read;
 //! 3. validate the 2 x 2 bilinear taps there by instance, depth and normal; with no valid
@@ -24,8 +24,8 @@ use super::reproject::{LastPixel, LastTransforms, ProjectedRow, Reprojection, Su
 use crate::render::camera::Camera;
 use crate::render::film::Film;
 use crate::render::guides::{
-    ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, EMISSION_B, EMISSION_G, EMISSION_R, Guides,
-    NO_INSTANCE,
+    ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, Guides, NO_INSTANCE, UNFILTERED_B, UNFILTERED_G,
+    UNFILTERED_R,
 };
 use crate::render::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
 
@@ -286,14 +286,15 @@ fn demodulate_row(radiance: &Film, guides: &Guides, y: usize, current: &mut [Vec
     let instances = &guides.instances()[start..start + width];
     let row = |plane| guides.row(y, plane);
     let (albedo_r, albedo_g, albedo_b) = (row(ALBEDO_R), row(ALBEDO_G), row(ALBEDO_B));
-    let (emission_r, emission_g, emission_b) = (row(EMISSION_R), row(EMISSION_G), row(EMISSION_B));
+    let (unfiltered_r, unfiltered_g, unfiltered_b) =
+        (row(UNFILTERED_R), row(UNFILTERED_G), row(UNFILTERED_B));
     for x in 0..width {
         let albedo = Vec3::new(albedo_r[x], albedo_g[x], albedo_b[x]);
-        let emission = Vec3::new(emission_r[x], emission_g[x], emission_b[x]);
+        let unfiltered = Vec3::new(unfiltered_r[x], unfiltered_g[x], unfiltered_b[x]);
         let illumination = if instances[x] == NO_INSTANCE {
             Vec3::ZERO
         } else {
-            (radiance[x] - emission).max(Vec3::ZERO) / albedo.max(Vec3::splat(ALBEDO_FLOOR))
+            (radiance[x] - unfiltered).max(Vec3::ZERO) / albedo.max(Vec3::splat(ALBEDO_FLOOR))
         };
         current[x] = illumination.extend(luminance(illumination));
     }
@@ -506,7 +507,7 @@ mod tests {
                     depth: t,
                     instance: 0,
                     albedo: Vec3::splat(0.5),
-                    emission: Vec3::ZERO,
+                    unfiltered: Vec3::ZERO,
                 };
                 guides.set((y * 32 + x) as usize, &pixel);
             }

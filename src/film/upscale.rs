@@ -729,7 +729,7 @@ mod tests {
                     depth: (position - camera.position).length(),
                     instance: 0,
                     albedo: stripes(position),
-                    emission: Vec3::ZERO,
+                    unfiltered: Vec3::ZERO,
                 };
                 guides.set(index, &pixel);
             }

@@ -1,9 +1,10 @@
 //! Frame step `render`, beside the image: the guides (a G-buffer) of every pixel's first
 //! camera ray, which the `film` step's filters read: where the ray landed, the surface's
-//! normal, distance, instance, albedo and emission.
+//! normal, distance, instance, albedo and the light the filters leave alone (`unfiltered`).
 //!
 //! Filled in the primary phase from sample 0 of each pixel (the real-time view renders one
-//! sample per pixel, so the guides describe exactly the sample the pixel holds).
+//! sample per pixel, so the guides describe exactly the sample the pixel holds); the light
+//! of each first vertex's dominant lamp joins `unfiltered` once the paths are done.
 
 use glam::{Vec3, Vec3A};
 
@@ -28,10 +29,14 @@ pub struct GuidePixel {
     /// Index of the instance hit in the scene's accel (`NO_INSTANCE` for the sky).
     pub instance: u32,
     /// What the surface multiplies incoming light by (`RenderMaterial::albedo_at`): the
-    /// pixel's radiance minus `emission`, divided by this, is its demodulated illumination.
+    /// pixel's radiance minus `unfiltered`, divided by this, is its demodulated
+    /// illumination.
     pub albedo: Vec3,
-    /// Radiance the hit itself sends to the camera (the sky's for escaping rays).
-    pub emission: Vec3,
+    /// The pixel's light the film's filters leave as it is: the radiance the hit itself
+    /// sends to the camera (the sky's for escaping rays) and, from the real-time renderer,
+    /// the direct light of the lamp that lights the hit most, shaded in full
+    /// (`PathState::with_dominant_apart`): noiseless, it is sharper unfiltered.
+    pub unfiltered: Vec3,
 }
 
 impl GuidePixel {
@@ -41,14 +46,14 @@ impl GuidePixel {
         depth: f32::INFINITY,
         instance: NO_INSTANCE,
         albedo: Vec3::ONE,
-        emission: Vec3::ZERO,
+        unfiltered: Vec3::ZERO,
     };
 
     /// The guides of a camera ray from `origin` that found `hit` (None: the sky).
     pub fn from_hit(scene: &RenderScene, origin: Vec3A, hit: Option<&NextHit>) -> GuidePixel {
         let Some(found) = hit else {
             return GuidePixel {
-                emission: scene.sky,
+                unfiltered: scene.sky,
                 ..GuidePixel::SKY
             };
         };
@@ -65,7 +70,7 @@ impl GuidePixel {
             depth: (surface.position - origin).length(),
             instance: found.hit.instance,
             albedo: material.albedo_at(&scene.textures, surface.uv),
-            emission: found.emitted,
+            unfiltered: found.emitted,
         }
     }
 
@@ -73,21 +78,21 @@ impl GuidePixel {
         self.instance == NO_INSTANCE
     }
 
-    /// Demodulates `radiance` (this pixel's) into illumination: (L - emission) / albedo,
+    /// Demodulates `radiance` (this pixel's) into illumination: (L - unfiltered) / albedo,
     /// with albedo floored so black surfaces give zero rather than infinity.
     pub fn demodulate(&self, radiance: Vec3) -> Vec3 {
         if self.is_sky() {
             return Vec3::ZERO;
         }
-        (radiance - self.emission).max(Vec3::ZERO) / self.albedo.max(Vec3::splat(ALBEDO_FLOOR))
+        (radiance - self.unfiltered).max(Vec3::ZERO) / self.albedo.max(Vec3::splat(ALBEDO_FLOOR))
     }
 
     /// `demodulate`'s inverse.
     pub fn modulate(&self, illumination: Vec3) -> Vec3 {
         if self.is_sky() {
-            return self.emission;
+            return self.unfiltered;
         }
-        illumination * self.albedo.max(Vec3::splat(ALBEDO_FLOOR)) + self.emission
+        illumination * self.albedo.max(Vec3::splat(ALBEDO_FLOOR)) + self.unfiltered
     }
 }
 
@@ -105,9 +110,9 @@ pub const ALBEDO_B: usize = 6;
 pub const POSITION_X: usize = 7;
 pub const POSITION_Y: usize = 8;
 pub const POSITION_Z: usize = 9;
-pub const EMISSION_R: usize = 10;
-pub const EMISSION_G: usize = 11;
-pub const EMISSION_B: usize = 12;
+pub const UNFILTERED_R: usize = 10;
+pub const UNFILTERED_G: usize = 11;
+pub const UNFILTERED_B: usize = 12;
 pub const GUIDE_PLANES: usize = 13;
 
 /// The guides of a whole image: each `GuidePixel` field a plane of floats a row at a time
@@ -161,7 +166,7 @@ impl Guides {
             depth: values[DEPTH],
             instance: self.instances[index],
             albedo: triple(ALBEDO_R),
-            emission: triple(EMISSION_R),
+            unfiltered: triple(UNFILTERED_R),
         }
     }
 
@@ -189,7 +194,7 @@ impl Guides {
             })
     }
 
-    /// Row `y` of plane `plane` (`NORMAL_X` ... `EMISSION_B`).
+    /// Row `y` of plane `plane` (`NORMAL_X` ... `UNFILTERED_B`).
     #[inline(always)]
     pub fn row(&self, y: usize, plane: usize) -> &[f32] {
         self.planes.row(y, plane)
@@ -201,25 +206,25 @@ impl Guides {
     }
 
     /// `GuidePixel::modulate` for row `y`, a row of lanes at a time: `illumination` (its
-    /// red, green and blue rows) times albedo plus emission, the sky its own emission.
+    /// red, green and blue rows) times albedo plus the unfiltered light, the sky its own.
     pub fn modulate_row(&self, y: usize, illumination: [&[f32]; 3], out: &mut [Vec3]) {
         let width = self.width as usize;
         let instances = &self.instances[y * width..(y + 1) * width];
         let out = &mut out[..width];
         let channels = [
-            (ALBEDO_R, EMISSION_R),
-            (ALBEDO_G, EMISSION_G),
-            (ALBEDO_B, EMISSION_B),
+            (ALBEDO_R, UNFILTERED_R),
+            (ALBEDO_G, UNFILTERED_G),
+            (ALBEDO_B, UNFILTERED_B),
         ];
-        for (channel, ((albedo, emission), illumination)) in
+        for (channel, ((albedo, unfiltered), illumination)) in
             channels.into_iter().zip(illumination).enumerate()
         {
-            let (albedo, emission) = (self.row(y, albedo), self.row(y, emission));
+            let (albedo, unfiltered) = (self.row(y, albedo), self.row(y, unfiltered));
             let illumination = &illumination[..width];
             for x in 0..width {
-                let lit = illumination[x] * albedo[x].max(ALBEDO_FLOOR) + emission[x];
+                let lit = illumination[x] * albedo[x].max(ALBEDO_FLOOR) + unfiltered[x];
                 out[x][channel] = if instances[x] == NO_INSTANCE {
-                    emission[x]
+                    unfiltered[x]
                 } else {
                     lit
                 };
@@ -282,7 +287,7 @@ fn pixel_planes(guide: &GuidePixel) -> [f32; GUIDE_PLANES] {
     put(NORMAL_X, guide.normal.into());
     put(ALBEDO_R, guide.albedo);
     put(POSITION_X, guide.position.into());
-    put(EMISSION_R, guide.emission);
+    put(UNFILTERED_R, guide.unfiltered);
     values[DEPTH] = guide.depth;
     values
 }
@@ -292,10 +297,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn demodulation_round_trips_and_keeps_emission_out() {
+    fn demodulation_round_trips_and_keeps_the_unfiltered_light_out() {
         let pixel = GuidePixel {
             albedo: Vec3::new(0.5, 0.25, 0.0),
-            emission: Vec3::new(1.0, 0.0, 0.0),
+            unfiltered: Vec3::new(1.0, 0.0, 0.0),
             instance: 3,
             ..GuidePixel::SKY
         };
@@ -304,7 +309,7 @@ mod tests {
         assert_eq!(illumination, Vec3::new(1.0, 2.0, 0.0));
         assert_eq!(pixel.modulate(illumination), radiance);
         let sky = GuidePixel {
-            emission: Vec3::splat(0.2),
+            unfiltered: Vec3::splat(0.2),
             ..GuidePixel::SKY
         };
         assert_eq!(sky.demodulate(Vec3::splat(0.2)), Vec3::ZERO);
@@ -321,14 +326,14 @@ mod tests {
             depth: 4.5,
             instance: 7,
             albedo: Vec3::new(0.1, 0.2, 0.3),
-            emission: Vec3::new(4.0, 5.0, 6.0),
+            unfiltered: Vec3::new(4.0, 5.0, 6.0),
         };
         guides.set(8, &pixel);
         assert_eq!(guides.pixel(8), pixel);
         assert_eq!(guides.pixel(7), GuidePixel::SKY);
         assert_eq!(guides.instances()[8], 7);
         assert_eq!(guides.row(1, DEPTH)[3], 4.5);
-        assert_eq!(guides.row(1, EMISSION_G)[3], 5.0);
+        assert_eq!(guides.row(1, UNFILTERED_G)[3], 5.0);
         assert_eq!(guides.surface_at(3, 1), (pixel.position, pixel.normal));
         // Set through bands of rows (pixel 8, (3, 1), is in the first, rows 0 and 1): the
         // same.

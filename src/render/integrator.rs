@@ -10,6 +10,7 @@
 use glam::{Vec2, Vec3, Vec3A};
 
 use super::bsdf::Bsdf;
+use super::light::LightSample;
 use super::sampler::PixelSampler;
 use super::sampling::{Frame, power_heuristic};
 use super::scene::{RenderScene, SceneAlpha};
@@ -170,6 +171,11 @@ pub struct PathState {
     /// Scattering events so far (pbrt's definition: max_depth 0 is emission only, 1 adds
     /// direct lighting).
     depth: u32,
+    /// The real-time renderer's split (`PathState::with_dominant_apart`): at the first
+    /// vertex the lamp that lights it most is shaded in full, its light summed here
+    /// instead of in `radiance`, and next event estimation picks among the other lights.
+    dominant_apart: bool,
+    pub dominant_light: Vec3,
 }
 
 impl PathState {
@@ -182,6 +188,20 @@ impl PathState {
             previous_bsdf_pdf: 0.0,
             previous_position: camera_ray.origin,
             depth: 0,
+            dominant_apart: false,
+            dominant_light: Vec3::ZERO,
+        }
+    }
+
+    /// A path about to trace `camera_ray` whose first vertex's brightest lamp is shaded in
+    /// full and kept apart in `dominant_light`: radiance + dominant_light estimates what
+    /// `new`'s radiance does. A lamp's direct light is then free of the one-in-N light
+    /// pick's noise, sharp where a filter would blur it (the real-time film leaves it out
+    /// of its filters), for one shadow ray more at the first vertex.
+    pub fn with_dominant_apart(camera_ray: &Ray) -> PathState {
+        PathState {
+            dominant_apart: true,
+            ..PathState::new(camera_ray)
         }
     }
 }
@@ -191,6 +211,8 @@ impl PathState {
 pub struct ShadowQuery {
     pub ray: Ray,
     pub contribution: Vec3,
+    /// The light arrives in `PathState::dominant_light` rather than `radiance`.
+    pub dominant: bool,
 }
 
 impl ShadowQuery {
@@ -203,7 +225,12 @@ impl ShadowQuery {
     /// Adds the light the shadow ray lets through, given whether something blocks it (for
     /// shadow rays traced together: `AccelScene::occluded_stream`).
     pub fn arrive(&self, blocked: bool, state: &mut PathState) {
-        if !blocked {
+        if blocked {
+            return;
+        }
+        if self.dominant {
+            state.dominant_light += self.contribution;
+        } else {
             state.radiance += self.contribution;
         }
     }
@@ -213,6 +240,8 @@ impl ShadowQuery {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct VertexOutcome {
     pub shadow: Option<ShadowQuery>,
+    /// The first vertex's brightest lamp, shaded in full (`PathState::with_dominant_apart`).
+    pub dominant: Option<ShadowQuery>,
     pub next: Option<Ray>,
 }
 
@@ -262,30 +291,46 @@ pub fn path_vertex(
     let v = vertex(scene, surface, wo_world, hit.instance, sampler.next_1d());
 
     // 3. Next event estimation: one light sample, one shadow ray (traced by the caller).
+    //    Kept apart, the first vertex's brightest lamp is shaded in full, with a shadow
+    //    ray of its own, and the sample picks among the other lights.
     let mut outcome = VertexOutcome::default();
     let u_pick = sampler.next_1d();
     let u_light = sampler.next_2d();
-    if !v.bsdf.is_specular()
-        && let Some(light) =
-            scene
-                .lights
-                .sample(v.surface.position, u_pick, u_light, |material, uv| {
-                    scene.materials[material as usize].emission_at(&scene.textures, uv)
-                })
-    {
+    let shadow_ray = |light: &LightSample, counts: &mut RayCounts, dominant: bool| {
         let wi = v.frame.to_local(light.wi);
         let f = v.bsdf.f(v.wo, wi) * wi.z.abs();
-        if f.max_element() > 0.0 && light.radiance.max_element() > 0.0 {
-            counts.shadow += 1;
-            let weight = if light.is_delta {
-                1.0
-            } else {
-                power_heuristic(light.pdf, v.bsdf.pdf(v.wo, wi))
-            };
-            outcome.shadow = Some(ShadowQuery {
-                ray: Ray::spawn_to(v.surface.position, v.facing_normal, light.point),
-                contribution: state.beta * f * light.radiance * (weight / light.pdf),
-            });
+        if f.max_element() <= 0.0 || light.radiance.max_element() <= 0.0 {
+            return None;
+        }
+        counts.shadow += 1;
+        let weight = if light.is_delta {
+            1.0
+        } else {
+            power_heuristic(light.pdf, v.bsdf.pdf(v.wo, wi))
+        };
+        Some(ShadowQuery {
+            ray: Ray::spawn_to(v.surface.position, v.facing_normal, light.point),
+            contribution: state.beta * f * light.radiance * (weight / light.pdf),
+            dominant,
+        })
+    };
+    if !v.bsdf.is_specular() {
+        let emission =
+            |material: u32, uv| scene.materials[material as usize].emission_at(&scene.textures, uv);
+        let position = v.surface.position;
+        let (dominant, sampled) = if state.dominant_apart && state.depth == 1 {
+            (scene.lights).sample_beside_dominant(position, u_pick, u_light, emission)
+        } else {
+            (
+                None,
+                scene.lights.sample(position, u_pick, u_light, emission),
+            )
+        };
+        if let Some(light) = &dominant {
+            outcome.dominant = shadow_ray(light, counts, true);
+        }
+        if let Some(light) = &sampled {
+            outcome.shadow = shadow_ray(light, counts, false);
         }
     }
 
@@ -333,7 +378,7 @@ pub fn continue_path(
         let found = next_hit(scene, &ray, mask, alpha);
         mask = InstanceMask::BOUNCE;
         let outcome = path_vertex(scene, state, found, sampler, max_depth, counts);
-        if let Some(shadow) = outcome.shadow {
+        for shadow in [outcome.dominant, outcome.shadow].into_iter().flatten() {
             shadow.resolve(scene, alpha, state);
         }
         match outcome.next {

@@ -423,10 +423,97 @@ impl LightSet {
         emission: impl Fn(u32, Vec2) -> Vec3,
     ) -> Option<LightSample> {
         if u_pick < self.punctual_share {
-            let (index, pick) = self.pick_punctual(point, u_pick / self.punctual_share)?;
-            let pick = self.punctual_share * pick;
-            return self.lights[index as usize].sample(index, pick, point, u, emission);
+            let weights = self.punctual_weights(point);
+            return self.sample_punctual(&weights[..self.punctual.len()], point, u_pick, u);
         }
+        self.sample_table(point, u_pick, u, emission)
+    }
+
+    /// The dominant light, and `sample` without it: the punctual light that gives `point`
+    /// the most irradiance (unshadowed: the pick's own importance), as a sample with
+    /// probability 1, and a light sample among all the others (the punctual group keeps
+    /// its share, its other lights their weights, renormalised). The two add up to an
+    /// estimate of every light's contribution, the dominant one's without the one-in-N
+    /// pick's noise. No dominant light when no punctual light reaches the point (or the
+    /// set is too large to weigh them per point).
+    pub fn sample_beside_dominant(
+        &self,
+        point: Vec3A,
+        u_pick: f32,
+        u: Vec2,
+        emission: impl Fn(u32, Vec2) -> Vec3,
+    ) -> (Option<LightSample>, Option<LightSample>) {
+        let mut weights = self.punctual_weights(point);
+        let weights = &mut weights[..self.punctual.len()];
+        let mut strongest = None;
+        for (slot, &weight) in weights.iter().enumerate() {
+            if weight > strongest.map_or(0.0, |(_, most)| most) {
+                strongest = Some((slot, weight));
+            }
+        }
+        let dominant = strongest.and_then(|(slot, _)| {
+            weights[slot] = 0.0;
+            let index = self.punctual[slot].index;
+            self.lights[index as usize].sample(index, 1.0, point, Vec2::ZERO, |_, _| Vec3::ZERO)
+        });
+        let others = if u_pick < self.punctual_share {
+            self.sample_punctual(weights, point, u_pick, u)
+        } else {
+            self.sample_table(point, u_pick, u, emission)
+        };
+        (dominant, others)
+    }
+
+    /// Each punctual light's importance at `point`, once, into a buffer on the stack (the
+    /// group holds at most SPATIAL_PICK_MAX lights): evaluated twice, for the total and
+    /// then for the walk, they were 6% of a first-light frame's CPU time.
+    #[inline]
+    fn punctual_weights(&self, point: Vec3A) -> [f32; SPATIAL_PICK_MAX] {
+        let mut weights = [0.0f32; SPATIAL_PICK_MAX];
+        for (weight, light) in weights.iter_mut().zip(&self.punctual) {
+            *weight = light.irradiance_at(point);
+        }
+        weights
+    }
+
+    /// A punctual light picked in proportion to `weights` (u_pick below the group's
+    /// share), sampled; None when none of them reaches the point.
+    fn sample_punctual(
+        &self,
+        weights: &[f32],
+        point: Vec3A,
+        u_pick: f32,
+        u: Vec2,
+    ) -> Option<LightSample> {
+        let total: f32 = weights.iter().sum();
+        if !(total > 0.0 && total.is_finite()) {
+            return None;
+        }
+        let target = u_pick / self.punctual_share * total;
+        let mut below = 0.0;
+        let mut chosen = None;
+        for (light, &weight) in self.punctual.iter().zip(weights) {
+            if weight > 0.0 {
+                chosen = Some((light.index, weight));
+                if target < below + weight {
+                    break;
+                }
+                below += weight;
+            }
+        }
+        let (index, weight) = chosen?;
+        let pick = self.punctual_share * (weight / total);
+        self.lights[index as usize].sample(index, pick, point, u, |_, _| Vec3::ZERO)
+    }
+
+    /// A triangle picked from the table (u_pick at or above the punctual share), sampled.
+    fn sample_table(
+        &self,
+        point: Vec3A,
+        u_pick: f32,
+        u: Vec2,
+        emission: impl Fn(u32, Vec2) -> Vec3,
+    ) -> Option<LightSample> {
         if self.table.is_empty() {
             return None;
         }
@@ -436,36 +523,6 @@ impl LightSet {
         let (index, pmf) = self.table.sample(u_table);
         let pick = (1.0 - self.punctual_share) * pmf;
         self.lights[index as usize].sample(index, pick, point, u, emission)
-    }
-
-    /// A punctual light picked in proportion to the irradiance each gives `point` (one
-    /// uniform `u`), and its probability; None when none of them reaches it.
-    fn pick_punctual(&self, point: Vec3A, u: f32) -> Option<(u32, f32)> {
-        // Each light's importance once, into a buffer on the stack (the group holds at
-        // most SPATIAL_PICK_MAX lights): evaluating them twice, for the total and then for
-        // the walk, was 6% of a first-light frame's CPU time.
-        let mut weights = [0.0f32; SPATIAL_PICK_MAX];
-        let weights = &mut weights[..self.punctual.len()];
-        for (weight, light) in weights.iter_mut().zip(&self.punctual) {
-            *weight = light.irradiance_at(point);
-        }
-        let total: f32 = weights.iter().sum();
-        if !(total > 0.0 && total.is_finite()) {
-            return None;
-        }
-        let target = u * total;
-        let mut below = 0.0;
-        let mut chosen = None;
-        for (light, &weight) in self.punctual.iter().zip(weights.iter()) {
-            if weight > 0.0 {
-                chosen = Some((light.index, weight));
-                if target < below + weight {
-                    break;
-                }
-                below += weight;
-            }
-        }
-        chosen.map(|(index, weight)| (index, weight / total))
     }
 
     /// The solid-angle pdf with which `sample` would have produced the direction from
@@ -558,6 +615,37 @@ mod tests {
         // 10/4 = 2.5 against the far light's 100/400 = 0.25.
         let expected = n as f32 * (110.0 / 130.0) * (2.5 / 2.75);
         assert!((lamp_picks as f32 - expected).abs() < 3.0, "{lamp_picks}");
+    }
+
+    #[test]
+    fn the_dominant_light_in_full_and_the_others_sampled_estimate_every_light() {
+        let set = lamp_and_far_light();
+        // Under the lamp it dominates; far from it, the far light does.
+        for (point, dominant) in [
+            (Vec3A::new(0.1, 0.0, 0.0), 0),
+            (Vec3A::new(5.0, 0.0, 1.0), 1),
+        ] {
+            let n = 20_000;
+            let estimate =
+                |sample: Option<LightSample>| sample.map_or(Vec3::ZERO, |s| s.radiance / s.pdf);
+            let (mut plain, mut split) = (Vec3::ZERO, Vec3::ZERO);
+            for i in 0..n {
+                let u_pick = (i as f32 + 0.5) / n as f32;
+                let u = Vec2::new((i % 97) as f32 / 97.0, (i % 89) as f32 / 89.0);
+                plain += estimate(set.sample(point, u_pick, u, |_, _| Vec3::ONE));
+                let (full, others) = set.sample_beside_dominant(point, u_pick, u, |_, _| Vec3::ONE);
+                let full = full.expect("a punctual light reaches the point");
+                assert_eq!(full.light, dominant);
+                assert_eq!(full.pdf, 1.0);
+                assert!(others.is_none_or(|other| other.light != dominant));
+                split += estimate(Some(full)) + estimate(others);
+            }
+            let (plain, split) = (plain / n as f32, split / n as f32);
+            assert!(
+                ((split - plain).abs() / plain).max_element() < 1e-3,
+                "at {point}: {split} against {plain}"
+            );
+        }
     }
 
     #[test]

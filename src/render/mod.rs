@@ -10,7 +10,9 @@
 //!    - `primary`: a `PixelSampler` keyed by (seed, frame, pixel, sample), a jittered
 //!      camera ray, and the closest hits of the tile's rays, traced in packets of 16 x 4
 //!      (`AccelScene::intersect_coherent`; the same hits as one ray at a time);
-//!    - `shade`: the first vertex: emission, a light sample and a BSDF sample;
+//!    - `shade`: the first vertex: emission, a light sample and a BSDF sample; rendering
+//!      with guides (the real-time view), also the lamp that lights the vertex most,
+//!      shaded in full and kept apart (`PathState::with_dominant_apart`);
 //!    - `shadow`: the first vertex's shadow rays (all towards the lights), traced as
 //!      interleaved streams of single rays (`AccelScene::occluded_stream`; as packets
 //!      they measured slower: see accel/packet.rs and accel/stream.rs);
@@ -18,7 +20,8 @@
 //!      alone (incoherent: neither packets nor streams paid), then that vertex's shadow
 //!      rays as one stream, until every path has ended;
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
-//!    thread count) and store the mean in the film.
+//!    thread count) and store the mean in the film (and the kept-apart lamp light's mean
+//!    in the guides' `unfiltered` light, which the film's filters leave as it is).
 //!
 //! The phases draw each pixel's sample dimensions in the order one path at a time
 //! (`integrator::continue_path` from the camera ray) does, so
@@ -187,6 +190,8 @@ struct TileScratch<'a> {
     live: Vec<(usize, Ray)>,
     next_live: Vec<(usize, Ray)>,
     sums: Vec<Vec3>,
+    /// Per pixel, the dominant lamp's light kept apart (`PathState::with_dominant_apart`).
+    dominant_sums: Vec<Vec3>,
 }
 
 impl TileScratch<'_> {
@@ -414,6 +419,8 @@ impl<'a> Tile<'a> {
         let count = self.pixels(origin).count();
         scratch.sums.clear();
         scratch.sums.resize(count, Vec3::ZERO);
+        scratch.dominant_sums.clear();
+        scratch.dominant_sums.resize(count, Vec3::ZERO);
 
         for sample in 0..settings.spp {
             // Primary: camera rays and their closest hits.
@@ -427,7 +434,13 @@ impl<'a> Tile<'a> {
                 for pixel in self.pixels(origin) {
                     let mut sampler = self.sampler(pixel, sample);
                     let ray = self.camera_ray(pixel, &mut sampler);
-                    scratch.paths.push(PathState::new(&ray));
+                    // The real-time film leaves the dominant lamp's light out of its
+                    // filters: only renders with guides split it off.
+                    scratch.paths.push(if self.want_guides {
+                        PathState::with_dominant_apart(&ray)
+                    } else {
+                        PathState::new(&ray)
+                    });
                     scratch.rays.push(ray);
                     scratch.samplers.push(sampler);
                 }
@@ -469,10 +482,16 @@ impl<'a> Tile<'a> {
             {
                 profiling::scope!("render.shadow");
                 scratch.shadows.clear();
-                scratch.shadows.extend(
-                    (scratch.outcomes.iter().enumerate())
-                        .filter_map(|(index, outcome)| Some((index, outcome.shadow?))),
-                );
+                scratch
+                    .shadows
+                    .extend(
+                        (scratch.outcomes.iter().enumerate()).flat_map(|(index, outcome)| {
+                            [outcome.dominant, outcome.shadow]
+                                .into_iter()
+                                .flatten()
+                                .map(move |shadow| (index, shadow))
+                        }),
+                    );
                 scratch.resolve_shadows(scene, &alpha);
             }
             phases.shadow += lap(&mut clock);
@@ -509,9 +528,14 @@ impl<'a> Tile<'a> {
                     scratch.resolve_shadows(scene, &alpha);
                     std::mem::swap(&mut scratch.live, &mut scratch.next_live);
                 }
-                for (sum, path) in scratch.sums.iter_mut().zip(&scratch.paths) {
-                    if path.radiance.is_finite() {
-                        *sum += path.radiance;
+                for ((sum, dominant_sum), path) in (scratch.sums.iter_mut())
+                    .zip(&mut scratch.dominant_sums)
+                    .zip(&scratch.paths)
+                {
+                    let radiance = path.radiance + path.dominant_light;
+                    if radiance.is_finite() {
+                        *sum += radiance;
+                        *dominant_sum += path.dominant_light;
                     } else {
                         invalid += 1;
                     }
@@ -521,6 +545,11 @@ impl<'a> Tile<'a> {
         }
 
         let spp = settings.spp.max(1) as f32;
+        // The dominant lamp's light is in the film's pixels and, for the film's filters to
+        // leave it alone, with the guides' emission.
+        for (guide, dominant_sum) in guides.iter_mut().zip(&scratch.dominant_sums) {
+            guide.unfiltered += *dominant_sum / spp;
+        }
         let pixels = self
             .pixels(origin)
             .zip(&scratch.sums)
@@ -649,5 +678,54 @@ mod tests {
             }
         }
         assert!(lit > 500, "too few lit pixels to compare: {lit}");
+    }
+
+    /// The real-time render shades each first vertex's dominant lamp in full and samples
+    /// the other lights: an estimate of the same image (its mean agrees with the plain
+    /// path's), with that lamp's light in the guides' unfiltered light.
+    #[test]
+    fn the_dominant_lamp_apart_estimates_the_same_image() {
+        let level = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("levels/first-light.ron");
+        let world = crate::scene::world::Scene::load(&level).unwrap_or_else(|e| panic!("{e}"));
+        let scene = crate::frame::render_scene(&world);
+        let settings = RenderSettings {
+            width: 64,
+            height: 36,
+            spp: 64,
+            seed: 5,
+            frame: 0,
+            integrator: IntegratorKind::Path,
+            sampler: SamplerKind::Stratified,
+            max_depth: 1,
+        };
+        let camera = Camera::new(&scene.camera, settings.width, settings.height);
+        let plain = render(&scene, &camera, &settings, &|_| {}).film;
+        let split = render_guided(&scene, &camera, &settings);
+        let guides = split.guides.expect("render_guided gives guides");
+        let mean = |film: &Film| {
+            film.pixels
+                .iter()
+                .map(|p| p.as_dvec3())
+                .sum::<glam::DVec3>()
+                / film.pixels.len() as f64
+        };
+        let (plain_mean, split_mean) = (mean(&plain), mean(&split.film));
+        let relative = (split_mean - plain_mean).abs() / plain_mean;
+        assert!(
+            relative.max_element() < 0.02,
+            "{split_mean} against {plain_mean}"
+        );
+        // Lamps light the level: somewhere the kept-apart light is most of a pixel's.
+        let apart = (0..guides.width * guides.height)
+            .filter(|&index| {
+                let pixel = guides.pixel(index as usize);
+                let radiance = split.film.pixels[index as usize];
+                !pixel.is_sky() && pixel.unfiltered.element_sum() > 0.5 * radiance.element_sum()
+            })
+            .count();
+        assert!(
+            apart > 100,
+            "only {apart} pixels lit mostly by their dominant lamp"
+        );
     }
 }
