@@ -2,7 +2,9 @@
 //!
 //! - `path`: unidirectional path tracing with next event estimation at every non-specular
 //!   vertex, multiple importance sampling (power heuristic) between light and BSDF
-//!   sampling, and Russian roulette (Veach 1997; pbrt-v4's `PathIntegrator`).
+//!   sampling, and Russian roulette (Veach 1997; pbrt-v4's `PathIntegrator`). The
+//!   real-time render's paths (`PathState::with_dominant_apart`) shade the first vertex's
+//!   dominant lamp in full and keep its light apart, sampling the other lights.
 //! - `reference`: BSDF sampling only, no NEE, no MIS, no roulette. Slow and simple: every
 //!   variance reduction in `path` must converge to the image this one converges to.
 //!   (It cannot see punctual lights, which only light sampling can reach.)
