@@ -53,6 +53,11 @@ pub enum Light {
 /// alias table), as a light tree would be needed to keep such a pick cheap.
 const SPATIAL_PICK_MAX: usize = 32;
 
+/// Beside a dominant light (`LightSet::sample_beside_dominant`), the other punctual lights
+/// are always sampled once their irradiance adds up to this fraction of the dominant one's,
+/// and below it with probability in proportion.
+const OTHERS_ROULETTE: f32 = 0.25;
+
 impl Light {
     /// Light `index` (of its set, picked with probability `pick`) as seen from `point`:
     /// a direction towards it, the point it comes from and what arrives, with the pdf of
@@ -424,7 +429,14 @@ impl LightSet {
     ) -> Option<LightSample> {
         if u_pick < self.punctual_share {
             let weights = self.punctual_weights(point);
-            return self.sample_punctual(&weights[..self.punctual.len()], point, u_pick, u);
+            let weights = &weights[..self.punctual.len()];
+            return self.sample_punctual(
+                weights,
+                point,
+                u_pick / self.punctual_share,
+                self.punctual_share,
+                u,
+            );
         }
         self.sample_table(point, u_pick, u, emission)
     }
@@ -456,10 +468,25 @@ impl LightSet {
             let index = self.punctual[slot].index;
             self.lights[index as usize].sample(index, 1.0, point, Vec2::ZERO, |_, _| Vec3::ZERO)
         });
-        let others = if u_pick < self.punctual_share {
-            self.sample_punctual(weights, point, u_pick, u)
+        if u_pick >= self.punctual_share {
+            return (dominant, self.sample_table(point, u_pick, u, emission));
+        }
+        // Russian roulette on the other punctual lights where they weigh little beside the
+        // dominant one (in its pool): the group is taken with probability min(1, their
+        // irradiance / (the dominant's x OTHERS_ROULETTE)), its picks' probabilities scaled
+        // by that, so most of their shadow rays are saved there. `bench the-keep` at 0.5:
+        // the shadow phase 4.0 -> 3.3 ms.
+        let others_total: f32 = weights.iter().sum();
+        let survival = match strongest {
+            Some((_, most)) => (others_total / (most * OTHERS_ROULETTE)).min(1.0),
+            None => 1.0,
+        };
+        let u_group = u_pick / self.punctual_share;
+        let others = if u_group < survival {
+            let group = self.punctual_share * survival;
+            self.sample_punctual(weights, point, u_group / survival, group, u)
         } else {
-            self.sample_table(point, u_pick, u, emission)
+            None
         };
         (dominant, others)
     }
@@ -476,20 +503,22 @@ impl LightSet {
         weights
     }
 
-    /// A punctual light picked in proportion to `weights` (u_pick below the group's
-    /// share), sampled; None when none of them reaches the point.
+    /// A punctual light picked in proportion to `weights` by `u_group` in [0, 1), the
+    /// group itself having been chosen with probability `group`, sampled; None when none
+    /// of them reaches the point.
     fn sample_punctual(
         &self,
         weights: &[f32],
         point: Vec3A,
-        u_pick: f32,
+        u_group: f32,
+        group: f32,
         u: Vec2,
     ) -> Option<LightSample> {
         let total: f32 = weights.iter().sum();
         if !(total > 0.0 && total.is_finite()) {
             return None;
         }
-        let target = u_pick / self.punctual_share * total;
+        let target = u_group * total;
         let mut below = 0.0;
         let mut chosen = None;
         for (light, &weight) in self.punctual.iter().zip(weights) {
@@ -502,7 +531,7 @@ impl LightSet {
             }
         }
         let (index, weight) = chosen?;
-        let pick = self.punctual_share * (weight / total);
+        let pick = group * (weight / total);
         self.lights[index as usize].sample(index, pick, point, u, |_, _| Vec3::ZERO)
     }
 
@@ -620,6 +649,7 @@ mod tests {
     #[test]
     fn the_dominant_light_in_full_and_the_others_sampled_estimate_every_light() {
         let set = lamp_and_far_light();
+        let mut far_light_samples = [0; 2];
         // Under the lamp it dominates; far from it, the far light does.
         for (point, dominant) in [
             (Vec3A::new(0.1, 0.0, 0.0), 0),
@@ -632,8 +662,13 @@ mod tests {
             for i in 0..n {
                 let u_pick = (i as f32 + 0.5) / n as f32;
                 let u = Vec2::new((i % 97) as f32 / 97.0, (i % 89) as f32 / 89.0);
-                plain += estimate(set.sample(point, u_pick, u, |_, _| Vec3::ONE));
+                let sampled = set.sample(point, u_pick, u, |_, _| Vec3::ONE);
+                plain += estimate(sampled);
                 let (full, others) = set.sample_beside_dominant(point, u_pick, u, |_, _| Vec3::ONE);
+                if dominant == 0 {
+                    far_light_samples[0] += sampled.is_some_and(|s| s.light == 1) as usize;
+                    far_light_samples[1] += others.is_some_and(|s| s.light == 1) as usize;
+                }
                 let full = full.expect("a punctual light reaches the point");
                 assert_eq!(full.light, dominant);
                 assert_eq!(full.pdf, 1.0);
@@ -646,6 +681,14 @@ mod tests {
                 "at {point}: {split} against {plain}"
             );
         }
+        // Under the lamp the far light gives a tenth of its irradiance: beside it, the far
+        // light is sampled (a shadow ray traced) 4 x 0.1 = 0.4 times as often as the group.
+        let [alone, beside] = far_light_samples.map(|count| count as f32);
+        let group = 20_000.0 * 110.0 / 130.0;
+        assert!(
+            (beside / group - 0.4).abs() < 0.01,
+            "{beside} of {group}, alone {alone}"
+        );
     }
 
     #[test]
