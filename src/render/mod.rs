@@ -546,7 +546,7 @@ impl<'a> Tile<'a> {
 
         let spp = settings.spp.max(1) as f32;
         // The dominant lamp's light is in the film's pixels and, for the film's filters to
-        // leave it alone, with the guides' emission.
+        // leave it alone, in the guides' unfiltered light.
         for (guide, dominant_sum) in guides.iter_mut().zip(&scratch.dominant_sums) {
             guide.unfiltered += *dominant_sum / spp;
         }
@@ -631,13 +631,18 @@ mod tests {
     use super::*;
     use crate::render::integrator::continue_path;
 
+    /// The game's first level as the renderer sees it.
+    fn first_light() -> RenderScene {
+        let level = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("levels/first-light.ron");
+        let world = crate::scene::world::Scene::load(&level).unwrap_or_else(|e| panic!("{e}"));
+        crate::frame::render_scene(&world)
+    }
+
     /// The wavefront over each tile (its shadow rays in streams) gives, bit for bit, the
     /// image one path at a time gives (`continue_path`, each shadow ray alone).
     #[test]
     fn the_wavefront_renders_what_one_path_at_a_time_renders() {
-        let level = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("levels/first-light.ron");
-        let world = crate::scene::world::Scene::load(&level).unwrap_or_else(|e| panic!("{e}"));
-        let scene = crate::frame::render_scene(&world);
+        let scene = first_light();
         let settings = RenderSettings {
             width: 40,
             height: 24,
@@ -685,9 +690,7 @@ mod tests {
     /// path's), with that lamp's light in the guides' unfiltered light.
     #[test]
     fn the_dominant_lamp_apart_estimates_the_same_image() {
-        let level = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("levels/first-light.ron");
-        let world = crate::scene::world::Scene::load(&level).unwrap_or_else(|e| panic!("{e}"));
-        let scene = crate::frame::render_scene(&world);
+        let scene = first_light();
         let settings = RenderSettings {
             width: 64,
             height: 36,
