@@ -105,6 +105,10 @@ fn x_display(test: &str) -> Option<(Reaped, String, std::path::PathBuf)> {
             "1280x800x24",
             "-nolisten",
             "tcp",
+            // An X server resets when its last client leaves, closing the connections of
+            // any client that joined meanwhile: the test's xdotool polls come and go while
+            // gloam connects, and a reset there kills the window under test.
+            "-noreset",
         ])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -162,9 +166,12 @@ fn focus_window(display: &str, id: &str) {
     panic!("the window never took the focus");
 }
 
-/// The window named Gloam on `display`.
-fn gloam_window(display: &str) -> String {
+/// The window named Gloam on `display`, shown by `gloam` (which must not have exited).
+fn gloam_window(display: &str, gloam: &mut Child) -> String {
     for _ in 0..600 {
+        if let Ok(Some(status)) = gloam.try_wait() {
+            panic!("gloam exited ({status}) before its window showed");
+        }
         let found = Command::new("xdotool")
             .args(["search", "--onlyvisible", "--name", "Gloam"])
             .env("DISPLAY", display)
@@ -222,7 +229,7 @@ fn the_window_shows_the_headless_frame() {
     }
     // Let the compositor-less X server catch the latest present, then take the shot.
     std::thread::sleep(Duration::from_millis(500));
-    let id = gloam_window(&display);
+    let id = gloam_window(&display, &mut window.0);
     let shot = dir.join("window.png");
     let status = Command::new("import")
         .args(["-window", &id, shot.to_str().unwrap()])
@@ -351,11 +358,18 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
             .arg("edit")
             .arg(&level)
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
+            .stderr(Stdio::piped())
             .spawn()
             .expect("start gloam edit"),
     );
     let lines = lines_of(editor.0.stdout.take().unwrap());
+    // What the editor logs, in the test's output should a step fail.
+    let logged = editor.0.stderr.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(logged).lines().map_while(Result::ok) {
+            println!("editor (stderr): {line}");
+        }
+    });
     let next_line = |what: &str| {
         let line = lines
             .recv_timeout(Duration::from_secs(30))
@@ -364,7 +378,7 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
         println!("editor: {line}");
         line
     };
-    let id = gloam_window(&display);
+    let id = gloam_window(&display, &mut editor.0);
     let xdotool = |args: &[&str]| {
         let output = Command::new("xdotool")
             .args(args)
@@ -485,13 +499,13 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
     let started = next_line("the play-test");
     assert!(started.starts_with("play-test "), "{started}");
     std::thread::sleep(Duration::from_secs(2));
-    let game = gloam_window(&display);
+    let game = gloam_window(&display, &mut editor.0);
     assert!(xdotool(&["getwindowname", &game]).starts_with("Gloam - "));
     focus_window(&display, &game);
     xdotool(&["key", "Escape"]);
     assert_eq!(next_line("the way back"), "play-test left");
     std::thread::sleep(Duration::from_secs(2));
-    let back = gloam_window(&display);
+    let back = gloam_window(&display, &mut editor.0);
     assert_eq!(
         xdotool(&["getwindowname", &back]),
         "*first-light.ron - Gloam editor",
@@ -602,7 +616,7 @@ fn the_main_menu_names_a_broken_settings_file_saves_a_change_and_quits_from_its_
     assert!(!settings.exists(), "the broken file is moved aside");
     assert!(config.join("settings.ron.broken").exists());
 
-    let id = gloam_window(&display);
+    let id = gloam_window(&display, &mut menu.0);
     // Real key presses (XTEST) to the focused window: winit ignores synthetic events.
     let xdotool = |args: &[&str]| {
         let status = Command::new("xdotool")

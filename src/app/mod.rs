@@ -1262,9 +1262,19 @@ impl ApplicationHandler for App {
                     self.fail(event_loop, error);
                 }
             }
-            WindowEvent::KeyboardInput { event, .. } => {
+            WindowEvent::KeyboardInput {
+                event,
+                is_synthetic,
+                ..
+            } => {
+                // A window that takes the focus gets a made-up press for every key held at
+                // that moment: a press the player made elsewhere (or the one whose release
+                // is still on its way) must not move a menu or choose its row. Made-up
+                // releases stay, so no key sticks when the focus leaves.
+                let made_up_press = is_synthetic && event.state == ElementState::Pressed;
                 if let PhysicalKey::Code(code) = event.physical_key
                     && !event.repeat
+                    && !made_up_press
                 {
                     self.key(event_loop, code, event.state);
                 }
