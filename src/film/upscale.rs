@@ -126,6 +126,8 @@ pub struct Upscaler {
     bounds: Vec<(Vec4, Vec4)>,
     /// Step 2's first half: the bounds of 3 across.
     rows_bounds: Vec<(Vec4, Vec4)>,
+    /// Step 3 without its AVX2 build (tests compare the two).
+    portable_only: bool,
 }
 
 impl Upscaler {
@@ -301,11 +303,12 @@ impl Upscaler {
             (render_width, render_height),
         );
         if blend.at_half {
+            let avx2 = !self.portable_only && has_avx2();
             self.next
                 .par_chunks_mut(2 * width)
                 .zip(out.pixels.par_chunks_mut(2 * width))
                 .enumerate()
-                .for_each(|(j, (next, shown))| blend.rows_at_half(j, next, shown));
+                .for_each(|(j, (next, shown))| blend.rows_at_half(avx2, j, next, shown));
         } else {
             self.next
                 .par_chunks_mut(width)
@@ -391,8 +394,29 @@ impl<'a> Blend<'a> {
     /// shown pixels see the same 3 x 3 render samples, the same motion, the same bounds
     /// and the same Catmull-Rom weights (their taps one pixel apart), so `block` works
     /// them out once for the four. The film's edge is left to `row`.
+    ///
+    /// Compiled for AVX2 where the CPU has it (`avx2`): the same float operations (no fused
+    /// multiply-adds), so the same bits, in three-operand instructions that drop the
+    /// register copies of the SSE2 build: 1.74 G -> 1.41 G instructions in these rows
+    /// (callgrind, bench first-light 640x360 at half scale, 4 frames, one thread).
     #[inline(never)]
-    fn rows_at_half(&self, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
+    fn rows_at_half(&self, avx2: bool, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            #[target_feature(enable = "avx2")]
+            fn rows_at_half_avx2(blend: &Blend, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
+                blend.rows_at_half_lanes(j, next, shown);
+            }
+            // SAFETY: `avx2` is true only where the CPU has AVX2, the only feature enabled.
+            unsafe { rows_at_half_avx2(self, j, next, shown) };
+            return;
+        }
+        let _ = avx2;
+        self.rows_at_half_lanes(j, next, shown);
+    }
+
+    #[inline(always)]
+    fn rows_at_half_lanes(&self, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
         let (width, rows) = (self.width, &self.rows[2 * j..][..2]);
         let (next_top, next_bottom) = next.split_at_mut(width);
         let (shown_top, shown_bottom) = shown.split_at_mut(width);
@@ -570,6 +594,14 @@ impl<'a> Blend<'a> {
         }
         (sum / weight).truncate().extend(weight)
     }
+}
+
+/// Whether this CPU runs AVX2 code.
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return std::arch::is_x86_feature_detected!("avx2");
+    #[cfg(not(target_arch = "x86_64"))]
+    false
 }
 
 /// `catmull_rom` at `corner` + 0.5 and the three points one pixel right, down, and both
@@ -826,7 +858,7 @@ mod tests {
                 let (next, shown) = (&mut by_pixel.0[b * width..], &mut by_pixel.1[b * width..]);
                 blend.row(2 * j + b, &mut next[..width], &mut shown[..width]);
             }
-            blend.rows_at_half(j, &mut by_block.0, &mut by_block.1);
+            blend.rows_at_half(has_avx2(), j, &mut by_block.0, &mut by_block.1);
             for (pixel, block) in by_pixel.0.iter().zip(&by_block.0) {
                 largest_difference = largest_difference.max((*pixel - *block).abs().max_element());
             }
@@ -857,6 +889,25 @@ mod tests {
         assert_eq!(one.pixels.len(), (SHOWN.0 * SHOWN.1) as usize);
         assert!(one.pixels.iter().all(|p| p.is_finite()));
         assert_eq!(one, on(3));
+    }
+
+    #[test]
+    fn the_avx2_build_gives_the_portable_bits() {
+        if !has_avx2() {
+            println!("notice: no AVX2 on this CPU, one build to test");
+            return;
+        }
+        let on = |portable_only: bool| {
+            let mut upscaler = Upscaler {
+                portable_only,
+                ..Upscaler::new(UpscaleSettings::default())
+            };
+            let shown = run(&mut upscaler, 6, |frame| frame as f32 * 0.05).0;
+            (shown, upscaler.history)
+        };
+        let (portable, avx2) = (on(true), on(false));
+        assert!(portable.0.pixels.iter().all(|p| p.is_finite()));
+        assert_eq!(portable, avx2);
     }
 
     #[test]
