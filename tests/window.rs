@@ -595,6 +595,15 @@ fn the_main_menu_names_a_broken_settings_file_saves_a_change_and_quits_from_its_
         "(\n    field_of_view: 70.0,\n    brightnes: 2.0,\n)\n",
     )
     .unwrap();
+    // The pointer rests where the menu's second row appears (its window opens at the
+    // display's corner, 320 x 180): a window opening under a still pointer is no move, so
+    // the keyboard's choice below still starts at the first row.
+    let pointer = Command::new("xdotool")
+        .args(["mousemove", "100", "165"])
+        .env("DISPLAY", &display)
+        .status()
+        .unwrap();
+    assert!(pointer.success(), "xdotool mousemove");
     let mut menu = Reaped(
         windowed(&display, &dir)
             .args(["play", "--width", "160", "--height", "90"])

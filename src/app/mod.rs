@@ -1281,11 +1281,16 @@ impl ApplicationHandler for App {
             }
             WindowEvent::CursorMoved { position, .. } => {
                 let Some(pixels) = &self.pixels else { return };
+                let before = self.pointer;
                 self.pointer = pixels
                     .window_pos_to_pixel((position.x as f32, position.y as f32))
                     .ok()
                     .map(|(x, y)| (x as u32, y as u32));
-                if let (Some(menu), Some((x, y))) = (&self.menu, self.pointer) {
+                // A window that opens under a resting pointer is told where it is, as if it
+                // had moved there: only a move from a known place points at a row, or a
+                // pointer left where Quit appears would choose Quit for the keyboard.
+                let moved = before.is_some() && before != self.pointer;
+                if moved && let (Some(menu), Some((x, y))) = (&self.menu, self.pointer) {
                     let view = menu.view(&self.context);
                     let (width, height) = (self.options.width, self.options.height);
                     if let Some(row) = menu::row_at(&view, width, height, x, y) {
