@@ -30,7 +30,6 @@ use serde_json::json;
 
 use super::frames::camera_path;
 use crate::film::denoise::{FilterMode, FrameFilter};
-use crate::film::temporal::TemporalSettings;
 use crate::film::upscale::{DEFAULT_RENDER_SCALE, UpscaleSettings, Upscaler};
 use crate::frame::Engine;
 use crate::game::{Patrol, Transform, ViewCamera};
@@ -292,9 +291,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             filter.atrous.sigma_luminance = sigma;
         }
     }
-    // The player's filter is the game's as it runs under the upscaler (the tuning flags
-    // are for the native filters).
-    player_filter.temporal.settings = TemporalSettings::for_upscaling(true);
+    // The player's filter is the game's, with its defaults (the tuning flags are for the
+    // native filters).
     let mut settings = RenderSettings::real_time(width, height);
     let mut player_settings = RenderSettings::real_time(render_size.0, render_size.1);
     let (mut player_render, mut player_image) = (Film::new(0, 0), Film::new(0, 0));

@@ -23,8 +23,6 @@ use glam::Vec3;
 pub use denoise::{FilmPhaseTimes, FilterMode, FrameFilter};
 pub use upscale::{UpscaleSettings, Upscaler};
 
-use temporal::TemporalSettings;
-
 use crate::profile::{Stage, StageTimes, TileSpan, since};
 use crate::render::scene::SceneChanges;
 use crate::render::{
@@ -174,10 +172,6 @@ impl Accumulation {
             // Last frame's image is overwritten (a fresh buffer a frame costs page faults).
             let mut image = self.filtered.take().unwrap_or_else(|| Film::new(0, 0));
             let upscaling = self.shown != (settings.width, settings.height);
-            let temporal = TemporalSettings::for_upscaling(upscaling);
-            if self.filter.temporal.settings != temporal {
-                self.filter.temporal.settings = temporal;
-            }
             let upscale_ms = if !upscaling {
                 self.filter
                     .apply_into(&output.film, guides, &camera, &instances, &mut image);

@@ -50,31 +50,15 @@ impl Default for TemporalSettings {
             // `gloam flythrough` (moving camera, 3 a-trous passes), RMSE of temporal +
             // spatial against raw: 0.05 -> 0.37x, 0.1 -> 0.32x, 0.15 -> 0.30x, 0.2 -> 0.29x,
             // 0.25 -> 0.285x. Lag outweighs noise once the spatial filter runs; 0.2 keeps a
-            // still view's history about 9 frames long.
+            // still view's history about 9 frames long. Under the upscaler, which keeps a
+            // history of its own at the shown resolution, 0.2 is best as well (player's
+            // view RMSE, first-light 320x180 -> 640x360: 0.7 -> 0.0216, 0.5 -> 0.0210,
+            // 0.3 -> 0.0205, 0.2 -> 0.0202, 0.1 -> 0.0201 with more ghosting).
             alpha_min: 0.2,
             moments_alpha_min: 0.2,
             clamp_sigma: 2.0,
             depth_tolerance: 0.05,
             normal_tolerance: 0.9,
-        }
-    }
-}
-
-impl TemporalSettings {
-    /// The settings for a render at the shown resolution (`upscaling` false: the
-    /// defaults), or below it, where `upscale` keeps a history of its own after this one.
-    /// Two histories in a row lag twice, so this one leans on the newest frame: `gloam
-    /// flythrough`'s player RMSE at 320x180 -> 640x360, by `alpha_min`: 0.2 -> 0.0262,
-    /// 0.35 -> 0.0254, 0.5 -> 0.0249, 0.7 -> 0.0247, 1 -> 0.0250 (bilinear history taps).
-    pub fn for_upscaling(upscaling: bool) -> TemporalSettings {
-        let defaults = TemporalSettings::default();
-        if upscaling {
-            TemporalSettings {
-                alpha_min: 0.7,
-                ..defaults
-            }
-        } else {
-            defaults
         }
     }
 }
