@@ -293,6 +293,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     }
     // The player's filter is the game's, with its defaults (the tuning flags are for the
     // native filters).
+    player_filter.render_scale = render_scale;
     let mut settings = RenderSettings::real_time(width, height);
     let mut player_settings = RenderSettings::real_time(render_size.0, render_size.1);
     let (mut player_render, mut player_image) = (Film::new(0, 0), Film::new(0, 0));

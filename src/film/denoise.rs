@@ -80,13 +80,15 @@ impl FilmPhaseTimes {
 }
 
 /// The filter chain and its state across frames.
-#[derive(Default)]
 pub struct FrameFilter {
     pub mode: FilterMode,
     pub temporal: TemporalFilter,
     pub atrous: AtrousSettings,
     /// Keep the first a-trous pass as history (SVGF); off keeps the plain temporal average.
     pub feed_back: bool,
+    /// The render's resolution per axis against the one shown (below 1 the upscaler
+    /// follows): the a-trous passes are `AtrousSettings::iterations_at_scale` of it.
+    pub render_scale: f32,
     /// The spatial filter's buffers, kept between frames.
     atrous_workspace: atrous::Workspace,
     /// How long each step of the last `apply` took.
@@ -100,6 +102,7 @@ impl FrameFilter {
             temporal: TemporalFilter::new(TemporalSettings::default()),
             atrous: AtrousSettings::default(),
             feed_back: true,
+            render_scale: 1.0,
             atrous_workspace: atrous::Workspace::default(),
             last_times: FilmPhaseTimes::default(),
         }
@@ -147,6 +150,7 @@ impl FrameFilter {
             temporal,
             atrous: settings,
             feed_back,
+            render_scale,
             atrous_workspace,
             last_times,
         } = self;
@@ -168,6 +172,10 @@ impl FrameFilter {
         image
             .pixels
             .resize((guides.width * guides.height) as usize, Vec3::ZERO);
+        let settings = &AtrousSettings {
+            iterations: settings.iterations_at_scale(*render_scale),
+            ..settings.clone()
+        };
         if *mode == FilterMode::Full && settings.iterations > 0 {
             // 2. The a-trous passes.
             let start = Instant::now();

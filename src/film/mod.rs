@@ -172,6 +172,12 @@ impl Accumulation {
             // Last frame's image is overwritten (a fresh buffer a frame costs page faults).
             let mut image = self.filtered.take().unwrap_or_else(|| Film::new(0, 0));
             let upscaling = self.shown != (settings.width, settings.height);
+            self.filter.render_scale = if upscaling {
+                (settings.width as f32 / self.shown.0.max(1) as f32)
+                    .max(settings.height as f32 / self.shown.1.max(1) as f32)
+            } else {
+                1.0
+            };
             let upscale_ms = if !upscaling {
                 self.filter
                     .apply_into(&output.film, guides, &camera, &instances, &mut image);
