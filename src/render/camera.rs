@@ -40,6 +40,11 @@ impl Camera {
         }
     }
 
+    /// Whether `ray` reads its lens position (a thin lens, not a pinhole).
+    pub fn has_lens(&self) -> bool {
+        self.lens_radius > 0.0
+    }
+
     /// The ray through film point `film` (in pixels from the top-left, e.g. pixel + jitter);
     /// `lens` in [0, 1)^2 picks the point on the aperture.
     pub fn ray(&self, film: Vec2, lens: Vec2) -> Ray {
@@ -53,7 +58,7 @@ impl Camera {
             ndc.y * self.tan_half_fov,
             -1.0,
         );
-        if self.lens_radius <= 0.0 {
+        if !self.has_lens() {
             return Ray::new(self.position, (self.rotation * direction).normalize());
         }
         // Thin lens: aim from a point on the aperture at where the pinhole ray meets the

@@ -13,7 +13,7 @@ use glam::{Vec2, Vec3, Vec3A};
 
 use super::bsdf::Bsdf;
 use super::light::LightSample;
-use super::sampler::PixelSampler;
+use super::sampler::{PixelSampler, VertexDraws};
 use super::sampling::{Frame, power_heuristic};
 use super::scene::{RenderScene, SceneAlpha};
 use crate::accel::{Hit, InstanceMask, Ray, SurfaceHit};
@@ -249,12 +249,12 @@ pub struct VertexOutcome {
 
 /// The path integrator at one vertex: `found` is what the path's last ray hit (None if it
 /// left the scene). Adds emission to `state`, and returns the NEE shadow ray and the next
-/// ray, drawing `sampler`'s dimensions in a fixed order.
+/// ray, using the vertex's `draws`.
 pub fn path_vertex(
     scene: &RenderScene,
     state: &mut PathState,
     found: Option<NextHit>,
-    sampler: &mut PixelSampler,
+    draws: &VertexDraws,
     max_depth: u32,
     counts: &mut RayCounts,
 ) -> VertexOutcome {
@@ -290,14 +290,13 @@ pub fn path_vertex(
         return VertexOutcome::default();
     }
     state.depth += 1;
-    let v = vertex(scene, surface, wo_world, hit.instance, sampler.next_1d());
+    let v = vertex(scene, surface, wo_world, hit.instance, draws.lobe);
 
     // 3. Next event estimation: one light sample, one shadow ray (traced by the caller).
     //    Kept apart, the first vertex's brightest lamp is shaded in full, with a shadow
     //    ray of its own, and the sample picks among the other lights.
     let mut outcome = VertexOutcome::default();
-    let u_pick = sampler.next_1d();
-    let u_light = sampler.next_2d();
+    let (u_pick, u_light) = (draws.pick, draws.light);
     let shadow_ray = |light: &LightSample, counts: &mut RayCounts, dominant: bool| {
         let wi = v.frame.to_local(light.wi);
         let f = v.bsdf.f(v.wo, wi) * wi.z.abs();
@@ -337,10 +336,7 @@ pub fn path_vertex(
     }
 
     // 4. Continue the path by sampling the BSDF.
-    let u_choice = sampler.next_1d();
-    let u_direction = sampler.next_2d();
-    let u_roulette = sampler.next_1d();
-    let Some(sample) = v.bsdf.sample(v.wo, u_choice, u_direction) else {
+    let Some(sample) = v.bsdf.sample(v.wo, draws.choice, draws.direction) else {
         return outcome;
     };
     state.beta *= sample.f * (sample.wi.z.abs() / sample.pdf);
@@ -351,7 +347,7 @@ pub fn path_vertex(
     // 5. Russian roulette: survive with probability q, and divide by it.
     if state.depth >= ROULETTE_START {
         let q = state.beta.max_element().min(0.95);
-        if u_roulette >= q {
+        if draws.roulette >= q {
             return outcome;
         }
         state.beta /= q;
@@ -379,7 +375,8 @@ pub fn continue_path(
     loop {
         let found = next_hit(scene, &ray, mask, alpha);
         mask = InstanceMask::BOUNCE;
-        let outcome = path_vertex(scene, state, found, sampler, max_depth, counts);
+        let draws = sampler.vertex_draws();
+        let outcome = path_vertex(scene, state, found, &draws, max_depth, counts);
         for shadow in [outcome.dominant, outcome.shadow].into_iter().flatten() {
             shadow.resolve(scene, alpha, state);
         }
@@ -450,7 +447,16 @@ pub fn reference_radiance(
 }
 
 /// The camera's sample dimensions, drawn first by every integrator: 2D pixel jitter, then
-/// 2D lens position.
-pub fn camera_sample(sampler: &mut PixelSampler) -> (Vec2, Vec2) {
-    (sampler.next_2d(), sampler.next_2d())
+/// 2D lens position. A pinhole camera (`has_lens` false) reads no lens position: its
+/// dimension is passed over undrawn (Vec2::ZERO stands for it), so the dimensions after it
+/// are the same either way.
+pub fn camera_sample(sampler: &mut PixelSampler, has_lens: bool) -> (Vec2, Vec2) {
+    let jitter = sampler.next_2d();
+    let lens = if has_lens {
+        sampler.next_2d()
+    } else {
+        sampler.skip_2d();
+        Vec2::ZERO
+    };
+    (jitter, lens)
 }

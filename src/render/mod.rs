@@ -59,7 +59,7 @@ use integrator::{
     NextHit, PathState, ShadowQuery, VertexOutcome, camera_sample, next_hit, next_hits,
     path_vertex, reference_radiance,
 };
-use sampler::{BlueNoise, PixelSampler};
+use sampler::{BlueNoise, PixelSampler, VertexDrawBatch};
 use scene::SceneAlpha;
 
 const TILE: u32 = 16;
@@ -175,6 +175,8 @@ struct TileResult {
 #[derive(Default)]
 struct TileScratch<'a> {
     samplers: Vec<PixelSampler<'a>>,
+    /// A vertex's sample values for every path there, drawn together.
+    draws: VertexDrawBatch,
     paths: Vec<PathState>,
     hits: Vec<Option<NextHit>>,
     /// The camera rays, and what `intersect_coherent` found for them.
@@ -403,7 +405,7 @@ impl<'a> Tile<'a> {
     }
 
     fn camera_ray(&self, (x, y): (u32, u32), sampler: &mut PixelSampler) -> Ray {
-        let (jitter, lens) = camera_sample(sampler);
+        let (jitter, lens) = camera_sample(sampler, self.camera.has_lens());
         self.camera
             .ray(Vec2::new(x as f32, y as f32) + jitter, lens)
     }
@@ -465,14 +467,15 @@ impl<'a> Tile<'a> {
             {
                 profiling::scope!("render.shade");
                 scratch.outcomes.clear();
-                for ((path, hit), sampler) in scratch
+                let draws = (scratch.draws).draw(&mut scratch.samplers, 0..count);
+                for ((path, hit), draws) in scratch
                     .paths
                     .iter_mut()
                     .zip(scratch.hits.drain(..))
-                    .zip(&mut scratch.samplers)
+                    .zip(draws)
                 {
                     let outcome =
-                        path_vertex(scene, path, hit, sampler, settings.max_depth, &mut counts);
+                        path_vertex(scene, path, hit, draws, settings.max_depth, &mut counts);
                     scratch.outcomes.push(outcome);
                 }
             }
@@ -508,13 +511,17 @@ impl<'a> Tile<'a> {
                 while !scratch.live.is_empty() {
                     scratch.shadows.clear();
                     scratch.next_live.clear();
-                    for &(index, ray) in &scratch.live {
+                    let draws = (scratch.draws).draw(
+                        &mut scratch.samplers,
+                        scratch.live.iter().map(|&(index, _)| index),
+                    );
+                    for (&(index, ray), draws) in scratch.live.iter().zip(draws) {
                         let found = next_hit(scene, &ray, InstanceMask::BOUNCE, &alpha);
                         let outcome = path_vertex(
                             scene,
                             &mut scratch.paths[index],
                             found,
-                            &mut scratch.samplers[index],
+                            draws,
                             settings.max_depth,
                             &mut counts,
                         );
@@ -638,10 +645,17 @@ mod tests {
         crate::frame::render_scene(&world)
     }
 
-    /// The wavefront over each tile (its shadow rays in streams) gives, bit for bit, the
-    /// image one path at a time gives (`continue_path`, each shadow ray alone).
+    /// The wavefront over each tile (its shadow rays in streams, each vertex's sample
+    /// values drawn for all its paths at once) gives, bit for bit, the image one path at a
+    /// time gives (`continue_path`, each shadow ray alone, each value drawn as needed).
     #[test]
     fn the_wavefront_renders_what_one_path_at_a_time_renders() {
+        for sampler in [SamplerKind::Stratified, SamplerKind::BlueNoise] {
+            wavefront_matches_one_path_at_a_time(sampler);
+        }
+    }
+
+    fn wavefront_matches_one_path_at_a_time(sampler: SamplerKind) {
         let scene = first_light();
         let settings = RenderSettings {
             width: 40,
@@ -650,16 +664,17 @@ mod tests {
             seed: 3,
             frame: 0,
             integrator: IntegratorKind::Path,
-            sampler: SamplerKind::Stratified,
+            sampler,
             max_depth: 5,
         };
         let camera = Camera::new(&scene.camera, settings.width, settings.height);
         let film = render(&scene, &camera, &settings, &|_| {}).film;
+        let blue = BlueNoise::new(settings.seed, settings.frame);
         let tile = Tile {
             scene: &scene,
             camera: &camera,
             settings: &settings,
-            blue: None,
+            blue: (sampler == SamplerKind::BlueNoise).then_some(&blue),
             width: settings.width,
             height: settings.height,
             want_guides: false,
@@ -678,7 +693,12 @@ mod tests {
                     sum += path.radiance;
                 }
                 let one_at_a_time = sum / settings.spp as f32;
-                assert_eq!(film.pixel(x, y), one_at_a_time, "pixel ({x}, {y})");
+                assert_eq!(
+                    film.pixel(x, y),
+                    one_at_a_time,
+                    "pixel ({x}, {y}), {} sampler",
+                    sampler.name()
+                );
                 lit += (one_at_a_time != Vec3::ZERO) as usize;
             }
         }

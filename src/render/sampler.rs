@@ -24,6 +24,10 @@
 //!   of white's (per-dimension blue-noise masks, Georgiev & Fajardo 2016, give 0.99), and
 //!   16 spp has 0.68 of stratified's RMSE.
 //!
+//! A wavefront's paths reach each vertex together, so the renderer draws that vertex's
+//! values (`VertexDraws`) for all of them at once (`VertexDrawBatch`): the blue-noise
+//! hashes in AVX2 lanes, the same values a path drawing alone gets.
+//!
 //! Determinism (the project's rule): every value derives from (seed, frame, pixel, sample index,
 //! dimension) alone, so images are identical on any thread count.
 
@@ -86,23 +90,39 @@ pub struct BlueNoise {
     /// of the R2 sequence a frame, so each pixel's jitters over frames are that
     /// low-discrepancy sequence), and the scrambles of the per-pixel sequence's x and y.
     screen: [u32; 4],
+    /// The per-pixel sequence's points (`BlueNoise::net`) of the first `HELD_NETS` sample
+    /// indices, ready: every pixel of a frame draws its jitter from the same few.
+    nets: [[u32; 2]; HELD_NETS],
 }
+
+/// Sample indices whose jitter net points a `BlueNoise` holds ready (real-time renders draw
+/// one sample a pixel, offline ones up to a few thousand, which hash the rest as they go).
+const HELD_NETS: usize = 16;
 
 impl BlueNoise {
     pub fn new(seed: u32, frame: u32) -> Self {
+        let key = |part: u32| hash3(part, seed, 0x5c4e_e111);
+        let screen = [
+            key(0).wrapping_add(frame.wrapping_mul(R2_FIXED[0])),
+            key(1).wrapping_add(frame.wrapping_mul(R2_FIXED[1])),
+            key(2),
+            key(3),
+        ];
         BlueNoise {
             seed,
             frame,
             keys: std::array::from_fn(|dimension| DimensionKeys::of(dimension as u32, seed, frame)),
-            screen: {
-                let key = |part: u32| hash3(part, seed, 0x5c4e_e111);
-                [
-                    key(0).wrapping_add(frame.wrapping_mul(R2_FIXED[0])),
-                    key(1).wrapping_add(frame.wrapping_mul(R2_FIXED[1])),
-                    key(2),
-                    key(3),
-                ]
-            },
+            screen,
+            nets: std::array::from_fn(|sample| net_point(sample as u32, screen)),
+        }
+    }
+
+    /// Sample `sample`'s point of the per-pixel sequence the jitter adds its lattice to.
+    #[inline]
+    fn net(&self, sample: u32) -> [u32; 2] {
+        match self.nets.get(sample as usize) {
+            Some(net) => *net,
+            None => net_point(sample, self.screen),
         }
     }
 
@@ -113,6 +133,15 @@ impl BlueNoise {
             None => DimensionKeys::of(dimension, self.seed, self.frame),
         }
     }
+}
+
+/// The jitter's per-pixel sequence at `sample` (0.32 fixed point): the Owen-scrambled
+/// (0,2)-sequence under the `screen` keys' scrambles.
+fn net_point(sample: u32, screen: [u32; 4]) -> [u32; 2] {
+    [
+        owen_scramble(sample, screen[2]),
+        owen_scramble_reversed(sobol_second_reversed(sample), screen[3]),
+    ]
 }
 
 /// One dimension's Owen-scrambling seeds (`BlueNoise`).
@@ -155,7 +184,14 @@ impl<'a> PixelSampler<'a> {
                 || blue.is_some_and(|blue| blue.seed == seed && blue.frame == frame),
             "blue noise needs its keys, for this seed and frame"
         );
-        let pixel_hash = hash3(pixel.0, pixel.1, seed);
+        // The pixel's and sample's hashes feed only white and stratified values (five
+        // hash rounds a pixel sample that blue noise never reads).
+        let hashed = kind != SamplerKind::BlueNoise;
+        let pixel_hash = if hashed {
+            hash3(pixel.0, pixel.1, seed)
+        } else {
+            0
+        };
         let sample_count = sample_count.max(1);
         let (sequence_index, sequence_salt) = if kind == SamplerKind::BlueNoise {
             let index = sequence_index(pixel, sample_index, sample_count);
@@ -174,7 +210,11 @@ impl<'a> PixelSampler<'a> {
         PixelSampler {
             kind,
             pixel_hash,
-            sample_hash: mix(pixel_hash ^ sample_index.wrapping_mul(0x9e37_79b9)),
+            sample_hash: if hashed {
+                mix(pixel_hash ^ sample_index.wrapping_mul(0x9e37_79b9))
+            } else {
+                0
+            },
             sample_index,
             sample_count,
             dimension: 0,
@@ -267,6 +307,19 @@ impl<'a> PixelSampler<'a> {
         }
     }
 
+    /// The next path vertex's values (`VertexDraws`), drawn in their order.
+    pub fn vertex_draws(&mut self) -> VertexDraws {
+        // Struct fields are evaluated in the order written: the order of the dimensions.
+        VertexDraws {
+            lobe: self.next_1d(),
+            pick: self.next_1d(),
+            light: self.next_2d(),
+            choice: self.next_1d(),
+            direction: self.next_2d(),
+            roulette: self.next_1d(),
+        }
+    }
+
     /// This sample's sequence index under the dimension's nested uniform scramble (seed
     /// `key`): a bijection that maps every aligned block of 2^k indices onto an aligned
     /// block, so a pixel tile still owns a whole net after it ("padding" that keeps the
@@ -308,12 +361,19 @@ impl<'a> PixelSampler<'a> {
             .wrapping_mul(GOLDEN_FIXED)
             .wrapping_add(y << 31)
             .wrapping_add(blue.screen[1]);
-        let net_x = owen_scramble(sample, blue.screen[2]);
-        let net_y = owen_scramble_reversed(sobol_second_reversed(sample), blue.screen[3]);
+        let [net_x, net_y] = blue.net(sample);
         Vec2::new(
             bits_to_unit(net_x.wrapping_add(rotation_x)),
             bits_to_unit(net_y.wrapping_add(rotation_y)),
         )
+    }
+
+    /// Passes over the next 2D dimension without drawing it (a value nothing reads).
+    pub fn skip_2d(&mut self) {
+        match self.kind {
+            SamplerKind::White => self.dimension += 2,
+            SamplerKind::Stratified | SamplerKind::BlueNoise => self.dimension += 1,
+        }
     }
 
     fn next_dimension(&mut self) -> u32 {
@@ -344,6 +404,196 @@ impl<'a> PixelSampler<'a> {
         self.blue
             .expect("blue-noise sampler has its keys")
             .keys(dimension)
+    }
+}
+
+/// What one path vertex draws, in the order it draws them (`integrator::path_vertex`):
+/// the material lobe, the light pick and the point on that light, the BSDF lobe choice and
+/// direction, and Russian roulette's value.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VertexDraws {
+    pub lobe: f32,
+    pub pick: f32,
+    pub light: Vec2,
+    pub choice: f32,
+    pub direction: Vec2,
+    pub roulette: f32,
+}
+
+/// The sample dimensions a `VertexDraws` takes (four 1D, two 2D).
+const VERTEX_DIMENSIONS: u32 = 6;
+
+/// One vertex's `VertexDraws` for many paths at once: the wavefront's paths reach their
+/// k-th vertex together, so they all draw the same dimensions, whose blue-noise keys are
+/// then the same in every lane. Blue noise is drawn 8 paths at a time in AVX2 lanes (one
+/// path at a time, the sampler was a fifth of the renderer's instructions); the other
+/// kinds sampler by sampler. Either way path i gets what its `vertex_draws` gives.
+#[derive(Default)]
+pub struct VertexDrawBatch {
+    /// Blue noise: per path, its sequence index (bit-reversed) and salt ...
+    sequence: Vec<u32>,
+    salt: Vec<u32>,
+    /// ... and its values, a plane per `VertexDraws` value in field order.
+    planes: [Vec<f32>; 8],
+    draws: Vec<VertexDraws>,
+}
+
+impl VertexDrawBatch {
+    /// The next vertex's draws of `samplers[i]` for each i of `paths`, in that order. The
+    /// samplers are one render's (one kind, one `BlueNoise`), all at the same dimension.
+    pub fn draw(
+        &mut self,
+        samplers: &mut [PixelSampler],
+        paths: impl IntoIterator<Item = usize>,
+    ) -> &[VertexDraws] {
+        self.draws.clear();
+        let mut paths = paths.into_iter().peekable();
+        // The lanes draw from the first sampler's keys and dimension, so all must share
+        // them; dimension 0 is the pixel jitter, which `next_2d` draws apart.
+        let lanes = paths.peek().and_then(|&first| {
+            let sampler = &samplers[first];
+            (sampler.kind == SamplerKind::BlueNoise && sampler.dimension > 0)
+                .then_some(())
+                .and(sampler.blue.map(|blue| (blue, sampler.dimension)))
+        });
+        let Some((blue, dimension)) = lanes else {
+            self.draws
+                .extend(paths.map(|path| samplers[path].vertex_draws()));
+            return &self.draws;
+        };
+        self.sequence.clear();
+        self.salt.clear();
+        for path in paths {
+            let sampler = &mut samplers[path];
+            debug_assert!(
+                sampler.blue.is_some_and(|keys| std::ptr::eq(keys, blue))
+                    && sampler.dimension == dimension,
+                "a batch's samplers share their keys and dimension"
+            );
+            self.sequence.push(sampler.sequence_index);
+            self.salt.push(sampler.sequence_salt);
+            sampler.dimension += VERTEX_DIMENSIONS;
+        }
+        let count = self.sequence.len();
+        for plane in &mut self.planes {
+            plane.resize(count, 0.0);
+        }
+        blue_vertex_planes(
+            blue,
+            dimension,
+            &self.sequence,
+            &self.salt,
+            &mut self.planes,
+        );
+        let [
+            lobe,
+            pick,
+            light_x,
+            light_y,
+            choice,
+            direction_x,
+            direction_y,
+            roulette,
+        ] = self.planes.each_ref().map(|plane| &plane[..count]);
+        self.draws.extend((0..count).map(|i| VertexDraws {
+            lobe: lobe[i],
+            pick: pick[i],
+            light: Vec2::new(light_x[i], light_y[i]),
+            choice: choice[i],
+            direction: Vec2::new(direction_x[i], direction_y[i]),
+            roulette: roulette[i],
+        }));
+        &self.draws
+    }
+}
+
+/// `blue_vertex_lanes`, compiled for AVX2 where the CPU has it (integer lanes: the same
+/// bits either way).
+fn blue_vertex_planes(
+    blue: &BlueNoise,
+    dimension: u32,
+    sequence: &[u32],
+    salt: &[u32],
+    planes: &mut [Vec<f32>; 8],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[target_feature(enable = "avx2")]
+        fn blue_vertex_avx2(
+            blue: &BlueNoise,
+            dimension: u32,
+            sequence: &[u32],
+            salt: &[u32],
+            planes: &mut [Vec<f32>; 8],
+        ) {
+            blue_vertex_lanes(blue, dimension, sequence, salt, planes);
+        }
+        // SAFETY: the CPU has AVX2, the only feature enabled.
+        unsafe { blue_vertex_avx2(blue, dimension, sequence, salt, planes) };
+        return;
+    }
+    blue_vertex_lanes(blue, dimension, sequence, salt, planes);
+}
+
+/// A vertex's six blue-noise dimensions from `dimension` on, for the paths whose sequence
+/// indices and salts are `sequence` and `salt`, into `planes` (`VertexDraws`' order).
+#[inline(always)]
+fn blue_vertex_lanes(
+    blue: &BlueNoise,
+    dimension: u32,
+    sequence: &[u32],
+    salt: &[u32],
+    planes: &mut [Vec<f32>; 8],
+) {
+    let [
+        lobe,
+        pick,
+        light_x,
+        light_y,
+        choice,
+        direction_x,
+        direction_y,
+        roulette,
+    ] = planes;
+    let keys = |offset: u32| blue.keys(dimension + offset);
+    blue_1d_lanes(sequence, salt, keys(0), lobe);
+    blue_1d_lanes(sequence, salt, keys(1), pick);
+    blue_2d_lanes(sequence, salt, keys(2), light_x, light_y);
+    blue_1d_lanes(sequence, salt, keys(3), choice);
+    blue_2d_lanes(sequence, salt, keys(4), direction_x, direction_y);
+    blue_1d_lanes(sequence, salt, keys(5), roulette);
+}
+
+/// `PixelSampler::next_1d`'s blue noise, lane by lane (the slices cut to one length so the
+/// loop vectorises).
+#[inline(always)]
+fn blue_1d_lanes(sequence: &[u32], salt: &[u32], keys: DimensionKeys, out: &mut [f32]) {
+    let count = out.len();
+    let (sequence, salt) = (&sequence[..count], &salt[..count]);
+    for i in 0..count {
+        let index = laine_karras(sequence[i], keys.index ^ salt[i]).reverse_bits();
+        out[i] = bits_to_unit(owen_scramble(index, keys.values[0] ^ salt[i]));
+    }
+}
+
+/// `PixelSampler::next_2d`'s blue noise past the pixel jitter, lane by lane.
+#[inline(always)]
+fn blue_2d_lanes(
+    sequence: &[u32],
+    salt: &[u32],
+    keys: DimensionKeys,
+    out_x: &mut [f32],
+    out_y: &mut [f32],
+) {
+    let count = out_x.len();
+    let (sequence, salt, out_y) = (&sequence[..count], &salt[..count], &mut out_y[..count]);
+    for i in 0..count {
+        let index = laine_karras(sequence[i], keys.index ^ salt[i]).reverse_bits();
+        out_x[i] = bits_to_unit(owen_scramble(index, keys.values[0] ^ salt[i]));
+        out_y[i] = bits_to_unit(owen_scramble_reversed(
+            sobol_second_reversed(index),
+            keys.values[1] ^ salt[i],
+        ));
     }
 }
 
@@ -739,6 +989,96 @@ mod blue_noise_tests {
                         "1D after {skip}: {strata:?}"
                     );
                 }
+            }
+        }
+    }
+
+    /// A pinhole camera passes over the lens dimension (`PixelSampler::skip_2d`): the
+    /// dimensions after it are drawn as if it had been.
+    #[test]
+    fn skipping_a_2d_dimension_leaves_the_later_ones_as_drawing_it_does() {
+        let blue = BlueNoise::new(2, 3);
+        for kind in [
+            SamplerKind::BlueNoise,
+            SamplerKind::White,
+            SamplerKind::Stratified,
+        ] {
+            let new = || PixelSampler::new(kind, Some(&blue), 2, 3, (5, 8), 1, 4);
+            let (mut drawn, mut skipped) = (new(), new());
+            assert_eq!(drawn.next_2d(), skipped.next_2d());
+            drawn.next_2d();
+            skipped.skip_2d();
+            assert_eq!(
+                drawn.vertex_draws(),
+                skipped.vertex_draws(),
+                "{}",
+                kind.name()
+            );
+        }
+    }
+
+    /// A batch's draws are what each sampler draws alone, in its AVX2 lanes and in the
+    /// portable ones, for pixels past 65536 x 65536 pixel-samples (salted indices) and
+    /// dimensions past the keys held ready; and the samplers go on from the same place.
+    #[test]
+    fn a_vertex_batch_draws_what_each_sampler_draws() {
+        let blue = BlueNoise::new(11, 7);
+        let pixels: Vec<(u32, u32)> = (0..37)
+            .map(|i| (i * 13 % 40, i * 7 % 23))
+            .chain([(70_000, 3), (65_535, 65_535)])
+            .collect();
+        let new = |kind, pixel| PixelSampler::new(kind, Some(&blue), 11, 7, pixel, 1, 2);
+        for kind in [
+            SamplerKind::BlueNoise,
+            SamplerKind::White,
+            SamplerKind::Stratified,
+        ] {
+            let mut alone: Vec<PixelSampler> = pixels.iter().map(|&p| new(kind, p)).collect();
+            let mut batched: Vec<PixelSampler> = pixels.iter().map(|&p| new(kind, p)).collect();
+            let mut batch = VertexDrawBatch::default();
+            for sampler in alone.iter_mut().chain(&mut batched) {
+                sampler.next_2d();
+                sampler.next_2d();
+            }
+            for vertex in 0..7 {
+                let expected: Vec<VertexDraws> =
+                    alone.iter_mut().map(|s| s.vertex_draws()).collect();
+                let drawn = batch.draw(&mut batched, 0..pixels.len());
+                assert_eq!(drawn, &expected[..], "{} vertex {vertex}", kind.name());
+            }
+            let next = |samplers: &mut Vec<PixelSampler>| -> Vec<f32> {
+                samplers.iter_mut().map(|s| s.next_1d()).collect()
+            };
+            assert_eq!(next(&mut alone), next(&mut batched));
+        }
+        // The portable lanes (the batch above took AVX2's where the CPU has it).
+        let mut samplers: Vec<PixelSampler> = pixels
+            .iter()
+            .map(|&p| new(SamplerKind::BlueNoise, p))
+            .collect();
+        let sequence: Vec<u32> = samplers.iter().map(|s| s.sequence_index).collect();
+        let salt: Vec<u32> = samplers.iter().map(|s| s.sequence_salt).collect();
+        assert!(
+            salt.iter().any(|&salt| salt != 0),
+            "a salted index is covered"
+        );
+        let mut planes: [Vec<f32>; 8] = std::array::from_fn(|_| vec![0.0; pixels.len()]);
+        blue_vertex_lanes(&blue, 30, &sequence, &salt, &mut planes);
+        for (i, sampler) in samplers.iter_mut().enumerate() {
+            sampler.dimension = 30;
+            let draws = sampler.vertex_draws();
+            let values = [
+                draws.lobe,
+                draws.pick,
+                draws.light.x,
+                draws.light.y,
+                draws.choice,
+                draws.direction.x,
+                draws.direction.y,
+                draws.roulette,
+            ];
+            for (plane, value) in planes.iter().zip(values) {
+                assert_eq!(plane[i], value, "pixel {:?}", pixels[i]);
             }
         }
     }
