@@ -255,9 +255,10 @@ pub struct GuideBand<'a> {
 impl GuideBand<'_> {
     /// Sets the pixels of a rectangle `rect_width` wide whose top-left pixel is
     /// (`x0`, `y0`) (in the whole image; the rectangle must lie in the band) from
-    /// `guides`, row-major. Row by row, with no division per pixel: set one pixel at a
-    /// time from its row-major index (two 64-bit divisions each), the guides took 5% of
-    /// a 640x360 frame's CPU time.
+    /// `guides`, row-major. Row by row and plane by plane, each a run of stores through
+    /// slices cut to the run (pixel by pixel, 13 bounds-checked stores each, this was 2.8%
+    /// of a frame's CPU time on the-gallery at half scale; one pixel at a time from its
+    /// row-major index, two 64-bit divisions each, 5%).
     pub fn set_rect(&mut self, (x0, y0): (usize, usize), rect_width: usize, guides: &[GuidePixel]) {
         let width = self.width;
         let first_row = self.first_index / width;
@@ -265,9 +266,10 @@ impl GuideBand<'_> {
             let local_row = y0 + row - first_row;
             let planes =
                 &mut self.planes[local_row * GUIDE_PLANES * width..][..GUIDE_PLANES * width];
-            for (x, pixel) in (x0..).zip(pixels) {
-                for (plane, value) in pixel_planes(pixel).into_iter().enumerate() {
-                    planes[plane * width + x] = value;
+            for (plane, value) in PLANE_VALUES {
+                let run = &mut planes[plane * width + x0..][..pixels.len()];
+                for (stored, pixel) in run.iter_mut().zip(pixels) {
+                    *stored = value(pixel);
                 }
             }
             let instances = &mut self.instances[local_row * width + x0..][..pixels.len()];
@@ -281,16 +283,28 @@ impl GuideBand<'_> {
 /// A guide pixel's plane values, in plane order.
 fn pixel_planes(guide: &GuidePixel) -> [f32; GUIDE_PLANES] {
     let mut values = [0.0; GUIDE_PLANES];
-    let mut put = |first: usize, triple: Vec3| {
-        values[first..first + 3].copy_from_slice(&triple.to_array());
-    };
-    put(NORMAL_X, guide.normal.into());
-    put(ALBEDO_R, guide.albedo);
-    put(POSITION_X, guide.position.into());
-    put(UNFILTERED_R, guide.unfiltered);
-    values[DEPTH] = guide.depth;
+    for (plane, value) in PLANE_VALUES {
+        values[plane] = value(guide);
+    }
     values
 }
+
+/// Each guide plane and the value of a pixel it holds.
+const PLANE_VALUES: [(usize, fn(&GuidePixel) -> f32); GUIDE_PLANES] = [
+    (NORMAL_X, |pixel| pixel.normal.x),
+    (NORMAL_Y, |pixel| pixel.normal.y),
+    (NORMAL_Z, |pixel| pixel.normal.z),
+    (ALBEDO_R, |pixel| pixel.albedo.x),
+    (ALBEDO_G, |pixel| pixel.albedo.y),
+    (ALBEDO_B, |pixel| pixel.albedo.z),
+    (POSITION_X, |pixel| pixel.position.x),
+    (POSITION_Y, |pixel| pixel.position.y),
+    (POSITION_Z, |pixel| pixel.position.z),
+    (UNFILTERED_R, |pixel| pixel.unfiltered.x),
+    (UNFILTERED_G, |pixel| pixel.unfiltered.y),
+    (UNFILTERED_B, |pixel| pixel.unfiltered.z),
+    (DEPTH, |pixel| pixel.depth),
+];
 
 #[cfg(test)]
 mod tests {
