@@ -58,8 +58,21 @@ impl Texture {
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let top = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
-        let bottom = self.texel(x0, y0 + 1).lerp(self.texel(x0 + 1, y0 + 1), fx);
+        // Each of the two columns and two rows wrapped once (not once per texel).
+        let (width, height) = (self.width as i64, self.height as i64);
+        let (left, right) = (
+            wrap(x0, width, self.wrap_u),
+            wrap(x0 + 1, width, self.wrap_u),
+        );
+        let (upper, lower) = (
+            wrap(y0, height, self.wrap_v),
+            wrap(y0 + 1, height, self.wrap_v),
+        );
+        let row = |y: i64| &self.texels[(y * width) as usize..][..self.width as usize];
+        let (upper, lower) = (row(upper), row(lower));
+        let (left, right) = (left as usize, right as usize);
+        let top = upper[left].lerp(upper[right], fx);
+        let bottom = lower[left].lerp(lower[right], fx);
         top.lerp(bottom, fy)
     }
 
@@ -70,7 +83,15 @@ impl Texture {
     }
 }
 
+/// Texel index `i` on an axis `n` texels long, wrapped by `mode`.
+#[inline]
 fn wrap(i: i64, n: i64, mode: Wrap) -> i64 {
+    // Inside the texture every mode leaves the index as it is, without the 64-bit
+    // division the repeating modes take (two wraps of a bilinear tap's four texels
+    // were a third of `Texture::sample`).
+    if (0..n).contains(&i) {
+        return i;
+    }
     match mode {
         Wrap::ClampToEdge => i.clamp(0, n - 1),
         Wrap::Repeat => i.rem_euclid(n),
@@ -174,5 +195,61 @@ impl RenderMaterial {
             return Bsdf::Dielectric { eta };
         }
         Bsdf::Lambertian { albedo: base }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Wrapping as glTF defines it, index by index.
+    #[test]
+    fn wrap_modes_fold_every_index_onto_the_texture() {
+        let n = 5;
+        for i in -23i64..23 {
+            assert_eq!(wrap(i, n, Wrap::ClampToEdge), i.clamp(0, n - 1));
+            assert_eq!(wrap(i, n, Wrap::Repeat), i.rem_euclid(n), "repeat {i}");
+            let period = i.rem_euclid(2 * n);
+            let mirrored = if period < n {
+                period
+            } else {
+                2 * n - 1 - period
+            };
+            assert_eq!(wrap(i, n, Wrap::MirroredRepeat), mirrored, "mirrored {i}");
+        }
+    }
+
+    /// The bilinear tap is the four wrapped texels' blend, inside the texture and past
+    /// each of its edges, in every wrap mode.
+    #[test]
+    fn a_bilinear_tap_blends_the_four_wrapped_texels() {
+        let (width, height) = (5u32, 3u32);
+        let texels: Vec<Vec4> = (0..width * height)
+            .map(|i| Vec4::new(i as f32, (i * i % 7) as f32, 1.0, 0.5))
+            .collect();
+        for (wrap_u, wrap_v) in [
+            (Wrap::Repeat, Wrap::ClampToEdge),
+            (Wrap::MirroredRepeat, Wrap::Repeat),
+            (Wrap::ClampToEdge, Wrap::MirroredRepeat),
+        ] {
+            let texture = Texture {
+                width,
+                height,
+                texels: texels.clone(),
+                wrap_u,
+                wrap_v,
+                filter: Filter::Linear,
+            };
+            for k in 0..200 {
+                let uv = Vec2::new(k as f32 * 0.0731 - 7.3, k as f32 * -0.0517 + 5.1);
+                let (x, y) = (uv.x * 5.0 - 0.5, uv.y * 3.0 - 0.5);
+                let (x0, y0) = (x.floor(), y.floor());
+                let (fx, fy) = (x - x0, y - y0);
+                let (x0, y0) = (x0 as i64, y0 as i64);
+                let top = texture.texel(x0, y0).lerp(texture.texel(x0 + 1, y0), fx);
+                let bottom = (texture.texel(x0, y0 + 1)).lerp(texture.texel(x0 + 1, y0 + 1), fx);
+                assert_eq!(texture.sample(uv), top.lerp(bottom, fy), "uv {uv}");
+            }
+        }
     }
 }
