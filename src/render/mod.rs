@@ -485,16 +485,15 @@ impl<'a> Tile<'a> {
             {
                 profiling::scope!("render.shadow");
                 scratch.shadows.clear();
-                scratch
-                    .shadows
-                    .extend(
-                        (scratch.outcomes.iter().enumerate()).flat_map(|(index, outcome)| {
-                            [outcome.dominant, outcome.shadow]
-                                .into_iter()
-                                .flatten()
-                                .map(move |shadow| (index, shadow))
-                        }),
-                    );
+                // Room for both of every vertex's queries up front, each copied once by
+                // reference (a by-value flat_map over each outcome's pair copied the pair,
+                // and checked the capacity at every push).
+                scratch.shadows.reserve(2 * scratch.outcomes.len());
+                for (index, outcome) in scratch.outcomes.iter().enumerate() {
+                    for shadow in [&outcome.dominant, &outcome.shadow].into_iter().flatten() {
+                        scratch.shadows.push((index, *shadow));
+                    }
+                }
                 scratch.resolve_shadows(scene, &alpha);
             }
             phases.shadow += lap(&mut clock);
