@@ -244,7 +244,19 @@ impl AliasTable {
 /// linear ramp from 0 at `cos_outer` to 1 at `cos_inner`.
 #[inline]
 fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
-    let scale = 1.0 / (cos_inner - cos_outer).max(1e-3);
+    spot_ramp(cos, cos_outer, cone_scale(cos_inner, cos_outer))
+}
+
+/// `spot_falloff`'s ramp steepness, 1 / (cos_inner - cos_outer) (a cone with no width
+/// ramps over 1e-3).
+#[inline(always)]
+fn cone_scale(cos_inner: f32, cos_outer: f32) -> f32 {
+    1.0 / (cos_inner - cos_outer).max(1e-3)
+}
+
+/// `spot_falloff` with its `cone_scale` worked out.
+#[inline(always)]
+fn spot_ramp(cos: f32, cos_outer: f32, scale: f32) -> f32 {
     let ramp = ((cos - cos_outer) * scale).clamp(0.0, 1.0);
     ramp * ramp
 }
@@ -328,7 +340,7 @@ struct PunctualGroup {
     position: [[f32; GROUP_LANES]; 3],
     direction: [[f32; GROUP_LANES]; 3],
     luminance: [f32; GROUP_LANES],
-    /// `spot_falloff`'s 1 / (cos_inner - cos_outer), worked out once.
+    /// Each spot's `cone_scale`, worked out once.
     cone_scale: [f32; GROUP_LANES],
     cos_outer: [f32; GROUP_LANES],
     directional: [bool; GROUP_LANES],
@@ -344,7 +356,7 @@ impl PunctualGroup {
                 group.direction[axis][lane] = light.direction[axis];
             }
             group.luminance[lane] = light.luminance;
-            group.cone_scale[lane] = 1.0 / (light.cos_inner - light.cos_outer).max(1e-3);
+            group.cone_scale[lane] = cone_scale(light.cos_inner, light.cos_outer);
             group.cos_outer[lane] = light.cos_outer;
             group.directional[lane] = light.directional;
         }
@@ -369,8 +381,8 @@ impl PunctualGroup {
                 + self.direction[1][lane] * -offset[1]
                 + self.direction[2][lane] * -offset[2])
                 / distance2.sqrt();
-            let ramp = ((cos - self.cos_outer[lane]) * self.cone_scale[lane]).clamp(0.0, 1.0);
-            let spot = self.luminance[lane] * (ramp * ramp) / distance2;
+            let falloff = spot_ramp(cos, self.cos_outer[lane], self.cone_scale[lane]);
+            let spot = self.luminance[lane] * falloff / distance2;
             irradiance[lane] = if self.directional[lane] {
                 self.luminance[lane]
             } else {

@@ -510,9 +510,10 @@ impl VertexDrawBatch {
         // them; dimension 0 is the pixel jitter, which `next_2d` draws apart.
         let lanes = paths.peek().and_then(|&first| {
             let sampler = &samplers[first];
-            (sampler.kind == SamplerKind::BlueNoise && sampler.dimension > 0)
-                .then_some(())
-                .and(sampler.blue.map(|blue| (blue, sampler.dimension)))
+            let blue = sampler
+                .blue
+                .filter(|_| sampler.kind == SamplerKind::BlueNoise)?;
+            (sampler.dimension > 0).then_some((blue, sampler.dimension))
         });
         let Some((blue, dimension)) = lanes else {
             self.draws
