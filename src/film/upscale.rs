@@ -405,18 +405,18 @@ impl<'a> Blend<'a> {
         if avx2 {
             #[target_feature(enable = "avx2")]
             fn rows_at_half_avx2(blend: &Blend, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
-                blend.rows_at_half_lanes(j, next, shown);
+                blend.rows_at_half_lanes(true, j, next, shown);
             }
             // SAFETY: `avx2` is true only where the CPU has AVX2, the only feature enabled.
             unsafe { rows_at_half_avx2(self, j, next, shown) };
             return;
         }
         let _ = avx2;
-        self.rows_at_half_lanes(j, next, shown);
+        self.rows_at_half_lanes(false, j, next, shown);
     }
 
     #[inline(always)]
-    fn rows_at_half_lanes(&self, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
+    fn rows_at_half_lanes(&self, avx2: bool, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
         let (width, rows) = (self.width, &self.rows[2 * j..][..2]);
         let (next_top, next_bottom) = next.split_at_mut(width);
         let (shown_top, shown_bottom) = shown.split_at_mut(width);
@@ -448,6 +448,14 @@ impl<'a> Blend<'a> {
             .zip(shown_top[2..width - 2].chunks_exact_mut(2))
             .zip(shown_bottom[2..width - 2].chunks_exact_mut(2));
         for (i, (((next_top, next_bottom), shown_top), shown_bottom)) in (1..).zip(blocks) {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `avx2` is true only in `rows_at_half_avx2`, on a CPU with AVX2.
+            let pixels = if avx2 {
+                unsafe { self.block_avx2(i, j, &sample_rows) }
+            } else {
+                self.block(i, j, &sample_rows)
+            };
+            #[cfg(not(target_arch = "x86_64"))]
             let pixels = self.block(i, j, &sample_rows);
             for a in 0..2 {
                 next_top[a] = pixels[a];
@@ -521,6 +529,164 @@ impl<'a> Blend<'a> {
                     *pixel = self.finish(sum, weight, (2 * i + (k & 1), 2 * j + (k >> 1)));
                 }
             }
+        }
+        pixels
+    }
+
+    /// `block` in AVX2's 8 lanes, two shown pixels' colours to a register: the same float
+    /// operations in the same order (no fused multiply-adds), so the same bits. Each
+    /// sample is added to two pixels' sums at once, the history's rows are filtered across
+    /// for both columns at once (the two columns' taps are the same pixels one apart, so
+    /// one 32-byte load holds a tap of each), and the history is clamped and added two
+    /// pixels at a time. Blocks at the film's edge, without history, or that fall back on
+    /// the interpolated render are left to `block`.
+    ///
+    /// bench first-light 640x360 at half scale, one thread: these rows 117 M -> 94 M
+    /// instructions over 3 frames (callgrind); upscale p50 6.55, 6.47, 6.71 -> 5.13, 4.99,
+    /// 5.03 ms in alternating runs.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn block_avx2(&self, i: usize, j: usize, sample_rows: &[&[Sample]; 3]) -> [Vec4; 4] {
+        use std::arch::x86_64::*;
+        let (width, render_width) = (self.width, self.render_width);
+        let under = j * render_width + i;
+        let moved = self.samples[under].moved;
+        let (left, top) = (2.0 * i as f32 + 0.5, 2.0 * j as f32 + 0.5);
+        let corner = Vec2::new(left, top) - moved - 0.5;
+        let inside = corner.x >= 1.0
+            && corner.y >= 1.0
+            && corner.x < (width - 3) as f32
+            && corner.y < (self.height - 3) as f32;
+        let Some(history) = self.history.filter(|_| inside) else {
+            return self.block(i, j, sample_rows);
+        };
+        let centres_x = Vec4::new(left, left + 1.0, left, left + 1.0);
+        let centres_y = Vec4::new(top, top, top + 1.0, top + 1.0);
+        let inverse_radius_squared = Vec4::splat(1.0 / (self.radius * self.radius));
+        // Lanes 0-3 take a Vec4's x, 4-7 its y (and z, w for the second pair).
+        let (first_pair, second_pair) = (
+            _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1),
+            _mm256_setr_epi32(2, 2, 2, 2, 3, 3, 3, 3),
+        );
+        let spread =
+            |v: Vec4, pair| _mm256_permutevar8x32_ps(_mm256_castps128_ps256(v.into()), pair);
+        // Pixels 0 and 1 (top), 2 and 3 (bottom).
+        let (mut top_sums, mut bottom_sums) = (_mm256_setzero_ps(), _mm256_setzero_ps());
+        let mut weights = Vec4::ZERO;
+        for row in sample_rows {
+            for sample in &row[i - 1..i + 2] {
+                let (dx, dy) = (
+                    Vec4::splat(sample.at.x) - centres_x,
+                    Vec4::splat(sample.at.y) - centres_y,
+                );
+                let falloff =
+                    (Vec4::ONE - (dx * dx + dy * dy) * inverse_radius_squared).max(Vec4::ZERO);
+                let weight = falloff * falloff;
+                let colour = _mm256_broadcast_ps(&sample.colour.into());
+                top_sums =
+                    _mm256_add_ps(top_sums, _mm256_mul_ps(colour, spread(weight, first_pair)));
+                bottom_sums = _mm256_add_ps(
+                    bottom_sums,
+                    _mm256_mul_ps(colour, spread(weight, second_pair)),
+                );
+                weights += weight;
+            }
+        }
+
+        // `catmull_rom_block`, both columns at once.
+        let (x1, y1) = (corner.x as i32 as usize, corner.y as i32 as usize);
+        let (wx, wy) = (
+            catmull_rom_weights(corner.x - x1 as f32),
+            catmull_rom_weights(corner.y - y1 as f32),
+        );
+        let first = (y1 - 1) * width + x1 - 1;
+        // `inside` keeps all 5 x 5 taps on the film: rows y1 - 1 ..= y1 + 3 and columns
+        // x1 - 1 ..= x1 + 3 are within it.
+        let taps = &history[first..first + 4 * width + 5];
+        let (mut top_last, mut bottom_last) = (_mm256_setzero_ps(), _mm256_setzero_ps());
+        for r in 0..5 {
+            let row = &taps[r * width..][..5];
+            // SAFETY: `row` holds 5 Vec4s, so 2 from each of its first 4 are in it.
+            let pair = |k: usize| unsafe { _mm256_loadu_ps(row[k..].as_ptr().cast()) };
+            let across = _mm256_add_ps(
+                _mm256_add_ps(
+                    _mm256_add_ps(
+                        _mm256_mul_ps(pair(0), _mm256_set1_ps(wx[0])),
+                        _mm256_mul_ps(pair(1), _mm256_set1_ps(wx[1])),
+                    ),
+                    _mm256_mul_ps(pair(2), _mm256_set1_ps(wx[2])),
+                ),
+                _mm256_mul_ps(pair(3), _mm256_set1_ps(wx[3])),
+            );
+            if r < 4 {
+                top_last = _mm256_add_ps(top_last, _mm256_mul_ps(across, _mm256_set1_ps(wy[r])));
+            }
+            if r >= 1 {
+                bottom_last = _mm256_add_ps(
+                    bottom_last,
+                    _mm256_mul_ps(across, _mm256_set1_ps(wy[r - 1])),
+                );
+            }
+        }
+        let zero = _mm256_setzero_ps();
+        let (top_last, bottom_last) = (
+            _mm256_max_ps(top_last, zero),
+            _mm256_max_ps(bottom_last, zero),
+        );
+
+        // `add_history` two pixels at a time: each pixel's history weight spread over its
+        // four lanes, capped.
+        let (low, high) = self.bounds[under];
+        let (low, high) = (
+            _mm256_broadcast_ps(&low.into()),
+            _mm256_broadcast_ps(&high.into()),
+        );
+        let max_history = _mm256_set1_ps(self.settings.max_history);
+        let add_history = |sums: __m256, weights: __m256, last: __m256| {
+            let kept = _mm256_min_ps(_mm256_permute_ps::<0xff>(last), max_history);
+            let clamped = _mm256_min_ps(_mm256_max_ps(last, low), high);
+            (
+                _mm256_add_ps(sums, _mm256_mul_ps(clamped, kept)),
+                _mm256_add_ps(weights, kept),
+            )
+        };
+        let (top_sums, top_weights) = add_history(top_sums, spread(weights, first_pair), top_last);
+        let (bottom_sums, bottom_weights) =
+            add_history(bottom_sums, spread(weights, second_pair), bottom_last);
+
+        let interpolated = _mm256_set1_ps(self.settings.interpolated);
+        let too_light = _mm256_or_ps(
+            _mm256_cmp_ps::<_CMP_LT_OQ>(top_weights, interpolated),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(bottom_weights, interpolated),
+        );
+        let mut pixels = [Vec4::ZERO; 4];
+        if _mm256_movemask_ps(too_light) != 0 {
+            // Made up with the render: `finish`, pixel by pixel.
+            let mut sums = [Vec4::ZERO; 4];
+            let mut weights = [Vec4::ZERO; 4];
+            // SAFETY: each array holds 4 Vec4s, two stored from each register.
+            unsafe {
+                _mm256_storeu_ps(sums.as_mut_ptr().cast(), top_sums);
+                _mm256_storeu_ps(sums[2..].as_mut_ptr().cast(), bottom_sums);
+                _mm256_storeu_ps(weights.as_mut_ptr().cast(), top_weights);
+                _mm256_storeu_ps(weights[2..].as_mut_ptr().cast(), bottom_weights);
+            }
+            for (k, pixel) in pixels.iter_mut().enumerate() {
+                *pixel = self.finish(sums[k], weights[k].x, (2 * i + (k & 1), 2 * j + (k >> 1)));
+            }
+            return pixels;
+        }
+        // `finish`: the mean, its weight in w.
+        let finish =
+            |sums, weights| _mm256_blend_ps::<0b1000_1000>(_mm256_div_ps(sums, weights), weights);
+        // SAFETY: `pixels` holds 4 Vec4s, two stored from each register.
+        unsafe {
+            _mm256_storeu_ps(pixels.as_mut_ptr().cast(), finish(top_sums, top_weights));
+            _mm256_storeu_ps(
+                pixels[2..].as_mut_ptr().cast(),
+                finish(bottom_sums, bottom_weights),
+            );
         }
         pixels
     }
@@ -897,17 +1063,25 @@ mod tests {
             println!("notice: no AVX2 on this CPU, one build to test");
             return;
         }
-        let on = |portable_only: bool| {
-            let mut upscaler = Upscaler {
-                portable_only,
-                ..Upscaler::new(UpscaleSettings::default())
-            };
-            let shown = run(&mut upscaler, 6, |frame| frame as f32 * 0.05).0;
-            (shown, upscaler.history)
+        // The defaults, and a floor so high that every pixel is made up with the render
+        // (the lanes' way out to `finish`).
+        let interpolated_everywhere = UpscaleSettings {
+            interpolated: 10.0,
+            ..UpscaleSettings::default()
         };
-        let (portable, avx2) = (on(true), on(false));
-        assert!(portable.0.pixels.iter().all(|p| p.is_finite()));
-        assert_eq!(portable, avx2);
+        for settings in [UpscaleSettings::default(), interpolated_everywhere] {
+            let on = |portable_only: bool| {
+                let mut upscaler = Upscaler {
+                    portable_only,
+                    ..Upscaler::new(settings.clone())
+                };
+                let shown = run(&mut upscaler, 6, |frame| frame as f32 * 0.05).0;
+                (shown, upscaler.history)
+            };
+            let (portable, avx2) = (on(true), on(false));
+            assert!(portable.0.pixels.iter().all(|p| p.is_finite()));
+            assert_eq!(portable, avx2, "{settings:?}");
+        }
     }
 
     #[test]
