@@ -9,12 +9,12 @@
 //!    where its camera ray went (the sampler jitters it inside the pixel, anew each frame),
 //!    which is where its first hit projects; and where that point of the surface was on
 //!    last frame's film (carried back through its instance's motion);
-//! 2. bounds: each render pixel's 3 x 3 neighbourhood's least and greatest colour;
-//! 3. per shown pixel, a row at a time: the render's samples within `radius` render pixels
+//! 2. per shown pixel, a row at a time: the render's samples within `radius` render pixels
 //!    of its centre, weighted by distance; last frame's history where the surface under
-//!    the centre was, clamped to the bounds around it (stale light and disocclusions are
-//!    pulled to what the frame shows now); and, where these weigh next to nothing, the
-//!    render bilinearly interpolated. Their weighted mean is the pixel and its history.
+//!    the centre was, clamped to the least and greatest colour of the 3 x 3 samples around
+//!    the render pixel there (stale light and disocclusions are pulled to what the frame
+//!    shows now); and, where these weigh next to nothing, the render bilinearly
+//!    interpolated. Their weighted mean is the pixel and its history.
 //!
 //! With the render's remodulated colour, each sample carries its own surface's albedo:
 //! texture and edges sharpen to the shown resolution over a few frames, while the lighting
@@ -121,11 +121,8 @@ pub struct Upscaler {
     /// Last frame's camera, at the shown resolution.
     camera: Option<Camera>,
     instances: LastTransforms,
-    /// Per render pixel, steps 1 and 2.
+    /// Per render pixel, step 1.
     samples: Vec<Sample>,
-    bounds: Vec<(Vec4, Vec4)>,
-    /// Step 2's first half: the bounds of 3 across.
-    rows_bounds: Vec<(Vec4, Vec4)>,
     /// Step 3 without its AVX2 build (tests compare the two).
     portable_only: bool,
 }
@@ -174,7 +171,6 @@ impl Upscaler {
         };
         let motions = self.instances.motions(instances);
         self.take_samples(image, guides, camera, &shown_camera, &motions);
-        self.take_bounds(image.width as usize, image.height as usize);
         self.blend(image.width as usize, image.height as usize, out);
         std::mem::swap(&mut self.history, &mut self.next);
         self.camera = Some(shown_camera);
@@ -245,49 +241,7 @@ impl Upscaler {
             });
     }
 
-    /// Step 2: the least and greatest of 3 across, then of those 3 down.
-    fn take_bounds(&mut self, render_width: usize, render_height: usize) {
-        let samples = &self.samples;
-        let across = |y: usize| {
-            let row = &samples[y * render_width..][..render_width];
-            (0..render_width).map(move |x| {
-                let (left, right) = (x.saturating_sub(1), (x + 1).min(render_width - 1));
-                let (a, b, c) = (row[left].colour, row[x].colour, row[right].colour);
-                (a.min(b).min(c), a.max(b).max(c))
-            })
-        };
-        self.rows_bounds
-            .resize(samples.len(), (Vec4::ZERO, Vec4::ZERO));
-        self.rows_bounds
-            .par_chunks_mut(render_width)
-            .enumerate()
-            .for_each(|(y, row)| {
-                for (bounds, found) in row.iter_mut().zip(across(y)) {
-                    *bounds = found;
-                }
-            });
-        let across = &self.rows_bounds;
-        self.bounds.resize(samples.len(), (Vec4::ZERO, Vec4::ZERO));
-        self.bounds
-            .par_chunks_mut(render_width)
-            .enumerate()
-            .for_each(|(y, row)| {
-                let (up, down) = (y.saturating_sub(1), (y + 1).min(render_height - 1));
-                let (up, here, down) = (
-                    &across[up * render_width..][..render_width],
-                    &across[y * render_width..][..render_width],
-                    &across[down * render_width..][..render_width],
-                );
-                for (x, bounds) in row.iter_mut().enumerate() {
-                    *bounds = (
-                        up[x].0.min(here[x].0).min(down[x].0),
-                        up[x].1.max(here[x].1).max(down[x].1),
-                    );
-                }
-            });
-    }
-
-    /// Step 3, into `out` and the next history.
+    /// Step 2, into `out` and the next history.
     fn blend(&mut self, render_width: usize, render_height: usize, out: &mut Film) {
         let (width, height) = (self.width as usize, self.height as usize);
         out.width = self.width;
@@ -297,7 +251,6 @@ impl Upscaler {
         let blend = Blend::new(
             (self.history.len() == width * height).then_some(&self.history[..]),
             &self.samples,
-            &self.bounds,
             &self.settings,
             (width, height),
             (render_width, render_height),
@@ -319,12 +272,11 @@ impl Upscaler {
     }
 }
 
-/// What step 3 reads.
+/// What step 2 reads.
 struct Blend<'a> {
     /// Last frame's (None: none at this resolution).
     history: Option<&'a [Vec4]>,
     samples: &'a [Sample],
-    bounds: &'a [(Vec4, Vec4)],
     settings: &'a UpscaleSettings,
     columns: Vec<AxisTaps>,
     /// `UpscaleSettings::radius`, in shown pixels.
@@ -342,7 +294,6 @@ impl<'a> Blend<'a> {
     fn new(
         history: Option<&'a [Vec4]>,
         samples: &'a [Sample],
-        bounds: &'a [(Vec4, Vec4)],
         settings: &'a UpscaleSettings,
         (width, height): (usize, usize),
         (render_width, render_height): (usize, usize),
@@ -355,7 +306,6 @@ impl<'a> Blend<'a> {
         Blend {
             history,
             samples,
-            bounds,
             settings,
             columns: axis_taps(width, render_width, radius),
             rows: axis_taps(height, render_height, radius),
@@ -501,7 +451,7 @@ impl<'a> Blend<'a> {
         let weights = weights.to_array();
         let under = j * render_width + i;
         let moved = self.samples[under].moved;
-        let bounds = self.bounds[under];
+        let bounds = self.bounds_at(i, j);
         let corner = Vec2::new(left, top) - moved - 0.5;
         // The comparisons are false for NaN; within them the casts stay in range.
         let inside = corner.x >= 1.0
@@ -574,8 +524,12 @@ impl<'a> Blend<'a> {
         // Pixels 0 and 1 (top), 2 and 3 (bottom).
         let (mut top_sums, mut bottom_sums) = (_mm256_setzero_ps(), _mm256_setzero_ps());
         let mut weights = Vec4::ZERO;
+        // `bounds_at(i, j)` on the way: these are its nine samples.
+        let (mut low, mut high) = (Vec4::INFINITY, Vec4::NEG_INFINITY);
         for row in sample_rows {
             for sample in &row[i - 1..i + 2] {
+                low = low.min(sample.colour);
+                high = high.max(sample.colour);
                 let (dx, dy) = (
                     Vec4::splat(sample.at.x) - centres_x,
                     Vec4::splat(sample.at.y) - centres_y,
@@ -637,7 +591,6 @@ impl<'a> Blend<'a> {
 
         // `add_history` two pixels at a time: each pixel's history weight spread over its
         // four lanes, capped.
-        let (low, high) = self.bounds[under];
         let (low, high) = (
             _mm256_broadcast_ps(&low.into()),
             _mm256_broadcast_ps(&high.into()),
@@ -712,9 +665,26 @@ impl<'a> Blend<'a> {
         let under = row.under as usize * render_width + column.under as usize;
         let moved = self.samples[under].moved;
         if let Some(last) = self.last_at(centre - moved) {
-            self.add_history(last, self.bounds[under], &mut sum, &mut weight);
+            let bounds = self.bounds_at(column.under as usize, row.under as usize);
+            self.add_history(last, bounds, &mut sum, &mut weight);
         }
         self.finish(sum, weight, (centre.x as usize, centre.y as usize))
+    }
+
+    /// The least and greatest colour of the 3 x 3 samples around render pixel (x, y), the
+    /// film's edge repeated: what the history there is clamped to.
+    #[inline(always)]
+    fn bounds_at(&self, x: usize, y: usize) -> (Vec4, Vec4) {
+        let (width, height) = (self.render_width, self.render_height);
+        let (mut low, mut high) = (Vec4::INFINITY, Vec4::NEG_INFINITY);
+        for neighbour_y in [y.saturating_sub(1), y, (y + 1).min(height - 1)] {
+            let row = &self.samples[neighbour_y * width..][..width];
+            for neighbour_x in [x.saturating_sub(1), x, (x + 1).min(width - 1)] {
+                low = low.min(row[neighbour_x].colour);
+                high = high.max(row[neighbour_x].colour);
+            }
+        }
+        (low, high)
     }
 
     /// Last frame's history at film point `at` (`catmull_rom`), if there is one.
@@ -1010,7 +980,6 @@ mod tests {
         let blend = Blend::new(
             Some(&upscaler.history),
             &upscaler.samples,
-            &upscaler.bounds,
             &upscaler.settings,
             (width, height),
             (RENDER.0 as usize, RENDER.1 as usize),
