@@ -27,7 +27,7 @@ use glam::{Affine3A, Vec2, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
 use super::reproject::{LastTransforms, Motion};
-use crate::render::camera::Camera;
+use crate::render::camera::{Camera, Projection};
 use crate::render::film::Film;
 use crate::render::guides::{Guides, NO_INSTANCE, POSITION_X, POSITION_Y, POSITION_Z};
 
@@ -85,6 +85,129 @@ struct AxisTaps {
     low: u32,
     high: u32,
     fraction: f32,
+}
+
+/// A render row's first hits projected onto this frame's shown film and last frame's, as
+/// if nothing moved, plane by plane (step 1; moved instances are redone one by one). The
+/// sky's point is where the pixel's centre looks, as far as f32 keeps the direction (the
+/// sample's own jitter is not kept for it), through a pinhole (a lens camera's is redone
+/// one by one too). A row at a time in plain lane arithmetic, so it vectorises.
+#[derive(Default)]
+struct ProjectedRow {
+    now_x: Vec<f32>,
+    now_y: Vec<f32>,
+    now_in_front: Vec<bool>,
+    then_x: Vec<f32>,
+    then_y: Vec<f32>,
+    /// False everywhere without a last frame.
+    then_in_front: Vec<bool>,
+}
+
+impl ProjectedRow {
+    /// Row `y` of `guides`, seen by `camera`, through `now` (its projection at the shown
+    /// resolution) and `last` (compiled for AVX2 where `avx2`).
+    fn project(
+        &mut self,
+        avx2: bool,
+        now: (&Camera, &Projection),
+        last: Option<&Projection>,
+        guides: &Guides,
+        y: usize,
+    ) {
+        let width = guides.width as usize;
+        for plane in [
+            &mut self.now_x,
+            &mut self.now_y,
+            &mut self.then_x,
+            &mut self.then_y,
+        ] {
+            plane.resize(width, 0.0);
+        }
+        self.now_in_front.resize(width, false);
+        self.then_in_front.resize(width, false);
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            #[target_feature(enable = "avx2")]
+            fn project_avx2(
+                row: &mut ProjectedRow,
+                now: (&Camera, &Projection),
+                last: Option<&Projection>,
+                guides: &Guides,
+                y: usize,
+            ) {
+                row.project_lanes(now, last, guides, y);
+            }
+            // SAFETY: `avx2` is true only where the CPU has AVX2, the only feature enabled.
+            unsafe { project_avx2(self, now, last, guides, y) };
+            return;
+        }
+        let _ = avx2;
+        self.project_lanes(now, last, guides, y);
+    }
+
+    #[inline(always)]
+    fn project_lanes(
+        &mut self,
+        (camera, now): (&Camera, &Projection),
+        last: Option<&Projection>,
+        guides: &Guides,
+        y: usize,
+    ) {
+        let width = guides.width as usize;
+        let instances = &guides.instances()[y * width..][..width];
+        // Slices cut to `width`: the loops run without bounds checks, so they vectorise.
+        let (position_x, position_y, position_z) = (
+            &guides.row(y, POSITION_X)[..width],
+            &guides.row(y, POSITION_Y)[..width],
+            &guides.row(y, POSITION_Z)[..width],
+        );
+        let centre_y = y as f32 + 0.5;
+        let point = |x: usize| {
+            let [dx, dy, dz] = camera.pinhole_direction_lanes(Vec2::new(x as f32 + 0.5, centre_y));
+            let origin = camera.position;
+            // Chosen plane by plane (whole points chosen would be a branch per pixel).
+            let sky = instances[x] == NO_INSTANCE;
+            let pick = |sky_value: f32, hit: f32| if sky { sky_value } else { hit };
+            Vec3A::new(
+                pick(origin.x + dx * 1e4, position_x[x]),
+                pick(origin.y + dy * 1e4, position_y[x]),
+                pick(origin.z + dz * 1e4, position_z[x]),
+            )
+        };
+        let (now_x, now_y, now_in_front) = (
+            &mut self.now_x[..width],
+            &mut self.now_y[..width],
+            &mut self.now_in_front[..width],
+        );
+        for x in 0..width {
+            let projected = now.project_lanes(point(x));
+            (now_x[x], now_y[x], now_in_front[x]) = (projected.x, projected.y, projected.in_front);
+        }
+        let (then_x, then_y, then_in_front) = (
+            &mut self.then_x[..width],
+            &mut self.then_y[..width],
+            &mut self.then_in_front[..width],
+        );
+        let Some(last) = last else {
+            then_in_front.fill(false);
+            return;
+        };
+        for x in 0..width {
+            let projected = last.project_lanes(point(x));
+            (then_x[x], then_y[x], then_in_front[x]) =
+                (projected.x, projected.y, projected.in_front);
+        }
+    }
+
+    /// Pixel `x`'s first hit on this frame's shown film (`Projection::project`).
+    fn now(&self, x: usize) -> Option<Vec2> {
+        self.now_in_front[x].then(|| Vec2::new(self.now_x[x], self.now_y[x]))
+    }
+
+    /// ... and on last frame's, where it was if it did not move.
+    fn then(&self, x: usize) -> Option<Vec2> {
+        self.then_in_front[x].then(|| Vec2::new(self.then_x[x], self.then_y[x]))
+    }
 }
 
 /// `AxisTaps` for each of `shown` pixels along an axis `render` pixels long.
@@ -193,49 +316,44 @@ impl Upscaler {
         );
         let projection = shown.projection();
         let last = self.camera.as_ref().map(Camera::projection);
+        let avx2 = !self.portable_only && has_avx2();
         self.samples
             .resize(render_width * render_height, Sample::default());
         self.samples
             .par_chunks_mut(render_width)
             .enumerate()
-            .for_each(|(y, row)| {
-                let (position_x, position_y, position_z) = (
-                    guides.row(y, POSITION_X),
-                    guides.row(y, POSITION_Y),
-                    guides.row(y, POSITION_Z),
-                );
+            .for_each_init(ProjectedRow::default, |projected, (y, row)| {
+                projected.project(avx2, (camera, &projection), last.as_ref(), guides, y);
                 let instances = &guides.instances()[y * render_width..][..render_width];
                 let colours = &image.pixels[y * render_width..][..render_width];
                 for (x, sample) in row.iter_mut().enumerate() {
                     let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
                     let instance = instances[x];
-                    // The sky: where the pixel's centre looks, as far as f32 keeps the
-                    // direction (the sample's own jitter is not kept for it).
-                    let (at, point, motion) = if instance == NO_INSTANCE {
+                    let (at, was) = if instance == NO_INSTANCE && !camera.has_lens() {
+                        (centre * to_shown, projected.then(x))
+                    } else if instance == NO_INSTANCE {
+                        // `ProjectedRow`'s sky, through the lens.
                         let ray = camera.ray(centre, Vec2::ZERO);
                         let point = ray.origin + ray.direction * 1e4;
-                        (centre * to_shown, point, Motion::Still)
+                        let was = last.as_ref().and_then(|last| last.project(point));
+                        (centre * to_shown, was)
                     } else {
-                        let point = Vec3A::new(position_x[x], position_y[x], position_z[x]);
-                        let motion = motions.get(instance as usize).copied();
-                        let at = projection.project(point).unwrap_or(centre * to_shown);
-                        (at, point, motion.unwrap_or(Motion::New))
+                        let at = projected.now(x).unwrap_or(centre * to_shown);
+                        let was = match motions.get(instance as usize).copied() {
+                            Some(Motion::Still) => projected.then(x),
+                            Some(Motion::Moved(before_from_now)) => {
+                                let point = guides.surface_at(x, y).0;
+                                let before = before_from_now.transform_point3a(point);
+                                last.as_ref().and_then(|last| last.project(before))
+                            }
+                            Some(Motion::New) | None => None,
+                        };
+                        (at, was)
                     };
-                    let before = match motion {
-                        Motion::Still => Some(point),
-                        Motion::Moved(before_from_now) => {
-                            Some(before_from_now.transform_point3a(point))
-                        }
-                        Motion::New => None,
-                    };
-                    let was = before
-                        .zip(last.as_ref())
-                        .and_then(|(point, last)| last.project(point))
-                        .unwrap_or(Vec2::NAN);
                     *sample = Sample {
                         colour: colours[x].extend(0.0),
                         at,
-                        moved: at - was,
+                        moved: at - was.unwrap_or(Vec2::NAN),
                     };
                 }
             });

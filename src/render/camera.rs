@@ -72,6 +72,35 @@ impl Camera {
         )
     }
 
+    /// A pinhole `ray`'s direction through `film`, in plain lane arithmetic without
+    /// branches, so a row of them runs as vector lanes (`upscale`'s sky): ndc, the
+    /// camera-space direction, the rotation and the normalisation, in glam's order of
+    /// operations (`Mat3A * Vec3A` column by column, `normalize` a division by the length),
+    /// so the same bits (a test holds the two together). `ray` keeps glam's own: one ray
+    /// at a time it is the shorter (bench first-light, render 0.6% more instructions
+    /// through this).
+    #[inline(always)]
+    pub fn pinhole_direction_lanes(&self, film: Vec2) -> [f32; 3] {
+        let (width, height) = (self.width as f32, self.height as f32);
+        let aspect = width / height;
+        let (ndc_x, ndc_y) = (2.0 * film.x / width - 1.0, 1.0 - 2.0 * film.y / height);
+        let (dx, dy, dz) = (
+            ndc_x * self.tan_half_fov * aspect,
+            ndc_y * self.tan_half_fov,
+            -1.0,
+        );
+        let (x_axis, y_axis, z_axis) = (
+            self.rotation.x_axis,
+            self.rotation.y_axis,
+            self.rotation.z_axis,
+        );
+        let rx = x_axis.x * dx + y_axis.x * dy + z_axis.x * dz;
+        let ry = x_axis.y * dx + y_axis.y * dy + z_axis.y * dz;
+        let rz = x_axis.z * dx + y_axis.z * dy + z_axis.z * dz;
+        let length = (rx * rx + ry * ry + rz * rz).sqrt();
+        [rx / length, ry / length, rz / length]
+    }
+
     /// The film point (pixels from the top-left, continuous) a world point projects to
     /// through the pinhole: `ray`'s inverse. None behind the camera.
     pub fn project(&self, point: Vec3A) -> Option<Vec2> {
@@ -169,6 +198,30 @@ mod tests {
         // Left edge: x = -aspect * tan(45) = -2 at z = -1.
         let left = camera.ray(Vec2::new(0.0, 50.0), Vec2::ZERO);
         assert!((left.direction.x / left.direction.z - 2.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn pinhole_directions_in_lanes_are_ray_directions_to_the_bit() {
+        let placement = CameraPlacement {
+            name: String::new(),
+            yfov: 70f32.to_radians(),
+            znear: 0.1,
+            world_from_camera: Mat4::from_rotation_translation(
+                glam::Quat::from_euler(glam::EulerRot::YXZ, 2.3, -0.4, 0.2),
+                glam::Vec3::new(-4.0, 1.7, 9.0),
+            ),
+        };
+        let camera = Camera::new(&placement, 333, 187);
+        for i in 0..5000u32 {
+            let jitter = Vec2::new((i * 37 % 101) as f32, (i * 59 % 97) as f32) / 101.0;
+            let film = Vec2::new((i % 333) as f32, (i / 333 * 13 % 187) as f32) + jitter;
+            let ray = camera.ray(film, Vec2::ZERO);
+            assert_eq!(
+                ray.direction.to_array().map(f32::to_bits),
+                camera.pinhole_direction_lanes(film).map(f32::to_bits),
+                "film point {film}"
+            );
+        }
     }
 
     #[test]
