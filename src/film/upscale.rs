@@ -552,13 +552,7 @@ impl<'a> Blend<'a> {
         // `pixel`'s order.
         for row in sample_rows {
             for sample in &row[i - 1..i + 2] {
-                let (dx, dy) = (
-                    Vec4::splat(sample.at.x) - centres_x,
-                    Vec4::splat(sample.at.y) - centres_y,
-                );
-                let falloff =
-                    (Vec4::ONE - (dx * dx + dy * dy) * inverse_radius_squared).max(Vec4::ZERO);
-                let weight = falloff * falloff;
+                let weight = block_weights(sample, centres_x, centres_y, inverse_radius_squared);
                 sums[0] += sample.colour * weight.x;
                 sums[1] += sample.colour * weight.y;
                 sums[2] += sample.colour * weight.z;
@@ -567,15 +561,9 @@ impl<'a> Blend<'a> {
             }
         }
         let weights = weights.to_array();
-        let under = j * render_width + i;
-        let moved = self.samples[under].moved;
+        let moved = self.samples[j * render_width + i].moved;
         let bounds = self.bounds_at(i, j);
-        let corner = Vec2::new(left, top) - moved - 0.5;
-        // The comparisons are false for NaN; within them the casts stay in range.
-        let inside = corner.x >= 1.0
-            && corner.y >= 1.0
-            && corner.x < (width - 3) as f32
-            && corner.y < (self.height - 3) as f32;
+        let (corner, inside) = self.block_history_corner(i, j);
         let mut pixels = [Vec4::ZERO; 4];
         match self.history {
             Some(history) if inside => {
@@ -617,15 +605,9 @@ impl<'a> Blend<'a> {
     #[inline]
     unsafe fn block_avx2(&self, i: usize, j: usize, sample_rows: &[&[Sample]; 3]) -> [Vec4; 4] {
         use std::arch::x86_64::*;
-        let (width, render_width) = (self.width, self.render_width);
-        let under = j * render_width + i;
-        let moved = self.samples[under].moved;
+        let width = self.width;
         let (left, top) = (2.0 * i as f32 + 0.5, 2.0 * j as f32 + 0.5);
-        let corner = Vec2::new(left, top) - moved - 0.5;
-        let inside = corner.x >= 1.0
-            && corner.y >= 1.0
-            && corner.x < (width - 3) as f32
-            && corner.y < (self.height - 3) as f32;
+        let (corner, inside) = self.block_history_corner(i, j);
         let Some(history) = self.history.filter(|_| inside) else {
             return self.block(i, j, sample_rows);
         };
@@ -648,13 +630,7 @@ impl<'a> Blend<'a> {
             for sample in &row[i - 1..i + 2] {
                 low = low.min(sample.colour);
                 high = high.max(sample.colour);
-                let (dx, dy) = (
-                    Vec4::splat(sample.at.x) - centres_x,
-                    Vec4::splat(sample.at.y) - centres_y,
-                );
-                let falloff =
-                    (Vec4::ONE - (dx * dx + dy * dy) * inverse_radius_squared).max(Vec4::ZERO);
-                let weight = falloff * falloff;
+                let weight = block_weights(sample, centres_x, centres_y, inverse_radius_squared);
                 let colour = _mm256_broadcast_ps(&sample.colour.into());
                 top_sums =
                     _mm256_add_ps(top_sums, _mm256_mul_ps(colour, spread(weight, first_pair)));
@@ -762,6 +738,21 @@ impl<'a> Blend<'a> {
         pixels
     }
 
+    /// Where render pixel (i, j)'s block reads last frame's history: the top-left shown
+    /// pixel's centre less the motion, less half a pixel (`catmull_rom_block`'s corner),
+    /// and whether all its taps are on the film.
+    #[inline(always)]
+    fn block_history_corner(&self, i: usize, j: usize) -> (Vec2, bool) {
+        let moved = self.samples[j * self.render_width + i].moved;
+        let corner = Vec2::new(2.0 * i as f32 + 0.5, 2.0 * j as f32 + 0.5) - moved - 0.5;
+        // The comparisons are false for NaN; within them the casts stay in range.
+        let inside = corner.x >= 1.0
+            && corner.y >= 1.0
+            && corner.x < (self.width - 3) as f32
+            && corner.y < (self.height - 3) as f32;
+        (corner, inside)
+    }
+
     /// One shown pixel, centred at `centre` (its render rows `row` and columns `column`):
     /// its colour, and in w the weight behind it (its next history).
     #[inline(always)]
@@ -848,6 +839,23 @@ impl<'a> Blend<'a> {
         }
         (sum / weight).truncate().extend(weight)
     }
+}
+
+/// A sample's weight at the four centres of a block (`Blend::block`): a smooth bump, 1 at
+/// a centre and 0 at the radius.
+#[inline(always)]
+fn block_weights(
+    sample: &Sample,
+    centres_x: Vec4,
+    centres_y: Vec4,
+    inverse_radius_squared: Vec4,
+) -> Vec4 {
+    let (dx, dy) = (
+        Vec4::splat(sample.at.x) - centres_x,
+        Vec4::splat(sample.at.y) - centres_y,
+    );
+    let falloff = (Vec4::ONE - (dx * dx + dy * dy) * inverse_radius_squared).max(Vec4::ZERO);
+    falloff * falloff
 }
 
 /// Whether this CPU runs AVX2 code.
