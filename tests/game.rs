@@ -155,6 +155,32 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
 }
 
 #[test]
+fn filtered_frames_draw_new_samples_while_the_world_moves() {
+    let scene = level("first-light.ron");
+    let mut engine = Engine::new(&scene, settings(1));
+    common::pause_animation(&mut engine);
+    engine.film.filter.mode = gloam::film::FilterMode::Full;
+    engine.advance(0.0);
+    let mut seen = vec![engine.film.sample_frame()];
+    // A change every frame restarts the sum each time, but the filter's frames must not
+    // draw the same samples (and jitters) again.
+    for _ in 0..3 {
+        lift(&mut engine, &scene, "pillar 1");
+        engine.advance(1.0 / 60.0);
+        seen.push(engine.film.sample_frame());
+    }
+    assert!(engine.film.frames < 4, "the changes restarted the sum");
+    assert_eq!(seen, [1, 2, 3, 4]);
+    // Summing still frames, the sequence starts again with the sum.
+    engine.film.filter.mode = gloam::film::FilterMode::Off;
+    lift(&mut engine, &scene, "pillar 1");
+    engine.advance(1.0 / 60.0);
+    engine.advance(1.0 / 60.0);
+    assert_eq!(engine.film.sample_frame(), engine.film.frames);
+    assert!(engine.film.frames <= 1);
+}
+
+#[test]
 fn the_simulation_runs_at_a_fixed_sixty_hertz() {
     let mut engine = Engine::new(
         &level("cornell.ron"),

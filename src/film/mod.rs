@@ -36,6 +36,11 @@ pub struct Accumulation {
     pub settings: RenderSettings,
     sum: Vec<Vec3>,
     pub frames: u32,
+    /// Frames rendered through the filter since the film began: their sample sequence's
+    /// index. The filter's history carries on across changes, so its frames must go on
+    /// drawing new samples (and new sub-pixel jitters, which the upscaler rebuilds the
+    /// shown resolution from) where a restarted sum begins its sequence again.
+    filtered_frames: u32,
     /// The real-time filter chain (`FilterMode::Off` unless the shell turns it on).
     pub filter: FrameFilter,
     /// The last frame through the filter.
@@ -66,6 +71,7 @@ impl Accumulation {
             settings,
             sum: vec![Vec3::ZERO; pixels],
             frames: 0,
+            filtered_frames: 0,
             filter: FrameFilter::new(FilterMode::Off),
             filtered: None,
             rendered: None,
@@ -120,6 +126,19 @@ impl Accumulation {
         }
     }
 
+    /// The index of the sample sequence the next frame draws from: through the filter,
+    /// every frame's is new (a moving view or warden resets the sum every frame, and
+    /// frames drawing the same samples would leave the same noise and the same jitter
+    /// for the filter and the upscaler to average); summing still frames, the sum's own
+    /// count, so N frames are the sequence's first N samples.
+    pub fn sample_frame(&self) -> u32 {
+        if self.filter.mode != FilterMode::Off {
+            self.filtered_frames
+        } else {
+            self.frames
+        }
+    }
+
     /// The last frame's render tiles: the thread that traced each, and when.
     pub fn tile_spans(&self) -> &[TileSpan] {
         &self.tile_spans
@@ -140,9 +159,9 @@ impl Accumulation {
             self.reset = false;
         }
         let mut settings = self.settings.clone();
-        settings.frame = self.frames;
-        let camera = Camera::new(&scene.camera, settings.width, settings.height);
         let filtering = self.filter.mode != FilterMode::Off;
+        settings.frame = self.sample_frame();
+        let camera = Camera::new(&scene.camera, settings.width, settings.height);
         let start = std::time::Instant::now();
         let mut output = {
             profiling::scope!("render");
@@ -196,6 +215,7 @@ impl Accumulation {
             self.filtered = Some(image);
             self.rendered = Some(output);
             self.frames += 1;
+            self.filtered_frames = self.filtered_frames.wrapping_add(1);
             let film_ms = since(start);
             times.add(Stage::Film, film_ms);
             // The steps' own times, with the little around them (the instances' transforms
