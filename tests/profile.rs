@@ -114,6 +114,9 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
         (ratio - expected).abs() <= 1e-9 * expected,
         "{ratio} against {expected}"
     );
+    // The radiance cache ends some of the paths, never more than there are.
+    let ended = report["cache_ended_share"].as_f64().unwrap();
+    assert!(ended > 0.0 && ended < 1.0, "cache_ended_share {ended}");
     // Wardens walk in first-light: animation and refits take time every frame.
     assert!(report["stages"]["animation"]["mean_ms"].as_f64().unwrap() > 0.0);
     assert!(report["stages"]["blas_refit"]["mean_ms"].as_f64().unwrap() > 0.0);
@@ -262,6 +265,10 @@ fn the_same_bench_does_the_same_work_every_run() {
         rays(&first),
         rays(&second),
         "same path, same poses, same rays"
+    );
+    assert_eq!(
+        first["cache_ended_share"], second["cache_ended_share"],
+        "the radiance cache learns the same on any thread count"
     );
 }
 

@@ -35,7 +35,7 @@ use crate::frame::Engine;
 use crate::game::{Patrol, Transform, ViewCamera};
 use crate::render::film::display_value;
 use crate::render::light::{Light, luminance};
-use crate::render::{Film, Guides, RenderSettings, render, render_guided};
+use crate::render::{Film, Guides, RadianceCache, RenderSettings, render, render_guided};
 use crate::scene::files::write_atomically;
 use crate::scene::world::Scene;
 
@@ -297,6 +297,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     let mut settings = RenderSettings::real_time(width, height);
     let mut player_settings = RenderSettings::real_time(render_size.0, render_size.1);
     let (mut player_render, mut player_image) = (Film::new(0, 0), Film::new(0, 0));
+    // Each view's radiance cache, as the game keeps one for its view.
+    let (mut cache, mut player_cache) = (RadianceCache::new(), RadianceCache::new());
     let mut resized_render = Film::new(0, 0);
     let mut trail_masks: VecDeque<Vec<bool>> = VecDeque::new();
     let mut rows = Vec::new();
@@ -331,7 +333,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         let camera = engine.view_camera(width, height);
         settings.frame = frame;
         let started = Instant::now();
-        let output = render_guided(engine.render_scene(), &camera, &settings);
+        let output = render_guided(engine.render_scene(), &camera, &settings, Some(&mut cache));
         render_ms.push(started.elapsed().as_secs_f64() * 1e3);
         let guides = output.guides.as_ref().context("guides")?;
         let instances: Vec<Affine3A> = engine
@@ -352,7 +354,12 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         let player_camera = engine.view_camera(render_size.0, render_size.1);
         player_settings.frame = frame;
         let started = Instant::now();
-        let player_output = render_guided(engine.render_scene(), &player_camera, &player_settings);
+        let player_output = render_guided(
+            engine.render_scene(),
+            &player_camera,
+            &player_settings,
+            Some(&mut player_cache),
+        );
         player_render_ms.push(started.elapsed().as_secs_f64() * 1e3);
         let player_guides = player_output.guides.as_ref().context("guides")?;
         let started = Instant::now();

@@ -26,7 +26,7 @@ pub use upscale::{UpscaleSettings, Upscaler};
 use crate::profile::{Stage, StageTimes, TileSpan, since};
 use crate::render::scene::SceneChanges;
 use crate::render::{
-    Camera, Film, RenderOutput, RenderScene, RenderSettings, render, render_guided,
+    Camera, Film, RadianceCache, RenderOutput, RenderScene, RenderSettings, render, render_guided,
     render_guided_reusing,
 };
 
@@ -47,6 +47,8 @@ pub struct Accumulation {
     filtered: Option<Film>,
     /// The last filtered frame's render, whose buffers the next one reuses.
     rendered: Option<RenderOutput>,
+    /// The filtered frames' radiance cache (made with the first of them: render/cache.rs).
+    cache: Option<RadianceCache>,
     /// The resolution shown: the filtered frames are upscaled to it when the render's is
     /// lower (still frames summed without the filter are shown at the render's).
     pub shown: (u32, u32),
@@ -75,6 +77,7 @@ impl Accumulation {
             filter: FrameFilter::new(FilterMode::Off),
             filtered: None,
             rendered: None,
+            cache: None,
             reset: true,
             view: None,
             tile_spans: Vec::new(),
@@ -166,9 +169,12 @@ impl Accumulation {
         let mut output = {
             profiling::scope!("render");
             if filtering {
+                let cache = Some(self.cache.get_or_insert_with(RadianceCache::new));
                 match self.rendered.take() {
-                    Some(earlier) => render_guided_reusing(scene, &camera, &settings, earlier),
-                    None => render_guided(scene, &camera, &settings),
+                    Some(earlier) => {
+                        render_guided_reusing(scene, &camera, &settings, earlier, cache)
+                    }
+                    None => render_guided(scene, &camera, &settings, cache),
                 }
             } else {
                 render(scene, &camera, &settings, &|_| {})
@@ -178,6 +184,7 @@ impl Accumulation {
         times.add(Stage::Render, render_ms);
         times.render_phases = output.phases.share_of(render_ms);
         times.rays = output.rays.total();
+        times.cache_ended = output.rays.cache_ended;
         self.tile_spans = std::mem::take(&mut output.tiles);
         let start = std::time::Instant::now();
         profiling::scope!("film");

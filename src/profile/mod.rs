@@ -159,6 +159,8 @@ pub struct StageTimes {
     pub gameplay_phases: [f64; GAMEPLAY_PHASES.len()],
     /// Rays the render traced (camera, bounce and shadow).
     pub rays: u64,
+    /// Paths the radiance cache ended at their second vertex.
+    pub cache_ended: u64,
 }
 
 impl StageTimes {
@@ -190,6 +192,7 @@ impl StageTimes {
             gameplay_phases,
             frame_ms,
             rays: self.rays,
+            cache_ended: self.cache_ended,
             tiles: Vec::new(),
         }
     }
@@ -298,6 +301,8 @@ pub struct FrameSample {
     pub gameplay_phases: [f64; GAMEPLAY_PHASES.len()],
     pub frame_ms: f64,
     pub rays: u64,
+    /// Paths the radiance cache ended at their second vertex.
+    pub cache_ended: u64,
     /// The render's tiles, as `Accumulation::tile_spans` gives them; `bench` keeps them,
     /// the window's running profile does not (they would grow by 900 a frame).
     pub tiles: Vec<TileSpan>,
@@ -448,6 +453,7 @@ impl Profile {
             "frame": self.frame().json(),
             "mrays_per_s": self.mrays_per_s(),
             "rays_per_frame": self.frames.iter().map(|f| f.rays).collect::<Vec<_>>(),
+            "cache_ended_share": self.cache_ended_share(),
         });
         if let Some(accel) = &self.accel_rays {
             report["accel_mrays_per_s"] = json!({
@@ -467,6 +473,15 @@ impl Profile {
             report[format!("{stage}_phases")] = Value::Object(phases);
         }
         report
+    }
+
+    /// The share of the rendered paths (a pixel's a frame) the radiance cache ended at
+    /// their second vertex.
+    pub fn cache_ended_share(&self) -> f64 {
+        let (width, height) = self.render_size.unwrap_or((self.width, self.height));
+        let paths = u64::from(width) * u64::from(height) * self.frames.len() as u64;
+        let ended: u64 = self.frames.iter().map(|frame| frame.cache_ended).sum();
+        ended as f64 / paths.max(1) as f64
     }
 
     /// The table `gloam bench` prints: a row per stage.
@@ -522,6 +537,12 @@ impl Profile {
                 accel.shadow,
                 accel.bounce,
                 ratio
+            );
+        }
+        if self.frames.iter().any(|frame| frame.cache_ended > 0) {
+            text += &format!(
+                "radiance cache: ended {:.0}% of the paths at their second vertex\n",
+                100.0 * self.cache_ended_share()
             );
         }
         text
@@ -724,6 +745,7 @@ mod tests {
             gameplay_phases: [0.0, 0.0, 0.0, 0.0],
             frame_ms: render + 1.5,
             rays: 10,
+            cache_ended: 0,
             tiles: vec![
                 TileSpan {
                     thread: 0,

@@ -12,6 +12,7 @@
 use glam::{Vec2, Vec3, Vec3A};
 
 use super::bsdf::Bsdf;
+use super::cache::{CacheSample, CellKey, CellSizing};
 use super::light::LightSample;
 use super::sampler::{PixelSampler, VertexDraws};
 use super::sampling::{Frame, power_heuristic};
@@ -24,12 +25,14 @@ pub enum IntegratorKind {
     Reference,
 }
 
-/// Rays traced, for throughput figures.
+/// Rays traced, for throughput figures, and the paths the radiance cache ended (which
+/// are not rays: `total` leaves them out).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RayCounts {
     pub camera: u64,
     pub bounce: u64,
     pub shadow: u64,
+    pub cache_ended: u64,
 }
 
 impl RayCounts {
@@ -41,6 +44,7 @@ impl RayCounts {
         self.camera += other.camera;
         self.bounce += other.bounce;
         self.shadow += other.shadow;
+        self.cache_ended += other.cache_ended;
     }
 }
 
@@ -272,19 +276,7 @@ pub fn path_vertex(
 
     // 2. Emission at the hit: in full after the camera or a specular bounce, else
     //    weighted against the light-sampling strategy that could also have found it.
-    if emitted != Vec3::ZERO {
-        if state.specular_bounce {
-            state.radiance += state.beta * emitted;
-        } else if let Some(light) = scene.lights.triangle_light(hit.instance, hit.primitive) {
-            let light_pdf = scene
-                .lights
-                .pdf(light, state.previous_position, surface.position);
-            state.radiance +=
-                state.beta * emitted * power_heuristic(state.previous_bsdf_pdf, light_pdf);
-        } else {
-            state.radiance += state.beta * emitted;
-        }
-    }
+    add_emission(scene, state, &hit, &surface, emitted);
 
     if state.depth == max_depth {
         return VertexOutcome::default();
@@ -359,6 +351,123 @@ pub fn path_vertex(
     outcome.next = Some(Ray::spawn(v.surface.position, v.facing_normal, wi_world));
     counts.bounce += 1;
     outcome
+}
+
+/// The light a path's last ray found emitted at `hit`: in full after the camera or a
+/// specular bounce, else weighted against the light-sampling strategy that could also have
+/// found it.
+fn add_emission(
+    scene: &RenderScene,
+    state: &mut PathState,
+    hit: &Hit,
+    surface: &SurfaceHit,
+    emitted: Vec3,
+) {
+    if emitted == Vec3::ZERO {
+        return;
+    }
+    if state.specular_bounce {
+        state.radiance += state.beta * emitted;
+    } else if let Some(light) = scene.lights.triangle_light(hit.instance, hit.primitive) {
+        let light_pdf = scene
+            .lights
+            .pdf(light, state.previous_position, surface.position);
+        state.radiance +=
+            state.beta * emitted * power_heuristic(state.previous_bsdf_pdf, light_pdf);
+    } else {
+        state.radiance += state.beta * emitted;
+    }
+}
+
+/// Where a path's second vertex stands with the radiance cache (render/cache.rs): its cell,
+/// and the albedo the cell's light is scaled by.
+#[derive(Clone, Copy, Debug)]
+pub struct CacheVertex {
+    pub cell: CellKey,
+    pub albedo: Vec3,
+}
+
+/// The radiance cache's view of the vertex a path's last ray found, if the cache may stand
+/// in for the path from there: the path's second vertex, reached by a bounce light sampling
+/// could also have taken, on a purely diffuse surface, farther from the first than the
+/// cell is wide.
+pub fn cache_vertex(
+    scene: &RenderScene,
+    state: &PathState,
+    found: &NextHit,
+    sizing: &CellSizing,
+) -> Option<CacheVertex> {
+    if state.depth != 1 || state.specular_bounce {
+        return None;
+    }
+    let material = scene.material(found.hit.instance, found.surface.material);
+    if material.metallic > 0.0 || material.transmission > 0.0 {
+        return None;
+    }
+    let position = found.surface.position;
+    let normal = found.surface.geometric_normal;
+    let facing = if normal.dot(found.wo_world) >= 0.0 {
+        normal
+    } else {
+        -normal
+    };
+    let (cell, side) = CellKey::at(position, facing, sizing);
+    if position.distance(state.previous_position) < side {
+        return None;
+    }
+    Some(CacheVertex {
+        cell,
+        albedo: material.albedo_at(&scene.textures, found.surface.uv),
+    })
+}
+
+/// Ends a path at the vertex `found` with the cache's `light` there (its albedo already
+/// applied) in place of everything the path would have gathered from that vertex on.
+pub fn end_at_cache(scene: &RenderScene, state: &mut PathState, found: &NextHit, light: Vec3) {
+    add_emission(scene, state, &found.hit, &found.surface, found.emitted);
+    state.radiance += state.beta * light;
+}
+
+/// A full path's mark at its second vertex, from which `CacheMark::sample` reads what the
+/// path gathered from there on, for the cache to learn.
+#[derive(Clone, Copy, Debug)]
+pub struct CacheMark {
+    vertex: CacheVertex,
+    /// Throughput on arrival, and radiance once the vertex's emission was added.
+    beta: Vec3,
+    radiance: Vec3,
+}
+
+impl CacheMark {
+    /// Taken just before the path's second vertex is shaded (`path_vertex`).
+    pub fn before(vertex: CacheVertex, state: &PathState) -> CacheMark {
+        CacheMark {
+            vertex,
+            beta: state.beta,
+            radiance: state.radiance,
+        }
+    }
+
+    /// Once `path_vertex` has added the vertex's emission (and nothing after it).
+    pub fn after_emission(&mut self, state: &PathState) {
+        self.radiance = state.radiance;
+    }
+
+    /// What the path gathered from the vertex on (its state once it ended), over the
+    /// throughput that carried it back and the vertex's albedo: the cell's light.
+    pub fn sample(&self, ended: &PathState) -> CacheSample {
+        let scale = self.beta * self.vertex.albedo;
+        let gathered = ended.radiance - self.radiance;
+        let light = Vec3::select(
+            scale.cmpgt(Vec3::splat(1e-4)),
+            gathered / scale.max(Vec3::splat(1e-4)),
+            Vec3::ZERO,
+        );
+        CacheSample {
+            cell: self.vertex.cell,
+            light,
+        }
+    }
 }
 
 /// Follows a path from `ray` (already counted) to its end, one vertex at a time.

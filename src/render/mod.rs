@@ -18,16 +18,21 @@
 //!      they measured slower: see accel/packet.rs and accel/stream.rs);
 //!    - `bounces`: every path onwards, a vertex at a time: each live path's bounce ray
 //!      alone (incoherent: neither packets nor streams paid), then that vertex's shadow
-//!      rays as one stream, until every path has ended;
+//!      rays as one stream, until every path has ended; with a radiance cache (the
+//!      real-time view's), a path whose second vertex's cell has learnt its light ends
+//!      there with that light, unless it is one of the frame's teachers (`cache.rs`);
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
 //!    thread count) and store the mean in the film (and the kept-apart lamp light's mean
-//!    in the guides' `unfiltered` light, which the film's filters leave as it is).
+//!    in the guides' `unfiltered` light, which the film's filters leave as it is);
+//! 4. with a radiance cache, fold the teachers' samples into it, tile by tile in image
+//!    order (so the next frame's cache does not depend on the thread count either).
 //!
 //! The phases draw each pixel's sample dimensions in the order one path at a time
 //! (`integrator::continue_path` from the camera ray) does, so
 //! the wavefront and the one-path-at-a-time integrator give bit-identical images.
 
 pub mod bsdf;
+pub mod cache;
 pub mod camera;
 pub mod film;
 pub mod guides;
@@ -46,6 +51,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+pub use cache::RadianceCache;
 pub use camera::Camera;
 pub use film::Film;
 pub use guides::{GuidePixel, Guides};
@@ -55,9 +61,10 @@ pub use scene::RenderScene;
 
 use crate::accel::{Hit, InstanceMask, Ray};
 use crate::profile::{TileSpan, since};
+use cache::{CacheSample, CellSizing};
 use integrator::{
-    NextHit, PathState, ShadowQuery, VertexOutcome, camera_sample, next_hit, next_hits,
-    path_vertex, reference_radiance,
+    CacheMark, NextHit, PathState, ShadowQuery, VertexOutcome, cache_vertex, camera_sample,
+    end_at_cache, next_hit, next_hits, path_vertex, reference_radiance,
 };
 use sampler::{BlueNoise, PixelSampler, VertexDrawBatch};
 use scene::SceneAlpha;
@@ -164,6 +171,8 @@ struct TileResult {
     pixels: Vec<(u32, Vec3)>,
     /// Sample 0's guides per pixel, in `pixels` order (empty unless asked for).
     guides: Vec<GuidePixel>,
+    /// What the tile's full paths teach the radiance cache, in pixel order.
+    cache_samples: Vec<CacheSample>,
     counts: RayCounts,
     phases: PhaseTimes,
     invalid: u64,
@@ -178,6 +187,10 @@ struct TileScratch<'a> {
     /// A vertex's sample values for every path there, drawn together.
     draws: VertexDrawBatch,
     paths: Vec<PathState>,
+    /// Per path: traced in full to teach the radiance cache (`RadianceCache::trains`), and
+    /// its mark at the second vertex when it will.
+    trains: Vec<bool>,
+    marks: Vec<Option<CacheMark>>,
     hits: Vec<Option<NextHit>>,
     /// The camera rays, and what `intersect_coherent` found for them.
     rays: Vec<Ray>,
@@ -244,16 +257,19 @@ pub fn render(
     settings: &RenderSettings,
     progress: &(dyn Fn(f32) + Sync),
 ) -> RenderOutput {
-    render_tiles(scene, camera, settings, progress, false, None)
+    render_tiles(scene, camera, settings, progress, false, None, None)
 }
 
-/// `render`, plus each pixel's guides (its first hit) for the film step's filters.
+/// `render`, plus each pixel's guides (its first hit) for the film step's filters; with a
+/// radiance `cache`, most paths end at their second vertex with the cache's light there,
+/// and the frame's full paths teach it (the real-time view's frames: render/cache.rs).
 pub fn render_guided(
     scene: &RenderScene,
     camera: &Camera,
     settings: &RenderSettings,
+    cache: Option<&mut RadianceCache>,
 ) -> RenderOutput {
-    render_tiles(scene, camera, settings, &|_| {}, true, None)
+    render_tiles(scene, camera, settings, &|_| {}, true, None, cache)
 }
 
 /// `render_guided` into the buffers of an earlier output (the real-time view's frame after
@@ -263,8 +279,9 @@ pub fn render_guided_reusing(
     camera: &Camera,
     settings: &RenderSettings,
     earlier: RenderOutput,
+    cache: Option<&mut RadianceCache>,
 ) -> RenderOutput {
-    render_tiles(scene, camera, settings, &|_| {}, true, Some(earlier))
+    render_tiles(scene, camera, settings, &|_| {}, true, Some(earlier), cache)
 }
 
 fn render_tiles(
@@ -274,6 +291,7 @@ fn render_tiles(
     progress: &(dyn Fn(f32) + Sync),
     want_guides: bool,
     earlier: Option<RenderOutput>,
+    cache: Option<&mut RadianceCache>,
 ) -> RenderOutput {
     let start = Instant::now();
     let (width, height) = (settings.width.max(1), settings.height.max(1));
@@ -296,6 +314,7 @@ fn render_tiles(
                 width,
                 height,
                 want_guides,
+                cache: cache.as_deref(),
             };
             let begun = since(start) as f32;
             let mut result = match settings.integrator {
@@ -349,6 +368,10 @@ fn render_tiles(
                 }
             });
     }
+    if let Some(cache) = cache {
+        profiling::scope!("render.cache");
+        cache.learn(results.iter().flat_map(|tile| &tile.cache_samples));
+    }
     let mut rays = RayCounts::default();
     let mut phases = PhaseTimes::default();
     let mut invalid_samples = 0;
@@ -377,6 +400,8 @@ struct Tile<'a> {
     width: u32,
     height: u32,
     want_guides: bool,
+    /// The radiance cache as the last frame left it (real-time renders only).
+    cache: Option<&'a RadianceCache>,
 }
 
 impl<'a> Tile<'a> {
@@ -418,6 +443,8 @@ impl<'a> Tile<'a> {
         let mut phases = PhaseTimes::default();
         let mut invalid = 0;
         let mut guides = Vec::new();
+        let mut cache_samples = Vec::new();
+        let sizing = CellSizing::of(self.camera);
         let count = self.pixels(origin).count();
         scratch.sums.clear();
         scratch.sums.resize(count, Vec3::ZERO);
@@ -433,7 +460,13 @@ impl<'a> Tile<'a> {
                 scratch.paths.clear();
                 scratch.hits.clear();
                 scratch.rays.clear();
+                scratch.trains.clear();
+                scratch.marks.clear();
+                scratch.marks.resize(count, None);
                 for pixel in self.pixels(origin) {
+                    scratch
+                        .trains
+                        .push(self.cache.is_some() && RadianceCache::trains(settings.frame, pixel));
                     let mut sampler = self.sampler(pixel, sample);
                     let ray = self.camera_ray(pixel, &mut sampler);
                     // The real-time film leaves the dominant lamp's light out of its
@@ -516,14 +549,29 @@ impl<'a> Tile<'a> {
                     );
                     for (&(index, ray), draws) in scratch.live.iter().zip(draws) {
                         let found = next_hit(scene, &ray, InstanceMask::BOUNCE, &alpha);
-                        let outcome = path_vertex(
-                            scene,
-                            &mut scratch.paths[index],
-                            found,
-                            draws,
-                            settings.max_depth,
-                            &mut counts,
-                        );
+                        let path = &mut scratch.paths[index];
+                        // The radiance cache: at the second vertex, the cell's light ends
+                        // the path, unless the path teaches the cache (or the cell has not
+                        // learnt enough yet), when it goes on and is marked there.
+                        let mut mark = None;
+                        if let (Some(cache), Some(hit)) = (self.cache, &found)
+                            && let Some(vertex) = cache_vertex(scene, path, hit, &sizing)
+                        {
+                            if !scratch.trains[index]
+                                && let Some(light) = cache.light(vertex.cell)
+                            {
+                                end_at_cache(scene, path, hit, light * vertex.albedo);
+                                counts.cache_ended += 1;
+                                continue;
+                            }
+                            mark = Some(CacheMark::before(vertex, path));
+                        }
+                        let outcome =
+                            path_vertex(scene, path, found, draws, settings.max_depth, &mut counts);
+                        if let Some(mut mark) = mark {
+                            mark.after_emission(path);
+                            scratch.marks[index] = Some(mark);
+                        }
                         if let Some(shadow) = outcome.shadow {
                             scratch.shadows.push((index, shadow));
                         }
@@ -534,6 +582,10 @@ impl<'a> Tile<'a> {
                     scratch.resolve_shadows(scene, &alpha);
                     std::mem::swap(&mut scratch.live, &mut scratch.next_live);
                 }
+                cache_samples.extend(
+                    (scratch.marks.iter().zip(&scratch.paths))
+                        .filter_map(|(mark, path)| Some(mark.as_ref()?.sample(path))),
+                );
                 for ((sum, dominant_sum), path) in (scratch.sums.iter_mut())
                     .zip(&mut scratch.dominant_sums)
                     .zip(&scratch.paths)
@@ -566,6 +618,7 @@ impl<'a> Tile<'a> {
             width: self.tile_width(origin),
             pixels,
             guides,
+            cache_samples,
             counts,
             phases,
             invalid,
@@ -613,6 +666,7 @@ impl<'a> Tile<'a> {
             width: self.tile_width(origin),
             pixels,
             guides,
+            cache_samples: Vec::new(),
             counts,
             phases: PhaseTimes {
                 bounces: clock.elapsed().as_secs_f64(),
@@ -677,6 +731,7 @@ mod tests {
             width: settings.width,
             height: settings.height,
             want_guides: false,
+            cache: None,
         };
         let alpha = scene.alpha();
         let mut counts = RayCounts::default();
@@ -722,7 +777,7 @@ mod tests {
         };
         let camera = Camera::new(&scene.camera, settings.width, settings.height);
         let plain = render(&scene, &camera, &settings, &|_| {}).film;
-        let split = render_guided(&scene, &camera, &settings);
+        let split = render_guided(&scene, &camera, &settings, None);
         let guides = split.guides.expect("render_guided gives guides");
         let mean = |film: &Film| {
             film.pixels

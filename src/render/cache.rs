@@ -1,0 +1,366 @@
+//! Frame step `render`: the real-time renderer's radiance cache, which ends most paths at
+//! their second vertex. It owns a world-space hash grid of the light diffuse surfaces
+//! reflect, learnt from the paths that go on, frame after frame.
+//!
+//! After the method of NVIDIA's spatially hashed radiance cache (SHaRC, RTXGI 2024) and
+//! Müller et al. 2021 ("Real-time Neural Radiance Caching for Path Tracing"): a few paths
+//! (`trains`: one pixel in each 4 x 4 block, taking turns over 16 frames) are traced in
+//! full, and what arrived back at their second vertex is averaged into that vertex's cell;
+//! the others, at a second vertex whose cell has learnt enough, take the cell's light
+//! instead of tracing on. That saves the vertex's shadow ray and everything after it.
+//!
+//! Per frame:
+//! 1. the tiles read the cache as the last frame left it (read only, so the frame does not
+//!    depend on the order the threads take the tiles in);
+//! 2. each tile lists its full paths' samples (`CacheSample`);
+//! 3. `learn` folds them in, tile by tile in image order, into each cell's running mean.
+//!
+//! A cell is a cube whose side doubles with the distance from the camera (about four
+//! render pixels across wherever it is seen), keyed with the axis its surface faces, so the
+//! two faces of a thin wall never share one. It stores what the surface reflects divided
+//! by its albedo (the light arriving, in effect), which the vertex's own albedo multiplies
+//! back: textures keep their detail across a cell.
+//!
+//! Only a second vertex on a diffuse surface, reached by a diffuse bounce from farther away
+//! than its cell's side, takes the cache: a mirror would show the cells' blocks, and in a
+//! corner the cell would reach past the corner into the other wall.
+
+use glam::{Vec3, Vec3A};
+
+use super::Camera;
+
+/// How large cells are where: from the camera's eye, `CELL_PIXELS` of its pixels across.
+#[derive(Clone, Copy, Debug)]
+pub struct CellSizing {
+    pub eye: Vec3A,
+    /// A cell's side a metre from the eye.
+    pub side_per_metre: f32,
+}
+
+impl CellSizing {
+    pub fn of(camera: &Camera) -> CellSizing {
+        CellSizing {
+            eye: camera.position,
+            side_per_metre: CELL_PIXELS * 2.0 * camera.tan_half_fov / camera.height.max(1) as f32,
+        }
+    }
+}
+
+/// The smallest cell's side, in metres.
+const CELL_MIN: f32 = 0.05;
+/// About how many render pixels a cell spans where the camera sees it.
+const CELL_PIXELS: f32 = 4.0;
+/// Slots in the table: 2^16 cells of 32 bytes, 2 MB.
+const SLOTS: usize = 1 << 16;
+/// Slots probed from a key's hash before a cell gives up its place.
+const PROBES: usize = 8;
+/// A cell's running mean weighs its newest samples at least this much (against all it has
+/// learnt), so moving lamps' light moves with them within a few frames.
+const NEWEST_WEIGHT: f32 = 1.0 / 16.0;
+/// Samples a cell must have learnt before paths take its light.
+const SAMPLES_TO_TRUST: f32 = 4.0;
+/// Frames after which a cell nothing has trained is forgotten.
+const FRAMES_TO_FORGET: u32 = 32;
+
+/// A cell's identity: its level, the axis its surface faces and its coordinates, packed.
+/// 0 is no cell.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct CellKey(u64);
+
+impl CellKey {
+    /// The cell of a surface point `position` facing `normal`, and the cell's side: a
+    /// power of two times `CELL_MIN`, at most the side `sizing` asks for there.
+    pub fn at(position: Vec3A, normal: Vec3A, sizing: &CellSizing) -> (CellKey, f32) {
+        let wanted = position.distance(sizing.eye) * sizing.side_per_metre;
+        let level = (wanted / CELL_MIN).max(1.0).log2().floor().min(15.0) as u64;
+        let side = CELL_MIN * (1u32 << level) as f32;
+        let axis = {
+            let a = normal.abs();
+            let (index, value) = if a.x >= a.y && a.x >= a.z {
+                (0, normal.x)
+            } else if a.y >= a.z {
+                (1, normal.y)
+            } else {
+                (2, normal.z)
+            };
+            2 * index + (value < 0.0) as u64
+        };
+        // 17 bits a coordinate: +-65536 cells, 3.2 km at the smallest side.
+        let coordinate = |value: f32| ((value / side).floor() as i64 & 0x1ffff) as u64;
+        let key = 1 << 63
+            | level << 54
+            | axis << 51
+            | coordinate(position.x) << 34
+            | coordinate(position.y) << 17
+            | coordinate(position.z);
+        (CellKey(key), side)
+    }
+
+    /// The slot probing starts from (a 64-bit finaliser: murmur3's fmix64).
+    fn home(self) -> usize {
+        let mut h = self.0;
+        h ^= h >> 33;
+        h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
+        h ^= h >> 33;
+        h = h.wrapping_mul(0xc4ce_b9fe_1a85_ec53);
+        h ^= h >> 33;
+        h as usize % SLOTS
+    }
+}
+
+/// A full path's light back at its second vertex, over that vertex's albedo.
+#[derive(Clone, Copy, Debug)]
+pub struct CacheSample {
+    pub cell: CellKey,
+    pub light: Vec3,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Cell {
+    key: u64,
+    light: Vec3,
+    samples: f32,
+    /// The frame the cell last learnt in.
+    trained: u32,
+}
+
+/// What `learn` gathers for a cell this frame before folding it in.
+#[derive(Clone, Copy, Debug, Default)]
+struct Gathered {
+    sum: Vec3,
+    count: u32,
+}
+
+/// The cache: a fixed table of cells, probed linearly from each key's hash.
+pub struct RadianceCache {
+    cells: Vec<Cell>,
+    gathered: Vec<Gathered>,
+    /// Slots gathered into this frame.
+    touched: Vec<usize>,
+    /// Frames learnt so far.
+    frame: u32,
+}
+
+impl Default for RadianceCache {
+    fn default() -> Self {
+        RadianceCache::new()
+    }
+}
+
+impl RadianceCache {
+    pub fn new() -> RadianceCache {
+        RadianceCache {
+            cells: vec![Cell::default(); SLOTS],
+            gathered: vec![Gathered::default(); SLOTS],
+            touched: Vec::new(),
+            frame: 0,
+        }
+    }
+
+    /// Whether the pixel's path this frame is traced in full to teach the cache: one in each
+    /// 4 x 4 block, each pixel once in 16 frames, in the order of a Bayer matrix so the
+    /// frames' teachers spread evenly over the block. One in four cost 5% more of the
+    /// render's instructions than one in sixteen (the-gallery's play-through) for the same
+    /// flythrough error.
+    pub fn trains(frame: u32, (x, y): (u32, u32)) -> bool {
+        const BAYER: [[u32; 4]; 4] = [[0, 8, 2, 10], [12, 4, 14, 6], [3, 11, 1, 9], [15, 7, 13, 5]];
+        BAYER[(y % 4) as usize][(x % 4) as usize] == frame % 16
+    }
+
+    /// The light a cell has learnt, if it has learnt enough of it lately.
+    pub fn light(&self, cell: CellKey) -> Option<Vec3> {
+        let slot = self.find(cell)?;
+        let found = &self.cells[slot];
+        (found.samples >= SAMPLES_TO_TRUST && self.frame - found.trained <= FRAMES_TO_FORGET)
+            .then_some(found.light)
+    }
+
+    fn find(&self, cell: CellKey) -> Option<usize> {
+        let home = cell.home();
+        (0..PROBES)
+            .map(|probe| (home + probe) % SLOTS)
+            .find(|&slot| self.cells[slot].key == cell.0)
+    }
+
+    /// The slot to gather `cell` in: its own, else an empty one or the longest untrained
+    /// among those probed (cleared), never one already gathered into this frame.
+    fn slot_for(&mut self, cell: CellKey) -> Option<usize> {
+        if let Some(slot) = self.find(cell) {
+            return Some(slot);
+        }
+        let home = cell.home();
+        let slot = (0..PROBES)
+            .map(|probe| (home + probe) % SLOTS)
+            .filter(|&slot| self.gathered[slot].count == 0)
+            .min_by_key(|&slot| {
+                let found = &self.cells[slot];
+                (found.key != 0, found.trained)
+            })?;
+        self.cells[slot] = Cell {
+            key: cell.0,
+            ..Cell::default()
+        };
+        Some(slot)
+    }
+
+    /// Folds a frame's samples in, in the order given (the tiles' image order), and moves on
+    /// to the next frame.
+    pub fn learn<'a>(&mut self, samples: impl IntoIterator<Item = &'a CacheSample>) {
+        self.frame += 1;
+        for sample in samples {
+            if !sample.light.is_finite() {
+                continue;
+            }
+            let Some(slot) = self.slot_for(sample.cell) else {
+                continue;
+            };
+            let gathered = &mut self.gathered[slot];
+            if gathered.count == 0 {
+                self.touched.push(slot);
+            }
+            gathered.sum += sample.light;
+            gathered.count += 1;
+        }
+        for slot in self.touched.drain(..) {
+            let Gathered { sum, count } = std::mem::take(&mut self.gathered[slot]);
+            let cell = &mut self.cells[slot];
+            let count = count as f32;
+            let weight = (count / (cell.samples + count)).max(NEWEST_WEIGHT);
+            cell.light = cell.light.lerp(sum / count, weight);
+            cell.samples += count;
+            cell.trained = self.frame;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Cells a metre from an eye at the origin are 0.02 m wide, so the smallest.
+    const SIZING: CellSizing = CellSizing {
+        eye: Vec3A::ZERO,
+        side_per_metre: 0.02,
+    };
+
+    #[test]
+    fn cells_grow_with_distance_and_keep_the_faces_of_a_wall_apart() {
+        let up = Vec3A::Y;
+        let (near, near_side) = CellKey::at(Vec3A::new(1.01, 0.0, 0.0), up, &SIZING);
+        assert_eq!(near_side, CELL_MIN);
+        assert_eq!(near, CellKey::at(Vec3A::new(1.04, 0.0, 0.0), up, &SIZING).0);
+        assert_ne!(near, CellKey::at(Vec3A::new(1.06, 0.0, 0.0), up, &SIZING).0);
+        // 40 m away 0.8 m is wanted: 0.05 m doubled four times.
+        let (_, far_side) = CellKey::at(Vec3A::new(0.0, 0.0, -40.0), up, &SIZING);
+        assert_eq!(far_side, 0.8);
+        // A camera with fewer pixels asks for larger cells.
+        let placement = crate::scene::world::CameraPlacement {
+            name: String::new(),
+            yfov: std::f32::consts::FRAC_PI_2,
+            znear: 0.1,
+            world_from_camera: glam::Mat4::IDENTITY,
+        };
+        let camera = Camera::new(&placement, 160, 90);
+        let sizing = CellSizing::of(&camera);
+        assert!((sizing.side_per_metre - 4.0 * 2.0 / 90.0).abs() < 1e-6);
+        // The same point seen from either side of a thin wall.
+        let point = Vec3A::new(5.0, 0.0, 0.0);
+        let (front, _) = CellKey::at(point, Vec3A::X, &SIZING);
+        let (back, _) = CellKey::at(point, -Vec3A::X, &SIZING);
+        assert_ne!(front, back);
+        // Negative coordinates are cells of their own, not folded onto positive ones.
+        let (negative, _) = CellKey::at(Vec3A::new(1.0, -0.01, -0.01), up, &SIZING);
+        let (positive, _) = CellKey::at(Vec3A::new(1.0, 0.01, 0.01), up, &SIZING);
+        assert_ne!(negative, positive);
+    }
+
+    #[test]
+    fn one_pixel_of_each_block_trains_a_frame_and_each_in_turn() {
+        for frame in 0..16 {
+            let teachers: Vec<(u32, u32)> = (0..8)
+                .flat_map(|y| (0..8).map(move |x| (x, y)))
+                .filter(|&pixel| RadianceCache::trains(frame, pixel))
+                .collect();
+            assert_eq!(teachers.len(), 4, "frame {frame}: one in each 4 x 4 block");
+        }
+        for (x, y) in [(0, 0), (5, 2), (7, 9)] {
+            let frames: Vec<u32> = (0..32)
+                .filter(|&f| RadianceCache::trains(f, (x, y)))
+                .collect();
+            assert_eq!(frames.len(), 2, "({x}, {y})");
+            assert_eq!(frames[1] - frames[0], 16);
+        }
+    }
+
+    #[test]
+    fn a_cell_is_trusted_after_enough_samples_and_follows_a_change() {
+        let mut cache = RadianceCache::new();
+        let (cell, _) = CellKey::at(Vec3A::new(2.0, 0.0, 1.0), Vec3A::Y, &SIZING);
+        let sample = |light| CacheSample { cell, light };
+        cache.learn(&[sample(Vec3::ONE), sample(Vec3::ONE)]);
+        assert_eq!(cache.light(cell), None, "two samples are too few");
+        cache.learn(&[sample(Vec3::splat(3.0)), sample(Vec3::splat(3.0))]);
+        assert_eq!(
+            cache.light(cell),
+            Some(Vec3::splat(2.0)),
+            "the mean of four"
+        );
+        // The lamp goes out: the newest frames weigh at least NEWEST_WEIGHT each.
+        for _ in 0..48 {
+            cache.learn(&[sample(Vec3::ZERO)]);
+        }
+        let left = cache.light(cell).unwrap().x;
+        assert!(left < 2.0 * (1.0 - NEWEST_WEIGHT).powi(48) + 1e-6, "{left}");
+        // Untrained for long, it is forgotten.
+        for _ in 0..FRAMES_TO_FORGET + 1 {
+            cache.learn(&[]);
+        }
+        assert_eq!(cache.light(cell), None);
+    }
+
+    #[test]
+    fn a_full_neighbourhood_gives_up_its_stalest_cell() {
+        let mut cache = RadianceCache::new();
+        // Cells whose probes start at the same slot, more of them than PROBES, all of the
+        // smallest side.
+        const SIZING: CellSizing = CellSizing {
+            eye: Vec3A::ZERO,
+            side_per_metre: 0.0,
+        };
+        let (first, _) = CellKey::at(Vec3A::ZERO, Vec3A::Y, &SIZING);
+        let home = first.home();
+        let crowd: Vec<CellKey> = (0..2_000_000)
+            .map(|i| {
+                let (x, z) = ((i % 2000) as f32, (i / 2000) as f32);
+                let position = Vec3A::new(x * 0.05 + 0.025, 0.0, z * 0.05 + 0.025);
+                CellKey::at(position, Vec3A::Y, &SIZING).0
+            })
+            .filter(|cell| cell.home() == home)
+            .take(PROBES + 1)
+            .collect();
+        assert_eq!(crowd.len(), PROBES + 1, "not enough colliding cells found");
+        for (frame, &cell) in crowd.iter().take(PROBES).enumerate() {
+            let samples = vec![
+                CacheSample {
+                    cell,
+                    light: Vec3::splat(frame as f32)
+                };
+                4
+            ];
+            cache.learn(&samples);
+        }
+        for &cell in &crowd[..PROBES] {
+            assert!(cache.light(cell).is_some());
+        }
+        let newcomer = crowd[PROBES];
+        cache.learn(
+            &[CacheSample {
+                cell: newcomer,
+                light: Vec3::ONE,
+            }; 4],
+        );
+        assert_eq!(cache.light(newcomer), Some(Vec3::ONE));
+        assert_eq!(cache.light(crowd[0]), None, "the stalest cell made room");
+        assert!(cache.light(crowd[1]).is_some());
+    }
+}
