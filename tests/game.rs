@@ -155,7 +155,7 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
 }
 
 #[test]
-fn filtered_frames_draw_new_samples_while_the_world_moves() {
+fn filtered_frames_draw_new_samples_while_the_world_moves_and_keep_a_radiance_cache() {
     let scene = level("first-light.ron");
     let mut engine = Engine::new(&scene, settings(1));
     common::pause_animation(&mut engine);
@@ -171,6 +171,10 @@ fn filtered_frames_draw_new_samples_while_the_world_moves() {
     }
     assert!(engine.film.frames < 4, "the changes restarted the sum");
     assert_eq!(seen, [1, 2, 3, 4]);
+    assert!(
+        engine.film.radiance_cache().is_some(),
+        "filtered frames keep a cache"
+    );
     // Summing still frames, the sequence starts again with the sum.
     engine.film.filter.mode = gloam::film::FilterMode::Off;
     lift(&mut engine, &scene, "pillar 1");
@@ -178,6 +182,8 @@ fn filtered_frames_draw_new_samples_while_the_world_moves() {
     engine.advance(1.0 / 60.0);
     assert_eq!(engine.film.sample_frame(), engine.film.frames);
     assert!(engine.film.frames <= 1);
+    // What the cache learnt would be stale when the filter comes back on.
+    assert!(engine.film.radiance_cache().is_none());
 }
 
 #[test]

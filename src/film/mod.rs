@@ -142,6 +142,11 @@ impl Accumulation {
         }
     }
 
+    /// The filtered frames' radiance cache, while the filter is on.
+    pub fn radiance_cache(&self) -> Option<&RadianceCache> {
+        self.cache.as_ref()
+    }
+
     /// The last frame's render tiles: the thread that traced each, and when.
     pub fn tile_spans(&self) -> &[TileSpan] {
         &self.tile_spans
@@ -177,6 +182,9 @@ impl Accumulation {
                     None => render_guided(scene, &camera, &settings, cache),
                 }
             } else {
+                // What the cache learnt goes stale while the filter is off (the editor's
+                // converging view, where lamps and walls move): it starts afresh.
+                self.cache = None;
                 render(scene, &camera, &settings, &|_| {})
             }
         };
