@@ -3,11 +3,11 @@
 
 mod common;
 
-use bevy_ecs::prelude::Entity;
+use bevy_ecs::prelude::{Entity, With};
 use glam::Vec3;
 use gloam::extract::{RenderState, instance_entity};
 use gloam::frame::Engine;
-use gloam::game::{GlobalTransform, LevelEntity, MeshNode, Transform};
+use gloam::game::{GlobalTransform, LevelEntity, MeshNode, PunctualLight, SwitchedOff, Transform};
 use gloam::render::{Camera, IntegratorKind, RenderSettings, SamplerKind, render};
 use gloam::scene::world::Scene;
 
@@ -184,6 +184,34 @@ fn filtered_frames_draw_new_samples_while_the_world_moves_and_keep_a_radiance_ca
     assert!(engine.film.frames <= 1);
     // What the cache learnt would be stale when the filter comes back on.
     assert!(engine.film.radiance_cache().is_none());
+}
+
+#[test]
+fn a_doused_lamp_sends_the_radiance_cache_back_to_learning_the_lights() {
+    let scene = level("first-light.ron");
+    let mut engine = Engine::new(&scene, settings(1));
+    common::pause_animation(&mut engine);
+    engine.film.filter.mode = gloam::film::FilterMode::Full;
+    // Things moving do not: only a new light set does.
+    for _ in 0..3 {
+        lift(&mut engine, &scene, "pillar 1");
+        engine.advance(1.0 / 60.0);
+    }
+    let relearning = |engine: &Engine| {
+        (engine.film.radiance_cache())
+            .expect("filtered frames keep a cache")
+            .relearning()
+    };
+    assert!(!relearning(&engine));
+    let lamp = engine
+        .world
+        .query_filtered::<Entity, (With<PunctualLight>, With<LevelEntity>)>()
+        .iter(&engine.world)
+        .next()
+        .expect("first-light has lamps");
+    engine.world.entity_mut(lamp).insert(SwitchedOff);
+    engine.advance(1.0 / 60.0);
+    assert!(relearning(&engine));
 }
 
 #[test]

@@ -758,6 +758,7 @@ pub fn update_acceleration(mut state: ResMut<RenderState>, mut times: ResMut<Sta
             punctual.iter().map(|(_, l, t)| (l.clone(), *t)).collect();
         state.scene.lights = lights::light_set(&state.scene, &placed);
         state.light_set_builds += 1;
+        state.changes.relit = true;
         let first = (state.scene.lights.lights.len() - placed.len()) as u32;
         state.light_of = punctual
             .iter()

@@ -102,10 +102,16 @@ impl Accumulation {
     }
 
     /// Takes note of what extract changed: anything visible restarts the sum; instances
-    /// numbered anew are renumbered in the filter's history, which names them by index.
+    /// numbered anew are renumbered in the filter's history, which names them by index; a
+    /// new light set makes the radiance cache learn the lights afresh.
     pub fn scene_changed(&mut self, changes: &SceneChanges) {
         if changes.visible {
             self.reset = true;
+        }
+        if changes.relit
+            && let Some(cache) = &mut self.cache
+        {
+            cache.relit();
         }
         if let Some(new_index) = &changes.renumbered {
             self.filter.renumber_instances(new_index);

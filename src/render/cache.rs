@@ -15,6 +15,10 @@
 //! 2. each tile lists its full paths' samples (`CacheSample`);
 //! 3. `learn` folds them in, tile by tile in image order, into each cell's running mean.
 //!
+//! When the light set is built anew (a lamp doused or lit), `relit` makes each cell's next
+//! sample replace its light and one pixel in 4 teach for a few frames, so the light that
+//! went out leaves the bounce light as fast as it left the direct light.
+//!
 //! A cell is a cube whose side doubles with the distance from the camera (about four
 //! render pixels across wherever it is seen), keyed with the axis its surface faces, so the
 //! two faces of a thin wall never share one. It stores what the surface reflects divided
@@ -59,6 +63,8 @@ const PROBES: usize = 8;
 const NEWEST_WEIGHT: f32 = 1.0 / 16.0;
 /// Samples a cell must have learnt before paths take its light.
 const SAMPLES_TO_TRUST: f32 = 4.0;
+/// Frames after the lights change in which one pixel in 4 teaches, not one in 16.
+const EAGER_FRAMES: u32 = 8;
 /// Frames after which a cell nothing has trained is forgotten.
 const FRAMES_TO_FORGET: u32 = 32;
 
@@ -119,7 +125,12 @@ pub struct CacheSample {
 struct Cell {
     key: u64,
     light: Vec3,
+    /// Samples learnt since the cell was made: paths take its light from
+    /// `SAMPLES_TO_TRUST` on.
     samples: f32,
+    /// Samples `light` is the mean of: as `samples`, but none again after `relit`, so the
+    /// next one learnt replaces what the old lights gave.
+    averaged: f32,
     /// The frame the cell last learnt in.
     trained: u32,
 }
@@ -139,6 +150,9 @@ pub struct RadianceCache {
     touched: Vec<usize>,
     /// Frames learnt so far.
     frame: u32,
+    /// Frames learnt so far at which teaching goes back from one pixel in 4 to one in 16
+    /// (`relit`).
+    eager_until: u32,
 }
 
 impl Default for RadianceCache {
@@ -154,17 +168,24 @@ impl RadianceCache {
             gathered: vec![Gathered::default(); SLOTS],
             touched: Vec::new(),
             frame: 0,
+            eager_until: 0,
         }
     }
 
-    /// Whether the pixel's path this frame is traced in full to teach the cache: one in each
-    /// 4 x 4 block, each pixel once in 16 frames, in the order of a Bayer matrix so the
-    /// frames' teachers spread evenly over the block. One in four cost 5% more of the
-    /// render's instructions than one in sixteen (the-gallery's play-through) for the same
-    /// flythrough error.
-    pub fn trains(frame: u32, (x, y): (u32, u32)) -> bool {
+    /// Whether the pixel's path this frame (the sampler's `frame`) is traced in full to
+    /// teach the cache: one in each 4 x 4 block, each pixel once in 16 frames, in the order
+    /// of a Bayer matrix so the frames' teachers spread evenly over the block. One in four
+    /// cost 5% more of the render's instructions than one in sixteen (the-gallery's
+    /// play-through) for the same flythrough error, so one in four teach only for
+    /// `EAGER_FRAMES` after the lights change.
+    pub fn trains(&self, frame: u32, (x, y): (u32, u32)) -> bool {
         const BAYER: [[u32; 4]; 4] = [[0, 8, 2, 10], [12, 4, 14, 6], [3, 11, 1, 9], [15, 7, 13, 5]];
-        BAYER[(y % 4) as usize][(x % 4) as usize] == frame % 16
+        let turn = BAYER[(y % 4) as usize][(x % 4) as usize];
+        if self.frame < self.eager_until {
+            turn % 4 == frame % 4
+        } else {
+            turn == frame % 16
+        }
     }
 
     /// The light a cell has learnt, if it has learnt enough of it lately.
@@ -203,6 +224,24 @@ impl RadianceCache {
         Some(slot)
     }
 
+    /// The lights changed (a lamp lit or doused): each cell's next sample replaces its light
+    /// instead of joining a mean that would hold the old lights' for seconds (a cell learns
+    /// about once in ten frames, so at `NEWEST_WEIGHT` a doused lamp's bounce light was
+    /// still 5% there 64 frames on, first-light). Until that sample, paths still take the
+    /// old light: forgetting it outright would trace every path in full for the frames
+    /// the cells take to learn `SAMPLES_TO_TRUST` again.
+    pub fn relit(&mut self) {
+        for cell in &mut self.cells {
+            cell.averaged = 0.0;
+        }
+        self.eager_until = self.frame + EAGER_FRAMES;
+    }
+
+    /// Whether the cache is still learning the lights after `relit` (teaching eagerly).
+    pub fn relearning(&self) -> bool {
+        self.frame < self.eager_until
+    }
+
     /// Folds a frame's samples in, in the order given (the tiles' image order), and moves on
     /// to the next frame.
     pub fn learn<'a>(&mut self, samples: impl IntoIterator<Item = &'a CacheSample>) {
@@ -225,9 +264,10 @@ impl RadianceCache {
             let Gathered { sum, count } = std::mem::take(&mut self.gathered[slot]);
             let cell = &mut self.cells[slot];
             let count = count as f32;
-            let weight = (count / (cell.samples + count)).max(NEWEST_WEIGHT);
+            let weight = (count / (cell.averaged + count)).max(NEWEST_WEIGHT);
             cell.light = cell.light.lerp(sum / count, weight);
             cell.samples += count;
+            cell.averaged += count;
             cell.trained = self.frame;
         }
     }
@@ -276,20 +316,54 @@ mod tests {
 
     #[test]
     fn one_pixel_of_each_block_trains_a_frame_and_each_in_turn() {
+        let mut cache = RadianceCache::new();
         for frame in 0..16 {
             let teachers: Vec<(u32, u32)> = (0..8)
                 .flat_map(|y| (0..8).map(move |x| (x, y)))
-                .filter(|&pixel| RadianceCache::trains(frame, pixel))
+                .filter(|&pixel| cache.trains(frame, pixel))
                 .collect();
             assert_eq!(teachers.len(), 4, "frame {frame}: one in each 4 x 4 block");
         }
         for (x, y) in [(0, 0), (5, 2), (7, 9)] {
-            let frames: Vec<u32> = (0..32)
-                .filter(|&f| RadianceCache::trains(f, (x, y)))
-                .collect();
+            let frames: Vec<u32> = (0..32).filter(|&f| cache.trains(f, (x, y))).collect();
             assert_eq!(frames.len(), 2, "({x}, {y})");
             assert_eq!(frames[1] - frames[0], 16);
         }
+        // After the lights change, one in each 2 x 2 block, for `EAGER_FRAMES` frames.
+        let teachers = |cache: &RadianceCache, frame| {
+            (0..8)
+                .flat_map(|y| (0..8).map(move |x| (x, y)))
+                .filter(|&pixel| cache.trains(frame, pixel))
+                .count()
+        };
+        cache.relit();
+        for frame in 0..EAGER_FRAMES {
+            assert_eq!(teachers(&cache, frame), 16, "eager frame {frame}");
+            cache.learn(&[]);
+        }
+        assert_eq!(teachers(&cache, EAGER_FRAMES), 4);
+    }
+
+    #[test]
+    fn after_the_lights_change_a_cells_next_sample_replaces_its_light() {
+        let mut cache = RadianceCache::new();
+        let (cell, _) = CellKey::at(Vec3A::new(2.0, 0.0, 1.0), Vec3A::Y, &SIZING);
+        for _ in 0..32 {
+            cache.learn(&[CacheSample {
+                cell,
+                light: Vec3::ONE,
+            }]);
+        }
+        cache.relit();
+        // Still trusted with the old light until the cell learns again ...
+        assert_eq!(cache.light(cell), Some(Vec3::ONE));
+        let doused = Vec3::splat(0.25);
+        cache.learn(&[CacheSample {
+            cell,
+            light: doused,
+        }]);
+        // ... then the new light alone, not a sixteenth of it.
+        assert_eq!(cache.light(cell), Some(doused));
     }
 
     #[test]

@@ -464,9 +464,10 @@ impl<'a> Tile<'a> {
                 scratch.marks.clear();
                 scratch.marks.resize(count, None);
                 for pixel in self.pixels(origin) {
-                    scratch
-                        .trains
-                        .push(self.cache.is_some() && RadianceCache::trains(settings.frame, pixel));
+                    scratch.trains.push(
+                        self.cache
+                            .is_some_and(|cache| cache.trains(settings.frame, pixel)),
+                    );
                     let mut sampler = self.sampler(pixel, sample);
                     let ray = self.camera_ray(pixel, &mut sampler);
                     // The real-time film leaves the dominant lamp's light out of its

@@ -32,6 +32,9 @@ pub struct SceneChanges {
     /// instance's new index, None for one that is gone. A history keyed by instance
     /// follows its surfaces through this.
     pub renumbered: Option<Vec<Option<u32>>>,
+    /// The light set was built anew (a lamp lit or doused, a light spawned or despawned):
+    /// light learnt from the old set is stale.
+    pub relit: bool,
 }
 
 pub struct RenderScene {
