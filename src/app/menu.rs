@@ -541,17 +541,54 @@ fn adjust(row: Row, step: i32, settings: &mut Settings) -> Option<MenuCommand> {
     Some(MenuCommand::SettingsChanged)
 }
 
-/// Where each row of a page is drawn: (x, y, width, height) in frame pixels, centred.
-pub fn layout(view: &PageView, width: u32, height: u32) -> Vec<(u32, u32, u32, u32)> {
-    let row_height = 20;
+/// A menu row's height, pixels (the HUD font's 16 and a gap).
+const ROW_HEIGHT: u32 = 20;
+/// Kept free below the rows for the hint line.
+const HINT_SPACE: u32 = 24;
+
+/// The height of `view`'s title lines and the gap under them.
+fn title_height(view: &PageView) -> u32 {
+    view.title.len() as u32 * 20 + 14
+}
+
+/// Where each row of a page is drawn: (x, y, width, height) in frame pixels, centred; None
+/// for a row scrolled out of view. A page taller than the frame (the keys page at 320 x
+/// 180) shows the rows that fit under its title, with the selected one among them, and
+/// leaves the title out when not even one row would fit beside it.
+pub fn layout(view: &PageView, width: u32, height: u32) -> Vec<Option<(u32, u32, u32, u32)>> {
+    let rows = view.rows.len() as u32;
     let row_width = (width * 3 / 5).max(200).min(width);
     let left = (width - row_width) / 2;
-    let title_height = view.title.len() as u32 * 20 + 14;
-    let total = title_height + view.rows.len() as u32 * row_height;
-    let top = height.saturating_sub(total) / 2 + title_height;
-    (0..view.rows.len() as u32)
-        .map(|row| (left, top + row * row_height, row_width, row_height - 2))
-        .collect()
+    let title = title_height(view);
+    let total = title + rows * ROW_HEIGHT;
+    let place = |top: u32, first: u32, shown: u32| {
+        (0..rows)
+            .map(|row| {
+                (row >= first && row < first + shown).then(|| {
+                    (
+                        left,
+                        top + (row - first) * ROW_HEIGHT,
+                        row_width,
+                        ROW_HEIGHT - 2,
+                    )
+                })
+            })
+            .collect()
+    };
+    if total + HINT_SPACE <= height {
+        return place((height - total - HINT_SPACE) / 2 + title, 0, rows);
+    }
+    let (top, room) = if height >= title + ROW_HEIGHT + HINT_SPACE {
+        (title, height - title - HINT_SPACE)
+    } else {
+        (0, height.saturating_sub(HINT_SPACE).max(ROW_HEIGHT))
+    };
+    let shown = (room / ROW_HEIGHT).clamp(1, rows.max(1));
+    let selected = (view.selected as u32).min(rows.saturating_sub(1));
+    let first = selected
+        .saturating_sub(shown / 2)
+        .min(rows.saturating_sub(shown));
+    place(top, first, shown)
 }
 
 /// Glyph width of the HUD font, pixels.
@@ -566,15 +603,23 @@ pub fn draw(frame: &mut [u8], width: u32, height: u32, view: &PageView) {
         }
     }
     let boxes = layout(view, width, height);
-    let title_top = boxes
-        .first()
-        .map_or(height / 3, |&(_, y, _, _)| y)
-        .saturating_sub(view.title.len() as u32 * 20 + 14);
-    for (line, text) in view.title.iter().enumerate() {
-        let x = (width / 2).saturating_sub(text.chars().count() as u32 * GLYPH / 2);
-        draw_text(frame, width, height, x, title_top + line as u32 * 20, text);
+    let first_top = boxes.iter().flatten().next().map(|&(_, y, _, _)| y);
+    // The title above the rows, where `layout` left room for it.
+    if let Some(title_top) =
+        first_top.map_or(Some(height / 3), |y| y.checked_sub(title_height(view)))
+    {
+        for (line, text) in view.title.iter().enumerate() {
+            let x = (width / 2).saturating_sub(text.chars().count() as u32 * GLYPH / 2);
+            draw_text(frame, width, height, x, title_top + line as u32 * 20, text);
+        }
     }
-    for (index, (row, &(x, y, w, h))) in view.rows.iter().zip(&boxes).enumerate() {
+    for (index, (row, &(x, y, w, h))) in view
+        .rows
+        .iter()
+        .zip(&boxes)
+        .enumerate()
+        .filter_map(|(index, (row, placed))| Some((index, (row, placed.as_ref()?))))
+    {
         if index == view.selected {
             for py in y..(y + h).min(height) {
                 for px in x..(x + w).min(width) {
@@ -596,23 +641,18 @@ pub fn draw(frame: &mut [u8], width: u32, height: u32, view: &PageView) {
     }
     if !view.hint.is_empty() {
         let x = (width / 2).saturating_sub(view.hint.len() as u32 * GLYPH / 2);
-        let below = boxes.last().map_or(height / 2, |&(_, y, _, h)| y + h + 16);
-        draw_text(
-            frame,
-            width,
-            height,
-            x,
-            below.min(height.saturating_sub(40)),
-            view.hint,
-        );
+        // Under the rows, inside the `HINT_SPACE` `layout` keeps free.
+        let below = (boxes.iter().flatten().last()).map_or(height / 2, |&(_, y, _, h)| y + h + 16);
+        let y = below.min(height.saturating_sub(HINT_SPACE - 4));
+        draw_text(frame, width, height, x, y, view.hint);
     }
 }
 
 /// The row under frame point (x, y).
 pub fn row_at(view: &PageView, width: u32, height: u32, x: u32, y: u32) -> Option<usize> {
-    layout(view, width, height)
-        .iter()
-        .position(|&(bx, by, bw, bh)| x >= bx && x < bx + bw && y >= by && y < by + bh)
+    layout(view, width, height).iter().position(|placed| {
+        placed.is_some_and(|(bx, by, bw, bh)| x >= bx && x < bx + bw && y >= by && y < by + bh)
+    })
 }
 
 #[cfg(test)]
@@ -786,9 +826,39 @@ mod tests {
         let context = context();
         let menu = Menu::new(Page::Main);
         let view = menu.view(&context);
-        for (row, &(x, y, w, h)) in layout(&view, 480, 270).iter().enumerate() {
+        for (row, placed) in layout(&view, 480, 270).iter().enumerate() {
+            let (x, y, w, h) = placed.expect("the main menu fits at 480 x 270");
             assert_eq!(row_at(&view, 480, 270, x + w / 2, y + h / 2), Some(row));
         }
         assert_eq!(row_at(&view, 480, 270, 0, 0), None);
+    }
+
+    #[test]
+    fn a_page_taller_than_the_frame_scrolls_to_the_selected_row() {
+        let context = context();
+        let mut menu = Menu::new(Page::Main);
+        menu.stack.push((Page::Keys, 0));
+        let rows = menu.view(&context).rows.len();
+        for (width, height) in [(320, 180), (160, 90)] {
+            for selected in [0, rows / 2, rows - 1] {
+                menu.select(selected);
+                let view = menu.view(&context);
+                let boxes = layout(&view, width, height);
+                let shown: Vec<_> = boxes.iter().flatten().collect();
+                assert!(shown.len() < rows, "the keys page is taller than {height}");
+                let (x, y, w, h) = boxes[selected].expect("the selected row is shown");
+                // Inside the frame, above the hint line, and hit where drawn.
+                assert!(x + w <= width && y + h + HINT_SPACE <= height);
+                for &&(_, y, _, h) in &shown {
+                    assert!(y + h + HINT_SPACE <= height, "{width} x {height}");
+                }
+                assert_eq!(
+                    row_at(&view, width, height, x + w / 2, y + h / 2),
+                    Some(selected)
+                );
+                let mut frame = vec![0u8; (width * height * 4) as usize];
+                draw(&mut frame, width, height, &view);
+            }
+        }
     }
 }
