@@ -196,6 +196,28 @@ impl RadianceCache {
             .then_some(found.light)
     }
 
+    /// Asks the CPU to bring the slots `light` will look for `cell` in into its cache (a
+    /// hint: nothing changes but when the loads arrive). All `PROBES` of them: in
+    /// the-keep's play-through the slot probed first held the cell in only about a third
+    /// of the lookups that stalled (perf).
+    #[inline(always)]
+    pub fn prefetch(&self, cell: CellKey) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let home = cell.home();
+            // Two 32-byte cells a 64-byte line: every other slot, and the last, touches
+            // every line the probes read.
+            for probe in (0..PROBES).step_by(2).chain([PROBES - 1]) {
+                let slot = &self.cells[(home + probe) % SLOTS];
+                // SAFETY: a prefetch of an address inside `cells`; it reads nothing.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>((slot as *const Cell).cast()) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = cell;
+    }
+
     fn find(&self, cell: CellKey) -> Option<usize> {
         let home = cell.home();
         (0..PROBES)

@@ -17,10 +17,11 @@
 //!      interleaved streams of single rays (`AccelScene::occluded_stream`; as packets
 //!      they measured slower: see accel/packet.rs and accel/stream.rs);
 //!    - `bounces`: every path onwards, a vertex at a time: each live path's bounce ray
-//!      alone (incoherent: neither packets nor streams paid), then that vertex's shadow
-//!      rays as one stream, until every path has ended; with a radiance cache (the
-//!      real-time view's), a path whose second vertex's cell has learnt its light ends
-//!      there with that light, unless it is one of the frame's teachers (`cache.rs`);
+//!      alone (incoherent: neither packets nor streams paid), then every vertex shaded,
+//!      then that vertex's shadow rays as one stream, until every path has ended; with a
+//!      radiance cache (the real-time view's), a path whose second vertex's cell has
+//!      learnt its light ends there with that light, unless it is one of the frame's
+//!      teachers (`cache.rs`);
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
 //!    thread count) and store the mean in the film (and the kept-apart lamp light's mean
 //!    in the guides' `unfiltered` light, which the film's filters leave as it is);
@@ -63,8 +64,8 @@ use crate::accel::{Hit, InstanceMask, Ray};
 use crate::profile::{TileSpan, since};
 use cache::{CacheSample, CellSizing};
 use integrator::{
-    CacheMark, NextHit, PathState, ShadowQuery, VertexOutcome, cache_vertex, camera_sample,
-    end_at_cache, next_hit, next_hits, path_vertex, reference_radiance,
+    CacheMark, CacheVertex, NextHit, PathState, ShadowQuery, VertexOutcome, cache_vertex,
+    camera_sample, end_at_cache, next_hit, next_hits, path_vertex, reference_radiance,
 };
 use sampler::{BlueNoise, PixelSampler, VertexDrawBatch};
 use scene::SceneAlpha;
@@ -192,6 +193,8 @@ struct TileScratch<'a> {
     trains: Vec<bool>,
     marks: Vec<Option<CacheMark>>,
     hits: Vec<Option<NextHit>>,
+    /// A bounce's hits, and for each second vertex the radiance cache may end, its cell.
+    found: Vec<(Option<NextHit>, Option<CacheVertex>)>,
     /// The camera rays, and what `intersect_coherent` found for them.
     rays: Vec<Ray>,
     accel_hits: Vec<Option<Hit>>,
@@ -548,15 +551,33 @@ impl<'a> Tile<'a> {
                         &mut scratch.samplers,
                         scratch.live.iter().map(|&(index, _)| index),
                     );
-                    for (&(index, ray), draws) in scratch.live.iter().zip(draws) {
+                    // Every ray traced first, then every vertex shaded: the second
+                    // vertices' cells are asked of the cache ahead (`prefetch`), so their
+                    // slots of its 2 MB table arrive while the other rays trace. Looked up
+                    // between one vertex's shading and the next's, the slot's load stalled
+                    // the core: a third of the tile loop's own cycles (perf, the-keep).
+                    scratch.found.clear();
+                    for &(index, ray) in &scratch.live {
                         let found = next_hit(scene, &ray, InstanceMask::BOUNCE, &alpha);
+                        let vertex = match (self.cache, &found) {
+                            (Some(cache), Some(hit)) => {
+                                cache_vertex(scene, &scratch.paths[index], hit, &sizing)
+                                    .inspect(|vertex| cache.prefetch(vertex.cell))
+                            }
+                            _ => None,
+                        };
+                        scratch.found.push((found, vertex));
+                    }
+                    for ((&(index, _), (found, vertex)), draws) in (scratch.live.iter())
+                        .zip(scratch.found.drain(..))
+                        .zip(draws)
+                    {
                         let path = &mut scratch.paths[index];
                         // The radiance cache: at the second vertex, the cell's light ends
                         // the path, unless the path teaches the cache (or the cell has not
                         // learnt enough yet), when it goes on and is marked there.
                         let mut mark = None;
-                        if let (Some(cache), Some(hit)) = (self.cache, &found)
-                            && let Some(vertex) = cache_vertex(scene, path, hit, &sizing)
+                        if let (Some(cache), Some(hit), Some(vertex)) = (self.cache, &found, vertex)
                         {
                             if !scratch.trains[index]
                                 && let Some(light) = cache.light(vertex.cell)
