@@ -154,12 +154,18 @@ fn moving_an_entity_restarts_accumulation_and_moves_its_geometry() {
     );
 }
 
-#[test]
-fn filtered_frames_draw_new_samples_while_the_world_moves_and_keep_a_radiance_cache() {
+/// first-light, its animation paused, through the game's filter (as the window shows it).
+fn filtered_first_light() -> (Scene, Engine) {
     let scene = level("first-light.ron");
     let mut engine = Engine::new(&scene, settings(1));
     common::pause_animation(&mut engine);
     engine.film.filter.mode = gloam::film::FilterMode::Full;
+    (scene, engine)
+}
+
+#[test]
+fn filtered_frames_draw_new_samples_while_the_world_moves_and_keep_a_radiance_cache() {
+    let (scene, mut engine) = filtered_first_light();
     engine.advance(0.0);
     let mut seen = vec![engine.film.sample_frame()];
     // A change every frame restarts the sum each time, but the filter's frames must not
@@ -188,10 +194,7 @@ fn filtered_frames_draw_new_samples_while_the_world_moves_and_keep_a_radiance_ca
 
 #[test]
 fn a_doused_lamp_sends_the_radiance_cache_back_to_learning_the_lights() {
-    let scene = level("first-light.ron");
-    let mut engine = Engine::new(&scene, settings(1));
-    common::pause_animation(&mut engine);
-    engine.film.filter.mode = gloam::film::FilterMode::Full;
+    let (scene, mut engine) = filtered_first_light();
     // Things moving do not: only a new light set does.
     for _ in 0..3 {
         lift(&mut engine, &scene, "pillar 1");
