@@ -121,7 +121,9 @@ pub struct CacheSample {
     pub light: Vec3,
 }
 
+/// Aligned to its 32 bytes, so two share a cache line and none straddles one.
 #[derive(Clone, Copy, Debug, Default)]
+#[repr(align(32))]
 struct Cell {
     key: u64,
     light: Vec3,
@@ -248,8 +250,8 @@ impl RadianceCache {
 
     /// The lights changed (a lamp lit or doused): each cell's next sample replaces its light
     /// instead of joining a mean that would hold the old lights' for seconds (a cell learns
-    /// about once in ten frames, so at `NEWEST_WEIGHT` a doused lamp's bounce light was
-    /// still 5% there 64 frames on, first-light). Until that sample, paths still take the
+    /// only every few frames, so at `NEWEST_WEIGHT` a doused lamp's bounce light was still
+    /// 5% there 64 frames on, first-light). Until that sample, paths still take the
     /// old light: forgetting it outright would trace every path in full for the frames
     /// the cells take to learn `SAMPLES_TO_TRUST` again.
     pub fn relit(&mut self) {
@@ -377,6 +379,7 @@ mod tests {
             }]);
         }
         cache.relit();
+        assert_eq!(std::mem::size_of::<Cell>(), 32);
         // Still trusted with the old light until the cell learns again ...
         assert_eq!(cache.light(cell), Some(Vec3::ONE));
         let doused = Vec3::splat(0.25);
