@@ -257,13 +257,13 @@ pub struct VertexOutcome {
 pub fn path_vertex(
     scene: &RenderScene,
     state: &mut PathState,
-    found: Option<NextHit>,
+    found: Option<&NextHit>,
     draws: &VertexDraws,
     max_depth: u32,
     counts: &mut RayCounts,
 ) -> VertexOutcome {
     // 1. Escaping rays see the sky.
-    let Some(NextHit {
+    let Some(&NextHit {
         hit,
         surface,
         wo_world,
@@ -485,7 +485,7 @@ pub fn continue_path(
         let found = next_hit(scene, &ray, mask, alpha);
         mask = InstanceMask::BOUNCE;
         let draws = sampler.vertex_draws();
-        let outcome = path_vertex(scene, state, found, &draws, max_depth, counts);
+        let outcome = path_vertex(scene, state, found.as_ref(), &draws, max_depth, counts);
         for shadow in [outcome.dominant, outcome.shadow].into_iter().flatten() {
             shadow.resolve(scene, alpha, state);
         }

@@ -505,14 +505,15 @@ impl<'a> Tile<'a> {
                 profiling::scope!("render.shade");
                 scratch.outcomes.clear();
                 let draws = (scratch.draws).draw(&mut scratch.samplers, 0..count);
-                for ((path, hit), draws) in scratch
-                    .paths
-                    .iter_mut()
-                    .zip(scratch.hits.drain(..))
-                    .zip(draws)
-                {
-                    let outcome =
-                        path_vertex(scene, path, hit, draws, settings.max_depth, &mut counts);
+                for ((path, hit), draws) in scratch.paths.iter_mut().zip(&scratch.hits).zip(draws) {
+                    let outcome = path_vertex(
+                        scene,
+                        path,
+                        hit.as_ref(),
+                        draws,
+                        settings.max_depth,
+                        &mut counts,
+                    );
                     scratch.outcomes.push(outcome);
                 }
             }
@@ -569,16 +570,15 @@ impl<'a> Tile<'a> {
                         };
                         scratch.found.push((found, vertex));
                     }
-                    for ((&(index, _), (found, vertex)), draws) in (scratch.live.iter())
-                        .zip(scratch.found.drain(..))
-                        .zip(draws)
+                    for ((&(index, _), (found, vertex)), draws) in
+                        (scratch.live.iter()).zip(&scratch.found).zip(draws)
                     {
                         let path = &mut scratch.paths[index];
                         // The radiance cache: at the second vertex, the cell's light ends
                         // the path, unless the path teaches the cache (or the cell has not
                         // learnt enough yet), when it goes on and is marked there.
                         let mut mark = None;
-                        if let (Some(cache), Some(hit), Some(vertex)) = (self.cache, &found, vertex)
+                        if let (Some(cache), Some(hit), Some(vertex)) = (self.cache, found, vertex)
                         {
                             if !scratch.trains[index]
                                 && let Some(light) = cache.light(vertex.cell)
@@ -587,10 +587,16 @@ impl<'a> Tile<'a> {
                                 counts.cache_ended += 1;
                                 continue;
                             }
-                            mark = Some(CacheMark::before(vertex, path));
+                            mark = Some(CacheMark::before(*vertex, path));
                         }
-                        let outcome =
-                            path_vertex(scene, path, found, draws, settings.max_depth, &mut counts);
+                        let outcome = path_vertex(
+                            scene,
+                            path,
+                            found.as_ref(),
+                            draws,
+                            settings.max_depth,
+                            &mut counts,
+                        );
                         if let Some(mut mark) = mark {
                             mark.after_emission(path);
                             scratch.marks[index] = Some(mark);
