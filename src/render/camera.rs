@@ -10,6 +10,27 @@ use glam::{Mat3A, Vec2, Vec3A};
 use crate::accel::Ray;
 use crate::scene::world::CameraPlacement;
 
+/// Film points for `Camera::pinhole_rays`, a plane per axis (so they load as lanes).
+#[derive(Clone, Debug, Default)]
+pub struct FilmPoints {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    /// Scratch: the rays' directions, a plane per axis.
+    direction: [Vec<f32>; 3],
+}
+
+impl FilmPoints {
+    pub fn clear(&mut self) {
+        self.x.clear();
+        self.y.clear();
+    }
+
+    pub fn push(&mut self, film: Vec2) {
+        self.x.push(film.x);
+        self.y.push(film.y);
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct Camera {
     pub position: Vec3A,
@@ -99,6 +120,49 @@ impl Camera {
         let rz = x_axis.z * dx + y_axis.z * dy + z_axis.z * dz;
         let length = (rx * rx + ry * ry + rz * rz).sqrt();
         [rx / length, ry / length, rz / length]
+    }
+
+    /// `ray` through each of `films`' points with no lens, into `rays`: the same bits,
+    /// with the directions worked out together in vector lanes (`pinhole_direction_lanes`,
+    /// eight to a register where the CPU has AVX2). One at a time, `ray`'s divisions and
+    /// square root wait on each other: a tile's camera rays were 2.3% of a one-thread
+    /// frame's cycles (perf, the-keep play-through at 640x360, half scale).
+    pub fn pinhole_rays(&self, films: &mut FilmPoints, rays: &mut Vec<Ray>) {
+        debug_assert!(!self.has_lens());
+        let count = films.x.len();
+        for plane in &mut films.direction {
+            plane.resize(count, 0.0);
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            #[target_feature(enable = "avx2")]
+            fn pinhole_directions_avx2(camera: &Camera, films: &mut FilmPoints) {
+                camera.pinhole_directions(films);
+            }
+            // SAFETY: the CPU has AVX2, the only feature `pinhole_directions_avx2` enables.
+            unsafe { pinhole_directions_avx2(self, films) };
+        } else {
+            self.pinhole_directions(films);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        self.pinhole_directions(films);
+        let [x, y, z] = &films.direction;
+        rays.extend(
+            (x.iter().zip(y).zip(z))
+                .map(|((&x, &y), &z)| Ray::new(self.position, Vec3A::new(x, y, z))),
+        );
+    }
+
+    #[inline(always)]
+    fn pinhole_directions(&self, films: &mut FilmPoints) {
+        let count = films.x.len();
+        // Every slice cut to `count`: the loop runs without bounds checks, so it vectorises.
+        let (film_x, film_y) = (&films.x[..count], &films.y[..count]);
+        let [x, y, z] = &mut films.direction;
+        let (x, y, z) = (&mut x[..count], &mut y[..count], &mut z[..count]);
+        for i in 0..count {
+            [x[i], y[i], z[i]] = self.pinhole_direction_lanes(Vec2::new(film_x[i], film_y[i]));
+        }
     }
 
     /// The film point (pixels from the top-left, continuous) a world point projects to
@@ -221,6 +285,51 @@ mod tests {
                 camera.pinhole_direction_lanes(film).map(f32::to_bits),
                 "film point {film}"
             );
+        }
+    }
+
+    #[test]
+    fn pinhole_rays_together_are_rays_one_at_a_time_to_the_bit() {
+        let placement = CameraPlacement {
+            name: String::new(),
+            yfov: 55f32.to_radians(),
+            znear: 0.1,
+            world_from_camera: Mat4::from_rotation_translation(
+                glam::Quat::from_euler(glam::EulerRot::YXZ, -1.1, 0.3, -0.2),
+                glam::Vec3::new(2.0, 1.6, -7.0),
+            ),
+        };
+        let camera = Camera::new(&placement, 320, 180);
+        // 259 points: whole registers of eight and a remainder.
+        let films: Vec<Vec2> = (0..259u32)
+            .map(|i| {
+                Vec2::new((i * 41 % 320) as f32, (i * 7 % 180) as f32) + (i % 13) as f32 / 13.0
+            })
+            .collect();
+        let mut points = FilmPoints::default();
+        let mut rays = Vec::new();
+        for round in 0..2 {
+            // A second round reuses the scratch, as a tile's next sample does.
+            points.clear();
+            rays.clear();
+            films[round..].iter().for_each(|&film| points.push(film));
+            camera.pinhole_rays(&mut points, &mut rays);
+            assert_eq!(rays.len(), films.len() - round);
+            for (film, ray) in films[round..].iter().zip(&rays) {
+                let one = camera.ray(*film, Vec2::ZERO);
+                assert_eq!(
+                    (
+                        one.origin.to_array(),
+                        one.direction.to_array().map(f32::to_bits)
+                    ),
+                    (
+                        ray.origin.to_array(),
+                        ray.direction.to_array().map(f32::to_bits)
+                    ),
+                    "film point {film}"
+                );
+                assert_eq!((one.t_min, one.t_max), (ray.t_min, ray.t_max));
+            }
         }
     }
 

@@ -63,6 +63,7 @@ pub use scene::RenderScene;
 use crate::accel::{Hit, InstanceMask, Ray};
 use crate::profile::{TileSpan, since};
 use cache::{CacheSample, CellSizing};
+use camera::FilmPoints;
 use integrator::{
     CacheMark, CacheVertex, NextHit, PathState, ShadowQuery, VertexOutcome, cache_vertex,
     camera_sample, end_at_cache, next_hit, next_hits, path_vertex, reference_radiance,
@@ -195,7 +196,9 @@ struct TileScratch<'a> {
     hits: Vec<Option<NextHit>>,
     /// A bounce's hits, and for each second vertex the radiance cache may end, its cell.
     found: Vec<(Option<NextHit>, Option<CacheVertex>)>,
-    /// The camera rays, and what `intersect_coherent` found for them.
+    /// The camera rays' film points (a pinhole's rays are made together), the rays, and
+    /// what `intersect_coherent` found for them.
+    films: FilmPoints,
     rays: Vec<Ray>,
     accel_hits: Vec<Option<Hit>>,
     outcomes: Vec<VertexOutcome>,
@@ -466,23 +469,36 @@ impl<'a> Tile<'a> {
                 scratch.trains.clear();
                 scratch.marks.clear();
                 scratch.marks.resize(count, None);
+                scratch.films.clear();
+                let has_lens = self.camera.has_lens();
                 for pixel in self.pixels(origin) {
                     scratch.trains.push(
                         self.cache
                             .is_some_and(|cache| cache.trains(settings.frame, pixel)),
                     );
                     let mut sampler = self.sampler(pixel, sample);
-                    let ray = self.camera_ray(pixel, &mut sampler);
-                    // The real-time film leaves the dominant lamp's light out of its
-                    // filters: only renders with guides split it off.
-                    scratch.paths.push(if self.want_guides {
-                        PathState::with_dominant_apart(&ray)
+                    let (jitter, lens) = camera_sample(&mut sampler, has_lens);
+                    let film = Vec2::new(pixel.0 as f32, pixel.1 as f32) + jitter;
+                    if has_lens {
+                        scratch.rays.push(self.camera.ray(film, lens));
                     } else {
-                        PathState::new(&ray)
-                    });
-                    scratch.rays.push(ray);
+                        scratch.films.push(film);
+                    }
                     scratch.samplers.push(sampler);
                 }
+                if !has_lens {
+                    self.camera
+                        .pinhole_rays(&mut scratch.films, &mut scratch.rays);
+                }
+                // The real-time film leaves the dominant lamp's light out of its filters:
+                // only renders with guides split it off.
+                scratch.paths.extend(scratch.rays.iter().map(|ray| {
+                    if self.want_guides {
+                        PathState::with_dominant_apart(ray)
+                    } else {
+                        PathState::new(ray)
+                    }
+                }));
                 // The tile's rows in order: packets of 64 are 16 x 4 strips.
                 next_hits(
                     scene,
