@@ -286,16 +286,21 @@ impl PacketBounds {
             octant,
             rays: rays.count_ones(),
         };
+        // A comparison and a select are one `minss` or `maxss`: `f32::min` and `max` also
+        // handle NaN, which the rule above excludes, in three more instructions each
+        // (this loop was 2.2% of a play-through's render instructions with them).
+        let low = |low: &mut f32, value: f32| *low = if value < *low { value } else { *low };
+        let high = |high: &mut f32, value: f32| *high = if value > *high { value } else { *high };
         for lane in lanes_of(rays) {
             for axis in 0..3 {
                 let origin = packet.origin[axis][lane];
                 let inverse = packet.inverse[axis][lane];
-                bounds.origin_low[axis] = bounds.origin_low[axis].min(origin);
-                bounds.origin_high[axis] = bounds.origin_high[axis].max(origin);
-                bounds.inverse_low[axis] = bounds.inverse_low[axis].min(inverse);
-                bounds.inverse_high[axis] = bounds.inverse_high[axis].max(inverse);
+                low(&mut bounds.origin_low[axis], origin);
+                high(&mut bounds.origin_high[axis], origin);
+                low(&mut bounds.inverse_low[axis], inverse);
+                high(&mut bounds.inverse_high[axis], inverse);
             }
-            bounds.t_min = bounds.t_min.min(packet.t_min[lane]);
+            low(&mut bounds.t_min, packet.t_min[lane]);
         }
         bounds
     }
