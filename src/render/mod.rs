@@ -435,10 +435,16 @@ impl<'a> Tile<'a> {
         )
     }
 
-    fn camera_ray(&self, (x, y): (u32, u32), sampler: &mut PixelSampler) -> Ray {
+    fn camera_ray(&self, pixel: (u32, u32), sampler: &mut PixelSampler) -> Ray {
+        let (film, lens) = self.camera_sample(pixel, sampler);
+        self.camera.ray(film, lens)
+    }
+
+    /// Where in `pixel` its camera ray goes through the film, and through the lens.
+    #[inline(always)]
+    fn camera_sample(&self, (x, y): (u32, u32), sampler: &mut PixelSampler) -> (Vec2, Vec2) {
         let (jitter, lens) = camera_sample(sampler, self.camera.has_lens());
-        self.camera
-            .ray(Vec2::new(x as f32, y as f32) + jitter, lens)
+        (Vec2::new(x as f32, y as f32) + jitter, lens)
     }
 
     /// The path integrator over one tile, phase by phase (see the module doc).
@@ -477,8 +483,7 @@ impl<'a> Tile<'a> {
                             .is_some_and(|cache| cache.trains(settings.frame, pixel)),
                     );
                     let mut sampler = self.sampler(pixel, sample);
-                    let (jitter, lens) = camera_sample(&mut sampler, has_lens);
-                    let film = Vec2::new(pixel.0 as f32, pixel.1 as f32) + jitter;
+                    let (film, lens) = self.camera_sample(pixel, &mut sampler);
                     if has_lens {
                         scratch.rays.push(self.camera.ray(film, lens));
                     } else {
