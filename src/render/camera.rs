@@ -133,18 +133,6 @@ impl Camera {
         for plane in &mut films.direction {
             plane.resize(count, 0.0);
         }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            #[target_feature(enable = "avx2")]
-            fn pinhole_directions_avx2(camera: &Camera, films: &mut FilmPoints) {
-                camera.pinhole_directions(films);
-            }
-            // SAFETY: the CPU has AVX2, the only feature `pinhole_directions_avx2` enables.
-            unsafe { pinhole_directions_avx2(self, films) };
-        } else {
-            self.pinhole_directions(films);
-        }
-        #[cfg(not(target_arch = "x86_64"))]
         self.pinhole_directions(films);
         let [x, y, z] = &films.direction;
         rays.extend(
@@ -153,8 +141,24 @@ impl Camera {
         );
     }
 
-    #[inline(always)]
+    /// `films`' ray directions into its direction planes, compiled for AVX2 where the CPU
+    /// has it.
     fn pinhole_directions(&self, films: &mut FilmPoints) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            #[target_feature(enable = "avx2")]
+            fn pinhole_directions_avx2(camera: &Camera, films: &mut FilmPoints) {
+                camera.pinhole_directions_lanes(films);
+            }
+            // SAFETY: the CPU has AVX2, the only feature `pinhole_directions_avx2` enables.
+            return unsafe { pinhole_directions_avx2(self, films) };
+        }
+        self.pinhole_directions_lanes(films);
+    }
+
+    /// `pinhole_directions` as plain lane arithmetic, for the compiler to vectorise.
+    #[inline(always)]
+    fn pinhole_directions_lanes(&self, films: &mut FilmPoints) {
         let count = films.x.len();
         // Every slice cut to `count`: the loop runs without bounds checks, so it vectorises.
         let (film_x, film_y) = (&films.x[..count], &films.y[..count]);
