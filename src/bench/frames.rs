@@ -21,7 +21,7 @@ use glam::{Quat, Vec3};
 use crate::frame::Engine;
 use crate::game::replay::Recording;
 use crate::game::{AssetInstance, Input, LevelEntity, Transform, ViewCamera, spawn, spawn_player};
-use crate::profile::{Profile, Stage};
+use crate::profile::{AccelRound, Profile, Stage};
 use crate::render::RenderSettings;
 use crate::scene::level::{EntityDef, InstanceDef, LightDef};
 use crate::scene::world::Scene;
@@ -165,13 +165,8 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         .num_threads(threads)
         .build()
         .context("starting the worker threads")?;
-    let (mut profile, churn) =
+    let (profile, churn) =
         pool.install(|| measure(&scene, &level, recording.as_ref(), threads, options))?;
-    // The level's accel alone on the same threads, after the frames (so the two never
-    // share the cores): raybench's rays, traced the renderer's way.
-    let spinner = super::progress::spinner("tracing the accel alone");
-    profile.accel_rays = Some(super::raybench::renderer_rays(&scene, threads)?);
-    spinner.finish_and_clear();
     print!("{}", profile.table());
     // Extract + accel (extract, blas_refit, tlas_build) per kind of frame.
     let world_ms = |frame: &crate::profile::FrameSample| {
@@ -228,6 +223,10 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Measured frames between two timings of the accel alone: 8 rounds in a default run,
+/// each about 40 ms of tracing on two threads.
+const ACCEL_ROUND_FRAMES: usize = 30;
+
 /// Runs the warm-up and the measured frames; returns the profile of the measured ones and
 /// what each did to the world, with the milliseconds the spawn or despawn calls took.
 fn measure(
@@ -279,7 +278,17 @@ fn measure(
         render_size: Some(render_size(options)),
         threads,
         frames: Vec::with_capacity(options.frames as usize),
-        accel_rays: None,
+        accel_rounds: Vec::new(),
+    };
+    // The level's accel alone, timed on the same threads in a round after every window of
+    // `ACCEL_ROUND_FRAMES` measured frames (the two never share the cores, and each window
+    // is set beside a round taken under the same load).
+    let accel_alone = super::raybench::AccelAlone::new(scene);
+    let accel_round = |profile: &mut Profile| {
+        profile.accel_rounds.push(AccelRound {
+            after_frames: profile.frames.len(),
+            rays: accel_alone.round(),
+        });
     };
     let mut churn: Vec<(Churn, f64)> = Vec::with_capacity(options.frames as usize);
     let mut spawned: Vec<Entity> = Vec::new();
@@ -320,7 +329,19 @@ fn measure(
             sample.tiles = engine.film.tile_spans().to_vec();
             profile.frames.push(sample);
             churn.push((kind, edit_ms));
+            if profile.frames.len() % ACCEL_ROUND_FRAMES == 0 {
+                accel_round(&mut profile);
+            }
         }
+    }
+    // The last window (a replay may end early, or the count not divide evenly).
+    if profile
+        .accel_rounds
+        .last()
+        .map_or(0, |round| round.after_frames)
+        < profile.frames.len()
+    {
+        accel_round(&mut profile);
     }
     bar.finish_and_clear();
     Ok((profile, churn))

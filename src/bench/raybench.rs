@@ -563,32 +563,55 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Primary rays per side and timed rounds of `renderer_rays`: 262k camera rays a round,
-/// 5 rounds' medians.
-const RENDERER_RAYS_SIZE: u32 = 512;
-const RENDERER_RAYS_ROUNDS: usize = 5;
+/// Primary rays per side of `AccelAlone`'s rays: 262k camera rays a round.
+const ACCEL_ALONE_SIZE: u32 = 512;
 
-/// What `scene`'s accel alone traces on `threads` threads, the renderer's way
-/// (`Contender::renderer`), over this tool's rays (`make_rays`): `gloam bench` sets it
-/// beside the renderer's own rays per second.
-pub fn renderer_rays(scene: &Scene, threads: usize) -> anyhow::Result<AccelRays> {
-    // The engine's accel, its TLAS built as a frame leaves it.
-    let render = render_scene(scene);
-    let accel = render.accel;
-    let rays = make_rays(
-        &accel,
-        &render.camera,
-        &emitters(&render.lights.lights),
-        RENDERER_RAYS_SIZE,
-    );
-    let contender = Contender::renderer("gloam_renderer", 0.0, &accel);
-    let measured = measure_interleaved(&rays, threads, RENDERER_RAYS_ROUNDS, &[contender])?;
-    let throughput = measured.first().copied().unwrap_or_default();
-    Ok(AccelRays {
-        camera: throughput.primary,
-        shadow: throughput.shadow,
-        bounce: throughput.diffuse,
-    })
+/// A level's accel alone with this tool's rays (`make_rays`), timed the renderer's way
+/// (`Contender::renderer`) in rounds: `gloam bench` times one between windows of its
+/// frames and sets it beside the renderer's own rays per second.
+pub struct AccelAlone {
+    accel: AccelScene,
+    rays: RaySet,
+}
+
+impl AccelAlone {
+    pub fn new(scene: &Scene) -> AccelAlone {
+        // The engine's accel, its TLAS built as a frame leaves it.
+        let render = render_scene(scene);
+        let rays = make_rays(
+            &render.accel,
+            &render.camera,
+            &emitters(&render.lights.lights),
+            ACCEL_ALONE_SIZE,
+        );
+        AccelAlone {
+            accel: render.accel,
+            rays,
+        }
+    }
+
+    /// One timing of each kind of ray, on the thread pool it is called from.
+    pub fn round(&self) -> AccelRays {
+        let contender = Contender::renderer("gloam_renderer", 0.0, &self.accel);
+        AccelRays {
+            camera: rate(&self.rays.primary, &*contender.primary),
+            shadow: rate(&self.rays.shadow, &*contender.shadow),
+            bounce: rate(&self.rays.diffuse, &*contender.diffuse),
+        }
+    }
+}
+
+/// Mrays/s of `trace` over `set` on the thread pool it is called from.
+fn rate(set: &[Ray], trace: &(dyn Fn(&[Ray]) -> usize + Sync)) -> f64 {
+    if set.is_empty() {
+        return 0.0;
+    }
+    let start = Instant::now();
+    // The hit count keeps the work observable to the optimiser. Batches of 1024 rays are
+    // four render tiles.
+    let hits: usize = set.par_chunks(1024).map(trace).sum();
+    std::hint::black_box(hits);
+    set.len() as f64 / start.elapsed().as_secs_f64() / 1e6
 }
 
 /// The emissive triangles of `lights` (shadow rays aim at them).
@@ -755,15 +778,7 @@ fn measure_interleaved(
         .build()
         .context("starting the thread pool")?;
     let rate = |set: &[Ray], trace: &(dyn Fn(&[Ray]) -> usize + Sync)| -> f64 {
-        if set.is_empty() {
-            return 0.0;
-        }
-        let start = Instant::now();
-        // The hit count keeps the work observable to the optimiser. Batches of 1024 rays
-        // are four render tiles.
-        let hits: usize = pool.install(|| set.par_chunks(1024).map(trace).sum());
-        std::hint::black_box(hits);
-        set.len() as f64 / start.elapsed().as_secs_f64() / 1e6
+        pool.install(|| rate(set, trace))
     };
     let mut samples = vec![[Vec::new(), Vec::new(), Vec::new()]; contenders.len()];
     for _ in 0..repeats {

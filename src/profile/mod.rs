@@ -362,9 +362,18 @@ pub struct Profile {
     pub render_size: Option<(u32, u32)>,
     pub threads: usize,
     pub frames: Vec<FrameSample>,
-    /// What the level's accel alone traces on the same threads (`gloam bench` measures
-    /// it after the frames), to set beside the renderer's rays per second.
-    pub accel_rays: Option<AccelRays>,
+    /// What the level's accel alone traces on the same threads, set beside the
+    /// renderer's rays per second: `gloam bench` times a round between windows of frames,
+    /// so on a loaded machine both sides of each ratio see the same load.
+    pub accel_rounds: Vec<AccelRound>,
+}
+
+/// One timing of the accel alone, after the window of frames it is set beside.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AccelRound {
+    /// Measured frames before the round: its window is the frames since the last round.
+    pub after_frames: usize,
+    pub rays: AccelRays,
 }
 
 /// Millions of rays a second the accel traces of each kind, the renderer's way (camera
@@ -421,17 +430,62 @@ impl Profile {
 
     /// Rays traced per second of render stage, in millions.
     pub fn mrays_per_s(&self) -> f64 {
+        Self::mrays_per_s_of(&self.frames)
+    }
+
+    fn mrays_per_s_of(frames: &[FrameSample]) -> f64 {
         let render = Stage::Render.index();
-        let rays: u64 = self.frames.iter().map(|f| f.rays).sum();
-        let seconds: f64 = self.frames.iter().map(|f| f.stages[render]).sum::<f64>() / 1e3;
+        let rays: u64 = frames.iter().map(|f| f.rays).sum();
+        let seconds: f64 = frames.iter().map(|f| f.stages[render]).sum::<f64>() / 1e3;
         rays as f64 / seconds.max(1e-9) / 1e6
     }
 
+    /// Each accel round with the renderer's rays per second over its window of frames
+    /// (rounds with no frames before them are left out).
+    fn accel_windows(&self) -> Vec<(AccelRound, f64)> {
+        let mut start = 0;
+        let mut windows = Vec::new();
+        for round in &self.accel_rounds {
+            let end = round.after_frames.min(self.frames.len());
+            if end > start {
+                windows.push((*round, Self::mrays_per_s_of(&self.frames[start..end])));
+                start = end;
+            }
+        }
+        windows
+    }
+
+    /// The accel alone's rates, each the median over the rounds.
+    pub fn accel_rays(&self) -> Option<AccelRays> {
+        let median_of = |rate: fn(&AccelRays) -> f64| {
+            let rates: Vec<f64> = self
+                .accel_rounds
+                .iter()
+                .map(|round| rate(&round.rays))
+                .collect();
+            Summary::of(&rates).p50
+        };
+        (!self.accel_rounds.is_empty()).then(|| AccelRays {
+            camera: median_of(|rays| rays.camera),
+            shadow: median_of(|rays| rays.shadow),
+            bounce: median_of(|rays| rays.bounce),
+        })
+    }
+
     /// The renderer's rays per second against the harmonic mean of what its accel alone
-    /// traces (`accel_rays`): 1 would be a renderer that costs nothing but its rays.
+    /// traces: 1 would be a renderer that costs nothing but its rays. The median over the
+    /// rounds of each window's ratio to its own round (a machine whose load changes during
+    /// the run moves both sides of a pair together).
     pub fn renderer_vs_accel(&self) -> Option<f64> {
-        let accel = self.accel_rays?.harmonic_mean();
-        (accel > 0.0).then(|| self.mrays_per_s() / accel)
+        let ratios: Vec<f64> = self
+            .accel_windows()
+            .into_iter()
+            .filter_map(|(round, renderer)| {
+                let accel = round.rays.harmonic_mean();
+                (accel > 0.0).then(|| renderer / accel)
+            })
+            .collect();
+        (!ratios.is_empty()).then(|| Summary::of(&ratios).p50)
     }
 
     /// The `bench --json` report (README), and the rays of each frame.
@@ -455,7 +509,7 @@ impl Profile {
             "rays_per_frame": self.frames.iter().map(|f| f.rays).collect::<Vec<_>>(),
             "cache_ended_share": self.cache_ended_share(),
         });
-        if let Some(accel) = &self.accel_rays {
+        if let Some(accel) = self.accel_rays() {
             report["accel_mrays_per_s"] = json!({
                 "camera": accel.camera,
                 "shadow": accel.shadow,
@@ -463,6 +517,20 @@ impl Profile {
                 "harmonic_mean": accel.harmonic_mean(),
             });
             report["renderer_vs_accel"] = json!(self.renderer_vs_accel());
+            report["accel_rounds"] = self
+                .accel_windows()
+                .into_iter()
+                .map(|(round, renderer)| {
+                    json!({
+                        "after_frames": round.after_frames,
+                        "camera": round.rays.camera,
+                        "shadow": round.rays.shadow,
+                        "bounce": round.rays.bounce,
+                        "harmonic_mean": round.rays.harmonic_mean(),
+                        "renderer_mrays_per_s": renderer,
+                    })
+                })
+                .collect();
         }
         // "gameplay_phases", "render_phases" and "film_phases": each phase's summary.
         for (stage, summaries) in self.phase_summaries() {
@@ -527,15 +595,18 @@ impl Profile {
                 s.mean, s.p50, s.p95, s.p99, s.max
             );
         }
-        if let (Some(accel), Some(ratio)) = (&self.accel_rays, self.renderer_vs_accel()) {
+        if let (Some(accel), Some(ratio)) = (self.accel_rays(), self.renderer_vs_accel()) {
             text += &format!(
                 "rays: the renderer {:.2} Mrays/s (rays traced / render time); its accel alone \
-                 {:.2} (camera {:.2}, shadow {:.2}, bounce {:.2}; harmonic mean): {:.2}x\n",
+                 {:.2} (camera {:.2}, shadow {:.2}, bounce {:.2}; harmonic mean; medians of \
+                 {} rounds between the frames): {:.2}x (median of each window's ratio to its \
+                 round)\n",
                 self.mrays_per_s(),
                 accel.harmonic_mean(),
                 accel.camera,
                 accel.shadow,
                 accel.bounce,
+                self.accel_rounds.len(),
                 ratio
             );
         }
@@ -710,13 +781,54 @@ mod tests {
                 rays: 3_000,
                 ..FrameSample::default()
             }],
-            accel_rays: Some(rays),
+            accel_rounds: vec![AccelRound {
+                after_frames: 1,
+                rays,
+            }],
             ..Profile::default()
         };
         profile.frames[0].stages[Stage::Render.index()] = 1.0;
         // 3,000 rays in 1 ms: 3 Mrays/s, against 17.14.
         let ratio = profile.renderer_vs_accel().unwrap();
         assert!((ratio - 3.0 / (3.0 / 0.175)).abs() < 1e-9, "{ratio}");
+    }
+
+    #[test]
+    fn each_window_of_frames_is_set_beside_its_own_round() {
+        // Three windows of two frames, each traced at 2 Mrays/s (2,000 rays in 1 ms) on a
+        // machine whose load changed: the accel alone was slower in the second round.
+        let frame = || {
+            let mut frame = FrameSample {
+                rays: 2_000,
+                ..FrameSample::default()
+            };
+            frame.stages[Stage::Render.index()] = 1.0;
+            frame
+        };
+        let round = |after_frames, rate| AccelRound {
+            after_frames,
+            rays: AccelRays {
+                camera: rate,
+                shadow: rate,
+                bounce: rate,
+            },
+        };
+        let profile = Profile {
+            frames: (0..6).map(|_| frame()).collect(),
+            // A round before any frame has no window and counts in no ratio.
+            accel_rounds: vec![round(0, 1.0), round(2, 8.0), round(4, 4.0), round(6, 5.0)],
+            ..Profile::default()
+        };
+        // Ratios 0.25, 0.5, 0.4: their median, not the ratio of the medians (2 / 5).
+        let ratio = profile.renderer_vs_accel().unwrap();
+        assert!((ratio - 0.4).abs() < 1e-9, "{ratio}");
+        assert_eq!(profile.accel_rays().map(|rays| rays.camera), Some(4.0));
+        let report = profile.to_json();
+        let rounds = report["accel_rounds"].as_array().unwrap();
+        assert_eq!(rounds.len(), 3);
+        assert_eq!(rounds[1]["after_frames"], 4);
+        assert_eq!(rounds[1]["renderer_mrays_per_s"].as_f64(), Some(2.0));
+        assert_eq!(Profile::default().renderer_vs_accel(), None);
     }
 
     #[test]
