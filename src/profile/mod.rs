@@ -599,7 +599,7 @@ impl Profile {
             text += &format!(
                 "rays: the renderer {:.2} Mrays/s (rays traced / render time); its accel alone \
                  {:.2} (camera {:.2}, shadow {:.2}, bounce {:.2}; harmonic mean; medians of \
-                 {} rounds between the frames): {:.2}x (median of each window's ratio to its \
+                 {} round{} between the frames): {:.2}x (median of each window's ratio to its \
                  round)\n",
                 self.mrays_per_s(),
                 accel.harmonic_mean(),
@@ -607,6 +607,11 @@ impl Profile {
                 accel.shadow,
                 accel.bounce,
                 self.accel_rounds.len(),
+                if self.accel_rounds.len() == 1 {
+                    ""
+                } else {
+                    "s"
+                },
                 ratio
             );
         }
