@@ -4,12 +4,14 @@
 //! then for each frame: moves the view along a scripted path (a slow sway and dolly around
 //! the level's camera), advances exactly one 60 Hz simulation step (so every run does the
 //! same work: same poses, same rays), and records the stage times the schedules measured.
-//! Warm-up frames are run first and dropped. The `profile` module prints the table and
-//! writes the JSON, CSV, Chrome trace and PNG chart. With `--replay`, the frames are a real
-//! play-through instead: the player fed one recorded step's input a frame. With
-//! `--churn-instances` and
-//! `--churn-lights`, every other frame spawns things into the world and the next despawns
-//! them, and extract + accel is reported per kind of frame.
+//! Warm-up frames are run first and dropped. After every `ACCEL_ROUND_FRAMES` measured
+//! frames the level's accel alone traces a round of `raybench`'s rays on the same threads,
+//! set beside the renderer's rays per second over those frames. The `profile` module
+//! prints the table and writes the JSON, CSV, Chrome trace and PNG chart. With `--replay`,
+//! the frames are a real play-through instead: the player fed one recorded step's input a
+//! frame. With `--churn-instances` and `--churn-lights`, every other frame spawns things
+//! into the world and the next despawns them, and extract + accel is reported per kind of
+//! frame.
 
 use std::path::PathBuf;
 use std::time::Instant;
