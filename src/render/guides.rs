@@ -9,9 +9,7 @@
 use glam::{Vec3, Vec3A};
 
 use super::integrator::NextHit;
-use rayon::prelude::*;
-
-use super::planes::RowPlanes;
+use super::planes::{RowPlanes, SharedRuns};
 use super::scene::RenderScene;
 
 /// The instance of a pixel whose camera ray left the scene.
@@ -179,19 +177,14 @@ impl Guides {
         self.instances[index] = guide.instance;
     }
 
-    /// Bands of `rows` rows, to set in parallel (the render assembles its tiles' guides
-    /// a row of tiles per job).
-    pub fn bands_mut(&mut self, rows: usize) -> impl IndexedParallelIterator<Item = GuideBand<'_>> {
-        let width = self.width as usize;
-        self.planes
-            .bands_of_mut(rows)
-            .zip(self.instances.par_chunks_mut((width * rows).max(1)))
-            .map(move |((first_row, planes), instances)| GuideBand {
-                width,
-                first_index: first_row * width,
-                planes,
-                instances,
-            })
+    /// The guides to set from many threads at once, a rectangle each (the render's
+    /// tiles set their own pixels as they finish).
+    pub(crate) fn rects(&mut self) -> GuideRects<'_> {
+        GuideRects {
+            width: self.width as usize,
+            planes: self.planes.shared_runs(),
+            instances: SharedRuns::new(&mut self.instances),
+        }
     }
 
     /// Row `y` of plane `plane` (`NORMAL_X` ... `UNFILTERED_B`).
@@ -243,68 +236,68 @@ impl Guides {
     }
 }
 
-/// Consecutive rows of `Guides`, to set (`Guides::bands_mut`).
-pub struct GuideBand<'a> {
+/// `Guides` set a rectangle at a time from many threads (`Guides::rects`).
+pub(crate) struct GuideRects<'a> {
     width: usize,
-    /// The row-major index of the band's first pixel.
-    first_index: usize,
-    planes: &'a mut [f32],
-    instances: &'a mut [u32],
+    planes: SharedRuns<'a, f32>,
+    instances: SharedRuns<'a, u32>,
 }
 
-impl GuideBand<'_> {
+impl GuideRects<'_> {
     /// Sets the pixels of a rectangle `rect_width` wide whose top-left pixel is
-    /// (`x0`, `y0`) (in the whole image; the rectangle must lie in the band) from
-    /// `guides`, row-major. Row by row and plane by plane, each a run of stores through
-    /// slices cut to the run (pixel by pixel, 13 bounds-checked stores each, this was 2.8%
-    /// of a frame's CPU time on the-gallery at half scale; one pixel at a time from its
-    /// row-major index, two 64-bit divisions each, 5%).
-    pub fn set_rect(&mut self, (x0, y0): (usize, usize), rect_width: usize, guides: &[GuidePixel]) {
+    /// (`x0`, `y0`) from `guides`, row-major: a row at a time, through a slice per plane cut
+    /// to the rectangle (one pixel at a time from its row-major index, with a division
+    /// and 13 bounds-checked stores each, was 5% of a frame's CPU time on the-gallery).
+    ///
+    /// # Safety
+    /// No other call setting any of the same pixels may run at the same time.
+    pub(crate) unsafe fn set_rect(
+        &self,
+        (x0, y0): (usize, usize),
+        rect_width: usize,
+        guides: &[GuidePixel],
+    ) {
         let width = self.width;
-        let first_row = self.first_index / width;
+        assert!(
+            x0 + rect_width <= width,
+            "a rectangle past the guides' width"
+        );
         for (row, pixels) in guides.chunks(rect_width.max(1)).enumerate() {
-            let local_row = y0 + row - first_row;
-            let planes =
-                &mut self.planes[local_row * GUIDE_PLANES * width..][..GUIDE_PLANES * width];
-            for (plane, value) in PLANE_VALUES {
-                let run = &mut planes[plane * width + x0..][..pixels.len()];
-                for (stored, pixel) in run.iter_mut().zip(pixels) {
-                    *stored = value(pixel);
+            let y = y0 + row;
+            let first = y * GUIDE_PLANES * width + x0;
+            // SAFETY: the rectangle's run in each plane, which no other caller sets.
+            let mut runs: [&mut [f32]; GUIDE_PLANES] = std::array::from_fn(|plane| unsafe {
+                self.planes.run(first + plane * width, pixels.len())
+            });
+            // SAFETY: as above.
+            let instances = unsafe { self.instances.run(y * width + x0, pixels.len()) };
+            for (x, (pixel, instance)) in pixels.iter().zip(instances).enumerate() {
+                for (run, value) in runs.iter_mut().zip(pixel_planes(pixel)) {
+                    run[x] = value;
                 }
-            }
-            let instances = &mut self.instances[local_row * width + x0..][..pixels.len()];
-            for (stored, pixel) in instances.iter_mut().zip(pixels) {
-                *stored = pixel.instance;
+                *instance = pixel.instance;
             }
         }
     }
 }
 
-/// A guide pixel's plane values, in plane order.
+/// A guide pixel's plane values, in plane order (field by field, so that setting a row of
+/// pixels compiles to stores: a table of getters was called through pointers, 17 us a
+/// tile).
+#[inline(always)]
 fn pixel_planes(guide: &GuidePixel) -> [f32; GUIDE_PLANES] {
     let mut values = [0.0; GUIDE_PLANES];
-    for (plane, value) in PLANE_VALUES {
-        values[plane] = value(guide);
-    }
+    [values[NORMAL_X], values[NORMAL_Y], values[NORMAL_Z]] = guide.normal.to_array();
+    [values[ALBEDO_R], values[ALBEDO_G], values[ALBEDO_B]] = guide.albedo.to_array();
+    [values[POSITION_X], values[POSITION_Y], values[POSITION_Z]] = guide.position.to_array();
+    [
+        values[UNFILTERED_R],
+        values[UNFILTERED_G],
+        values[UNFILTERED_B],
+    ] = guide.unfiltered.to_array();
+    values[DEPTH] = guide.depth;
     values
 }
-
-/// Each guide plane and the value of a pixel it holds.
-const PLANE_VALUES: [(usize, fn(&GuidePixel) -> f32); GUIDE_PLANES] = [
-    (NORMAL_X, |pixel| pixel.normal.x),
-    (NORMAL_Y, |pixel| pixel.normal.y),
-    (NORMAL_Z, |pixel| pixel.normal.z),
-    (ALBEDO_R, |pixel| pixel.albedo.x),
-    (ALBEDO_G, |pixel| pixel.albedo.y),
-    (ALBEDO_B, |pixel| pixel.albedo.z),
-    (POSITION_X, |pixel| pixel.position.x),
-    (POSITION_Y, |pixel| pixel.position.y),
-    (POSITION_Z, |pixel| pixel.position.z),
-    (UNFILTERED_R, |pixel| pixel.unfiltered.x),
-    (UNFILTERED_G, |pixel| pixel.unfiltered.y),
-    (UNFILTERED_B, |pixel| pixel.unfiltered.z),
-    (DEPTH, |pixel| pixel.depth),
-];
 
 #[cfg(test)]
 mod tests {
@@ -349,34 +342,27 @@ mod tests {
         assert_eq!(guides.row(1, DEPTH)[3], 4.5);
         assert_eq!(guides.row(1, UNFILTERED_G)[3], 5.0);
         assert_eq!(guides.surface_at(3, 1), (pixel.position, pixel.normal));
-        // Set through bands of rows (pixel 8, (3, 1), is in the first, rows 0 and 1): the
-        // same.
-        let mut banded = Guides::new(5, 3);
-        banded.bands_mut(2).for_each(|mut band| {
-            if band.first_index == 0 {
-                band.set_rect((3, 1), 1, &[pixel]);
-            }
-        });
-        assert_eq!(banded, guides);
-        // A 2 x 2 rectangle across two bands of one row each, set band by band.
-        let (mut whole, mut by_band) = (Guides::new(5, 3), Guides::new(5, 3));
+        // Set as rectangles, two at once from two threads: the same.
+        let (mut whole, mut by_rect) = (Guides::new(5, 3), Guides::new(5, 3));
         let other = GuidePixel {
             depth: 9.0,
             instance: 2,
             ..pixel
         };
-        let rect = [pixel, other, other, pixel];
-        for (index, guide) in [(6, pixel), (7, other), (11, other), (12, pixel)] {
+        let (left, right) = ([pixel, other, other, pixel], [other, pixel, pixel, pixel]);
+        for (index, guide) in [(5, pixel), (6, other), (10, other), (11, pixel)] {
             whole.set(index, &guide);
         }
-        by_band
-            .bands_mut(1)
-            .for_each(|mut band| match band.first_index / 5 {
-                1 => band.set_rect((1, 1), 2, &rect[..2]),
-                2 => band.set_rect((1, 2), 2, &rect[2..]),
-                _ => {}
-            });
-        assert_eq!(by_band, whole);
+        for (index, guide) in [(7, other), (8, pixel), (12, pixel), (13, pixel)] {
+            whole.set(index, &guide);
+        }
+        let rects = by_rect.rects();
+        // SAFETY: the rectangles (0..2 and 2..4 across, rows 1 and 2) are disjoint.
+        rayon::join(
+            || unsafe { rects.set_rect((0, 1), 2, &left) },
+            || unsafe { rects.set_rect((2, 1), 2, &right) },
+        );
+        assert_eq!(by_rect, whole);
         // A row modulated at once is each pixel modulated alone.
         let illumination = [[0.5f32; 5], [2.0; 5], [0.0; 5]];
         let mut row = [Vec3::ZERO; 5];

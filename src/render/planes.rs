@@ -2,6 +2,8 @@
 //! the layout every filter pass (`temporal`, `atrous`, the remodulation in `denoise`)
 //! reads and writes, so one pass's output is the next pass's input without a copy.
 
+use std::marker::PhantomData;
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -76,6 +78,12 @@ impl<const PLANES: usize> RowPlanes<PLANES> {
         }
     }
 
+    /// Every row of every plane, for threads that each write runs of their own
+    /// (`SharedRuns`; run (y PLANES + k) width + x is row y of plane k from x).
+    pub(crate) fn shared_runs(&mut self) -> SharedRuns<'_, f32> {
+        SharedRuns::new(&mut self.data)
+    }
+
     /// Bands of `BAND_ROWS` rows, for parallel writing: (first row, its planes).
     pub fn bands_mut(&mut self) -> impl IndexedParallelIterator<Item = (usize, &mut [f32])> {
         self.bands_of_mut(BAND_ROWS)
@@ -91,6 +99,48 @@ impl<const PLANES: usize> RowPlanes<PLANES> {
             .par_chunks_mut(band.max(1))
             .enumerate()
             .map(move |(index, data)| (index * rows, data))
+    }
+}
+
+/// A buffer that many threads write at once, each through runs of it no other thread
+/// touches: the render's tiles write their rectangles of the film and the guides straight
+/// in, a run per row (and plane), while the pixels are still in their caches.
+pub(crate) struct SharedRuns<'a, T> {
+    start: *mut T,
+    len: usize,
+    /// Borrowed mutably for as long as any run can be handed out.
+    _buffer: PhantomData<&'a mut [T]>,
+}
+
+// SAFETY: a `SharedRuns` only hands out runs through `run`, whose callers promise that no
+// two live runs overlap, so sharing it between threads shares no element.
+unsafe impl<T: Send> Sync for SharedRuns<'_, T> {}
+// SAFETY: as for `Sync`; the buffer itself is borrowed for `'a`.
+unsafe impl<T: Send> Send for SharedRuns<'_, T> {}
+
+impl<'a, T> SharedRuns<'a, T> {
+    pub(crate) fn new(buffer: &'a mut [T]) -> SharedRuns<'a, T> {
+        SharedRuns {
+            start: buffer.as_mut_ptr(),
+            len: buffer.len(),
+            _buffer: PhantomData,
+        }
+    }
+
+    /// The `len` elements from `first` (panics past the buffer's end).
+    ///
+    /// # Safety
+    /// No other run the caller or another thread holds may overlap this one while it lives.
+    #[allow(clippy::mut_from_ref)]
+    #[inline(always)]
+    pub(crate) unsafe fn run(&self, first: usize, len: usize) -> &mut [T] {
+        assert!(
+            first <= self.len && len <= self.len - first,
+            "run {first}+{len} past a buffer of {}",
+            self.len
+        );
+        // SAFETY: in bounds (asserted); not aliased (the caller's promise).
+        unsafe { std::slice::from_raw_parts_mut(self.start.add(first), len) }
     }
 }
 
