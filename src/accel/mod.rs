@@ -174,8 +174,6 @@ pub struct SurfaceHit {
     pub shading_normal: Vec3A,
     pub uv: Vec2,
     pub material: u32,
-    /// The instance's `user_id` (the game's entity).
-    pub user_id: u64,
 }
 
 /// Barycentrics (b1, b2) of the ray's crossing of the triangle's plane (Moller & Trumbore

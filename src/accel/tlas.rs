@@ -772,7 +772,6 @@ impl AccelScene {
             shading_normal,
             uv: geometry.uv_at(triangle, hit.barycentrics),
             material: geometry.materials.get(triangle).copied().unwrap_or(0),
-            user_id: instance.user_id,
         }
     }
 }
