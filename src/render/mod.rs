@@ -232,7 +232,6 @@ struct TileScratch<'a> {
     films: FilmPoints,
     rays: Vec<Ray>,
     accel_hits: Vec<Option<Hit>>,
-    outcomes: Vec<VertexOutcome>,
     /// A vertex's shadow queries (path index, query), their rays, and whether something
     /// blocks each.
     shadows: Vec<(usize, ShadowQuery)>,
@@ -536,13 +535,23 @@ impl<'a> Tile<'a> {
             }
             phases.primary += lap(&mut clock);
 
-            // Shade: the first vertex of every path.
+            // Shade: the first vertex of every path, queueing its shadow rays (the dominant
+            // lamp's first) and the ray that continues it, in path order.
             {
                 profiling::scope!("render.shade");
-                scratch.outcomes.clear();
+                scratch.shadows.clear();
+                scratch.live.clear();
                 let draws = (scratch.draws).draw(&mut scratch.samplers, 0..count);
-                for ((path, hit), draws) in scratch.paths.iter_mut().zip(&scratch.hits).zip(draws) {
-                    let outcome = path_vertex(
+                for (index, ((path, hit), draws)) in
+                    (scratch.paths.iter_mut().zip(&scratch.hits).zip(draws)).enumerate()
+                {
+                    // Taken apart here rather than kept: a kept outcome (192 bytes) was
+                    // copied by a call to memmove, 1.2% of the render's time (perf).
+                    let VertexOutcome {
+                        shadow,
+                        dominant,
+                        next,
+                    } = path_vertex(
                         scene,
                         path,
                         hit.as_ref(),
@@ -550,7 +559,12 @@ impl<'a> Tile<'a> {
                         settings.max_depth,
                         &mut counts,
                     );
-                    scratch.outcomes.push(outcome);
+                    for shadow in [dominant, shadow].into_iter().flatten() {
+                        scratch.shadows.push((index, shadow));
+                    }
+                    if let Some(next) = next {
+                        scratch.live.push((index, next));
+                    }
                 }
             }
             phases.shade += lap(&mut clock);
@@ -558,16 +572,6 @@ impl<'a> Tile<'a> {
             // Shadow: the first vertex's shadow rays, together, in interleaved streams.
             {
                 profiling::scope!("render.shadow");
-                scratch.shadows.clear();
-                // Room for both of every vertex's queries up front, each copied once by
-                // reference (a by-value flat_map over each outcome's pair copied the pair,
-                // and checked the capacity at every push).
-                scratch.shadows.reserve(2 * scratch.outcomes.len());
-                for (index, outcome) in scratch.outcomes.iter().enumerate() {
-                    for shadow in [&outcome.dominant, &outcome.shadow].into_iter().flatten() {
-                        scratch.shadows.push((index, *shadow));
-                    }
-                }
                 scratch.resolve_shadows(scene, &alpha);
             }
             phases.shadow += lap(&mut clock);
@@ -576,11 +580,6 @@ impl<'a> Tile<'a> {
             // shadow rays are traced as one stream too), until every path has ended.
             {
                 profiling::scope!("render.bounces");
-                scratch.live.clear();
-                scratch.live.extend(
-                    (scratch.outcomes.iter().enumerate())
-                        .filter_map(|(index, outcome)| Some((index, outcome.next?))),
-                );
                 while !scratch.live.is_empty() {
                     scratch.shadows.clear();
                     scratch.next_live.clear();
