@@ -172,11 +172,6 @@ struct TileResult {
     /// The tile's top-left pixel, and its width (less at the image's right edge).
     origin: (usize, usize),
     width: usize,
-    /// The tile's pixels, row by row, until `set_pixels` sets them in the film.
-    pixels: Vec<Vec3>,
-    /// Sample 0's guides per pixel, in `pixels` order (empty unless asked for), until
-    /// `set_pixels` sets them in the guides.
-    guides: Vec<GuidePixel>,
     /// What the tile's full paths teach the radiance cache, in pixel order.
     cache_samples: Vec<CacheSample>,
     counts: RayCounts,
@@ -186,30 +181,26 @@ struct TileResult {
     span: TileSpan,
 }
 
-impl TileResult {
-    /// Sets the tile's pixels in the film (`image_width` across) and its guides in
-    /// `guides`, and lets go of them.
-    ///
-    /// # Safety
-    /// No other tile setting any of the same pixels may run at the same time.
-    unsafe fn set_pixels(
-        &mut self,
-        film: &SharedRuns<Vec3>,
-        guides: Option<&GuideRects>,
-        image_width: usize,
-    ) {
-        let (x0, y0) = self.origin;
-        for (row, values) in self.pixels.chunks(self.width.max(1)).enumerate() {
-            // SAFETY: the tile's own run of this row (the caller's promise).
-            unsafe { film.run((y0 + row) * image_width + x0, values.len()) }
-                .copy_from_slice(values);
-        }
-        if let Some(guides) = guides {
-            // SAFETY: the tile's own rectangle (the caller's promise).
-            unsafe { guides.set_rect(self.origin, self.width, &self.guides) };
-        }
-        self.pixels = Vec::new();
-        self.guides = Vec::new();
+/// Sets a tile's `pixels` (row by row, `width` across, from `origin`) in the film
+/// (`image_width` across) and its `guide_pixels` in `guides`.
+///
+/// # Safety
+/// No other tile setting any of the same pixels may run at the same time.
+unsafe fn set_tile_pixels(
+    (origin, width): ((usize, usize), usize),
+    (pixels, guide_pixels): (&[Vec3], &[GuidePixel]),
+    film: &SharedRuns<Vec3>,
+    guides: Option<&GuideRects>,
+    image_width: usize,
+) {
+    let (x0, y0) = origin;
+    for (row, values) in pixels.chunks(width.max(1)).enumerate() {
+        // SAFETY: the tile's own run of this row (the caller's promise).
+        unsafe { film.run((y0 + row) * image_width + x0, values.len()) }.copy_from_slice(values);
+    }
+    if let Some(guides) = guides {
+        // SAFETY: the tile's own rectangle (the caller's promise).
+        unsafe { guides.set_rect(origin, width, guide_pixels) };
     }
 }
 
@@ -241,6 +232,9 @@ struct TileScratch<'a> {
     live: Vec<(usize, Ray)>,
     next_live: Vec<(usize, Ray)>,
     sums: Vec<Vec3>,
+    /// The tile's pixels and (sample 0's) guides, row by row, for `set_tile_pixels`.
+    pixels: Vec<Vec3>,
+    guides: Vec<GuidePixel>,
     /// Per pixel, the dominant lamp's light kept apart (`PathState::with_dominant_apart`).
     dominant_sums: Vec<Vec3>,
 }
@@ -373,10 +367,18 @@ fn render_tiles(
             let begun = since(start) as f32;
             let mut result = match settings.integrator {
                 IntegratorKind::Path => tile.path_traced(origin, scratch),
-                IntegratorKind::Reference => tile.reference(origin),
+                IntegratorKind::Reference => tile.reference(origin, scratch),
             };
             // SAFETY: the tiles do not overlap, and each sets only its own pixels.
-            unsafe { result.set_pixels(&film_runs, guide_rects.as_ref(), width as usize) };
+            unsafe {
+                set_tile_pixels(
+                    (result.origin, result.width),
+                    (&scratch.pixels, &scratch.guides),
+                    &film_runs,
+                    guide_rects.as_ref(),
+                    width as usize,
+                )
+            };
             result.span = TileSpan {
                 thread: rayon::current_thread_index().map_or(0, |thread| thread as u16),
                 start_ms: begun,
@@ -468,7 +470,7 @@ impl<'a> Tile<'a> {
         let mut counts = RayCounts::default();
         let mut phases = PhaseTimes::default();
         let mut invalid = 0;
-        let mut guides = Vec::new();
+        scratch.guides.clear();
         let mut cache_samples = Vec::new();
         let sizing = CellSizing::of(self.camera);
         let count = self.pixels(origin).count();
@@ -528,7 +530,7 @@ impl<'a> Tile<'a> {
                 );
                 counts.camera += count as u64;
                 if self.want_guides && sample == 0 {
-                    guides.extend(scratch.hits.iter().map(|hit| {
+                    (scratch.guides).extend(scratch.hits.iter().map(|hit| {
                         GuidePixel::from_hit(scene, self.camera.position, hit.as_ref())
                     }));
                 }
@@ -669,15 +671,14 @@ impl<'a> Tile<'a> {
         let spp = settings.spp.max(1) as f32;
         // The dominant lamp's light is in the film's pixels and, for the film's filters to
         // leave it alone, in the guides' unfiltered light.
-        for (guide, dominant_sum) in guides.iter_mut().zip(&scratch.dominant_sums) {
+        for (guide, dominant_sum) in scratch.guides.iter_mut().zip(&scratch.dominant_sums) {
             guide.unfiltered += *dominant_sum / spp;
         }
-        let pixels = scratch.sums.iter().map(|sum| *sum / spp).collect();
+        scratch.pixels.clear();
+        (scratch.pixels).extend(scratch.sums.iter().map(|sum| *sum / spp));
         TileResult {
             origin: (origin.0 as usize, origin.1 as usize),
             width: self.tile_width(origin),
-            pixels,
-            guides,
             cache_samples,
             counts,
             phases,
@@ -687,45 +688,42 @@ impl<'a> Tile<'a> {
     }
 
     /// The reference integrator over one tile, one path at a time.
-    fn reference(&self, origin: (u32, u32)) -> TileResult {
+    fn reference(&self, origin: (u32, u32), scratch: &mut TileScratch) -> TileResult {
         let settings = self.settings;
         let mut counts = RayCounts::default();
         let mut invalid = 0;
-        let mut guides = Vec::new();
         let clock = Instant::now();
         let alpha = self.scene.alpha();
-        let pixels = self
-            .pixels(origin)
-            .map(|(x, y)| {
-                let mut sum = Vec3::ZERO;
-                for sample in 0..settings.spp {
-                    let mut sampler = self.sampler((x, y), sample);
-                    let ray = self.camera_ray((x, y), &mut sampler);
-                    if self.want_guides && sample == 0 {
-                        let hit = next_hit(self.scene, &ray, InstanceMask::CAMERA, &alpha);
-                        guides.push(GuidePixel::from_hit(self.scene, ray.origin, hit.as_ref()));
-                    }
-                    let radiance = reference_radiance(
-                        self.scene,
-                        ray,
-                        &mut sampler,
-                        settings.max_depth,
-                        &mut counts,
-                    );
-                    if radiance.is_finite() {
-                        sum += radiance;
-                    } else {
-                        invalid += 1;
-                    }
+        let (pixels, guides) = (&mut scratch.pixels, &mut scratch.guides);
+        pixels.clear();
+        guides.clear();
+        for (x, y) in self.pixels(origin) {
+            let mut sum = Vec3::ZERO;
+            for sample in 0..settings.spp {
+                let mut sampler = self.sampler((x, y), sample);
+                let ray = self.camera_ray((x, y), &mut sampler);
+                if self.want_guides && sample == 0 {
+                    let hit = next_hit(self.scene, &ray, InstanceMask::CAMERA, &alpha);
+                    guides.push(GuidePixel::from_hit(self.scene, ray.origin, hit.as_ref()));
                 }
-                sum / settings.spp.max(1) as f32
-            })
-            .collect();
+                let radiance = reference_radiance(
+                    self.scene,
+                    ray,
+                    &mut sampler,
+                    settings.max_depth,
+                    &mut counts,
+                );
+                if radiance.is_finite() {
+                    sum += radiance;
+                } else {
+                    invalid += 1;
+                }
+            }
+            pixels.push(sum / settings.spp.max(1) as f32);
+        }
         TileResult {
             origin: (origin.0 as usize, origin.1 as usize),
             width: self.tile_width(origin),
-            pixels,
-            guides,
             cache_samples: Vec::new(),
             counts,
             phases: PhaseTimes {

@@ -86,19 +86,11 @@ impl<const PLANES: usize> RowPlanes<PLANES> {
 
     /// Bands of `BAND_ROWS` rows, for parallel writing: (first row, its planes).
     pub fn bands_mut(&mut self) -> impl IndexedParallelIterator<Item = (usize, &mut [f32])> {
-        self.bands_of_mut(BAND_ROWS)
-    }
-
-    /// Bands of `rows` rows, for parallel writing: (first row, its planes).
-    pub fn bands_of_mut(
-        &mut self,
-        rows: usize,
-    ) -> impl IndexedParallelIterator<Item = (usize, &mut [f32])> {
-        let band = self.width * PLANES * rows;
+        let band = self.width * PLANES * BAND_ROWS;
         self.data
             .par_chunks_mut(band.max(1))
             .enumerate()
-            .map(move |(index, data)| (index * rows, data))
+            .map(|(index, data)| (index * BAND_ROWS, data))
     }
 }
 
