@@ -30,6 +30,7 @@ use super::reproject::{LastTransforms, Motion};
 use crate::render::camera::{Camera, Projection};
 use crate::render::film::Film;
 use crate::render::guides::{Guides, NO_INSTANCE, POSITION_X, POSITION_Y, POSITION_Z};
+use crate::render::planes::BAND_ROWS;
 
 /// The render's resolution per axis against the shown one that `flythrough`'s player's
 /// view takes unless told: about where the game's adaptive resolution settles on two
@@ -63,7 +64,8 @@ impl Default for UpscaleSettings {
 /// One render pixel's sample, as the shown film sees it.
 #[derive(Clone, Copy, Debug, Default)]
 struct Sample {
-    /// Its remodulated colour (w unused: 16 bytes, so the arithmetic is in lanes).
+    /// Its remodulated colour, and 1 in w: 16 bytes, so the arithmetic is in lanes, and a
+    /// weighted sum of colours carries the sum of the weights in w.
     colour: Vec4,
     /// Where it fell (shown pixels from the top-left).
     at: Vec2,
@@ -349,7 +351,7 @@ impl Upscaler {
                         }
                     }
                     *sample = Sample {
-                        colour: colours[x].extend(0.0),
+                        colour: colours[x].extend(1.0),
                         at,
                         moved,
                     };
@@ -373,11 +375,14 @@ impl Upscaler {
         );
         if blend.at_half {
             let avx2 = !self.portable_only && has_avx2();
+            let band = 2 * width * BAND_ROWS;
             self.next
-                .par_chunks_mut(2 * width)
-                .zip(out.pixels.par_chunks_mut(2 * width))
+                .par_chunks_mut(band)
+                .zip(out.pixels.par_chunks_mut(band))
                 .enumerate()
-                .for_each(|(j, (next, shown))| blend.rows_at_half(avx2, j, next, shown));
+                .for_each_init(Vec::new, |scattered, (b, (next, shown))| {
+                    blend.rows_at_half(avx2, b * BAND_ROWS, next, shown, scattered)
+                });
         } else {
             self.next
                 .par_chunks_mut(width)
@@ -455,43 +460,183 @@ impl<'a> Blend<'a> {
         }
     }
 
-    /// Render row `j`'s two shown rows when the render is exactly half the shown size
-    /// (`UpscaleSettings::radius` at most half a render pixel): each render pixel's 2 x 2
-    /// shown pixels see the same 3 x 3 render samples, the same motion, the same bounds
-    /// and the same Catmull-Rom weights (their taps one pixel apart), so `block` works
-    /// them out once for the four. The film's edge is left to `row`.
+    /// Render rows `first..`'s shown row pairs (as many as `next` holds) when the render is
+    /// exactly half the shown size (`UpscaleSettings::radius` at most half a render pixel):
+    /// each render pixel's 2 x 2 shown pixels see the same 3 x 3 render samples, the same
+    /// motion, the same bounds and the same Catmull-Rom weights (their taps one pixel apart),
+    /// so `block` works them out once for the four. The film's edge is left to `row`.
+    ///
+    /// The samples are scattered rather than gathered (`scatter_row`): the shown centres
+    /// within a sample's radius (one shown pixel at most) are among the four nearest it,
+    /// so it weighs 4 terms rather than the 36 of the 9 blocks that gathered it (the other
+    /// 32 zero). A row pair is complete once the sample row below it is scattered, and
+    /// each pixel's terms are added in the order the gather took them, so the bits are the
+    /// same. `scattered` holds the three row pairs in progress. Against the gather (bench
+    /// first-light 640x360 at half scale, one thread): 262 M -> 232 M instructions in the
+    /// upscaler over 7 frames (callgrind, less `memset`, whose `rep stos` it counts a byte
+    /// at a time); upscale p50 3.39 -> 3.25 ms (medians of 4 alternated runs). On two
+    /// threads the difference was within the noise.
     ///
     /// Compiled for AVX2 where the CPU has it (`avx2`): the same float operations (no fused
     /// multiply-adds), so the same bits, in three-operand instructions that drop the
     /// register copies of the SSE2 build: 1.74 G -> 1.41 G instructions in these rows
     /// (callgrind, bench first-light 640x360 at half scale, 4 frames, one thread).
     #[inline(never)]
-    fn rows_at_half(&self, avx2: bool, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
+    fn rows_at_half(
+        &self,
+        avx2: bool,
+        first: usize,
+        next: &mut [Vec4],
+        shown: &mut [Vec3],
+        scattered: &mut Vec<Vec4>,
+    ) {
         #[cfg(target_arch = "x86_64")]
         if avx2 {
             #[target_feature(enable = "avx2")]
-            fn rows_at_half_avx2(blend: &Blend, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
-                blend.rows_at_half_lanes(true, j, next, shown);
+            fn rows_at_half_avx2(
+                blend: &Blend,
+                first: usize,
+                next: &mut [Vec4],
+                shown: &mut [Vec3],
+                scattered: &mut Vec<Vec4>,
+            ) {
+                blend.rows_at_half_lanes(true, first, next, shown, scattered);
             }
             // SAFETY: `avx2` is true only where the CPU has AVX2, the only feature enabled.
-            unsafe { rows_at_half_avx2(self, j, next, shown) };
+            unsafe { rows_at_half_avx2(self, first, next, shown, scattered) };
             return;
         }
         let _ = avx2;
-        self.rows_at_half_lanes(false, j, next, shown);
+        self.rows_at_half_lanes(false, first, next, shown, scattered);
     }
 
     #[inline(always)]
-    fn rows_at_half_lanes(&self, avx2: bool, j: usize, next: &mut [Vec4], shown: &mut [Vec3]) {
-        let (width, rows) = (self.width, &self.rows[2 * j..][..2]);
-        let (next_top, next_bottom) = next.split_at_mut(width);
-        let (shown_top, shown_bottom) = shown.split_at_mut(width);
-        if j == 0 || j + 1 == self.render_height {
-            self.row(2 * j, next_top, shown_top);
-            self.row(2 * j + 1, next_bottom, shown_bottom);
+    fn rows_at_half_lanes(
+        &self,
+        avx2: bool,
+        first: usize,
+        next: &mut [Vec4],
+        shown: &mut [Vec3],
+        scattered: &mut Vec<Vec4>,
+    ) {
+        let (width, render_height) = (self.width, self.render_height);
+        let end = first + next.len() / (2 * width);
+        // The row pairs `block` fills: those of this band off the film's top and bottom.
+        let blocks = first.max(1)..end.min(render_height - 1);
+        scattered.clear();
+        scattered.resize(3 * 2 * width, Vec4::ZERO);
+        // Pair j's sums are in part j % 3 of `scattered`, while rows j - 1 ..= j + 1 scatter.
+        if !blocks.is_empty() {
+            for r in blocks.start - 1..=blocks.start {
+                self.scatter_row(r, &blocks, scattered);
+            }
+        }
+        for j in first..end {
+            let at = (j - first) * 2 * width;
+            let (next_top, next_bottom) = next[at..][..2 * width].split_at_mut(width);
+            let (shown_top, shown_bottom) = shown[at..][..2 * width].split_at_mut(width);
+            if !blocks.contains(&j) {
+                self.row(2 * j, next_top, shown_top);
+                self.row(2 * j + 1, next_bottom, shown_bottom);
+                continue;
+            }
+            self.scatter_row(j + 1, &blocks, scattered);
+            let sums = &mut scattered[j % 3 * 2 * width..][..2 * width];
+            self.pair_at_half(
+                avx2,
+                j,
+                sums,
+                (next_top, next_bottom),
+                (shown_top, shown_bottom),
+            );
+            sums.fill(Vec4::ZERO);
+        }
+    }
+
+    /// Adds render row `r`'s samples to the shown pixels of row pairs `blocks` (`scattered`,
+    /// as `rows_at_half` keeps them) whose blocks take them: the pixel's block within one
+    /// render pixel of the sample's on each axis, as `block` gathered them.
+    #[inline(always)]
+    fn scatter_row(&self, r: usize, blocks: &std::ops::Range<usize>, scattered: &mut [Vec4]) {
+        let width = self.width;
+        let inverse_radius_squared = Vec4::splat(1.0 / (self.radius * self.radius));
+        let samples = &self.samples[r * self.render_width..][..self.render_width];
+        // The shown rows this sample row reaches (those of pairs r - 1 ..= r + 1 in
+        // `blocks`, at most 6), each one's place in `scattered`.
+        let pairs = blocks.start.max(r.saturating_sub(1))..blocks.end.min(r + 2);
+        if pairs.is_empty() {
             return;
         }
-        let render_width = self.render_width;
+        let first_row = 2 * pairs.start as i32;
+        let mut row_at = [0usize; 6];
+        let rows = 2 * pairs.len();
+        for (k, at) in row_at[..rows].iter_mut().enumerate() {
+            let y = 2 * pairs.start + k;
+            *at = (y / 2 % 3 * 2 + y % 2) * width;
+        }
+        for (i, sample) in samples.iter().enumerate() {
+            // NaN or infinite: `block_weights` is zero at every centre.
+            if !sample.at.is_finite() {
+                continue;
+            }
+            // The four centres nearest (k + 0.5 for the k on either side of at - 0.5),
+            // in `block_weights`' order; any other is a shown pixel or more away, outside
+            // the radius (`at_half` keeps it within one).
+            let corner = (sample.at - 0.5).floor();
+            let weights = block_weights(
+                sample,
+                Vec4::new(
+                    corner.x + 0.5,
+                    corner.x + 1.5,
+                    corner.x + 0.5,
+                    corner.x + 1.5,
+                ),
+                Vec4::new(
+                    corner.y + 0.5,
+                    corner.y + 0.5,
+                    corner.y + 1.5,
+                    corner.y + 1.5,
+                ),
+                inverse_radius_squared,
+            )
+            .to_array();
+            // Through i32 (finite, so the casts only saturate far off the film): one
+            // instruction each, where i64 took a dozen. Wrapped to u32, a place before the
+            // first row or column is past the last.
+            let (x0, y0) = (corner.x as i32, corner.y as i32);
+            // The columns whose blocks gather this sample: blocks i - 1 ..= i + 1.
+            let first_column = (2 * i as i32 - 2).max(0);
+            let columns = (2 * i as i32 + 4).min(width as i32) - first_column;
+            for b in 0..2 {
+                let row = y0.wrapping_add(b).wrapping_sub(first_row) as u32 as usize;
+                if row >= rows {
+                    continue;
+                }
+                let at = row_at[row];
+                for a in 0..2 {
+                    let column = x0.wrapping_add(a).wrapping_sub(first_column) as u32;
+                    if column < columns as u32 {
+                        let x = (first_column + column as i32) as usize;
+                        scattered[at + x] += sample.colour * weights[(2 * b + a) as usize];
+                    }
+                }
+            }
+        }
+    }
+
+    /// Row pair `j` (not on the render's edge) from its scattered `sums`: the edge columns
+    /// by `pixel`, the rest by `block`.
+    #[inline(always)]
+    fn pair_at_half(
+        &self,
+        avx2: bool,
+        j: usize,
+        sums: &[Vec4],
+        (next_top, next_bottom): (&mut [Vec4], &mut [Vec4]),
+        (shown_top, shown_bottom): (&mut [Vec3], &mut [Vec3]),
+    ) {
+        let (width, render_width) = (self.width, self.render_width);
+        let rows = &self.rows[2 * j..][..2];
         for x in (0..2).chain(width - 2..width) {
             for (b, (next, shown)) in [
                 (&mut *next_top, &mut *shown_top),
@@ -506,23 +651,29 @@ impl<'a> Blend<'a> {
                 shown[x] = pixel.truncate();
             }
         }
+        let (sums_top, sums_bottom) = sums.split_at(width);
         let sample_rows: [&[Sample]; 3] =
             std::array::from_fn(|r| &self.samples[(j + r - 1) * render_width..][..render_width]);
         let blocks = next_top[2..width - 2]
             .chunks_exact_mut(2)
             .zip(next_bottom[2..width - 2].chunks_exact_mut(2))
             .zip(shown_top[2..width - 2].chunks_exact_mut(2))
-            .zip(shown_bottom[2..width - 2].chunks_exact_mut(2));
-        for (i, (((next_top, next_bottom), shown_top), shown_bottom)) in (1..).zip(blocks) {
+            .zip(shown_bottom[2..width - 2].chunks_exact_mut(2))
+            .zip(sums_top[2..width - 2].chunks_exact(2))
+            .zip(sums_bottom[2..width - 2].chunks_exact(2));
+        for (i, (((((next_top, next_bottom), shown_top), shown_bottom), top), bottom)) in
+            (1..).zip(blocks)
+        {
+            let sums = [top[0], top[1], bottom[0], bottom[1]];
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `avx2` is true only in `rows_at_half_avx2`, on a CPU with AVX2.
             let pixels = if avx2 {
-                unsafe { self.block_avx2(i, j, &sample_rows) }
+                unsafe { self.block_avx2(i, j, &sample_rows, sums) }
             } else {
-                self.block(i, j, &sample_rows)
+                self.block(i, j, sums)
             };
             #[cfg(not(target_arch = "x86_64"))]
-            let pixels = self.block(i, j, &sample_rows);
+            let pixels = self.block(i, j, sums);
             for a in 0..2 {
                 next_top[a] = pixels[a];
                 next_bottom[a] = pixels[2 + a];
@@ -533,32 +684,16 @@ impl<'a> Blend<'a> {
     }
 
     /// The 2 x 2 shown pixels of render pixel (i, j), not on the render's edge, as `pixel`
-    /// gives them (to rounding in the history's address): top left, top right, bottom
-    /// left, bottom right.
+    /// gives them (to rounding in the history's address), from the samples' weighted
+    /// `sums` there (the weight in w): top left, top right, bottom left, bottom right.
     #[inline(always)]
-    fn block(&self, i: usize, j: usize, sample_rows: &[&[Sample]; 3]) -> [Vec4; 4] {
+    fn block(&self, i: usize, j: usize, sums: [Vec4; 4]) -> [Vec4; 4] {
         let (width, render_width) = (self.width, self.render_width);
         let (left, top) = (2.0 * i as f32 + 0.5, 2.0 * j as f32 + 0.5);
         // The four centres in lanes, in the order returned.
         let centres_x = Vec4::new(left, left + 1.0, left, left + 1.0);
         let centres_y = Vec4::new(top, top, top + 1.0, top + 1.0);
-        let inverse_radius_squared = Vec4::splat(1.0 / (self.radius * self.radius));
-        let mut sums = [Vec4::ZERO; 4];
-        let mut weights = Vec4::ZERO;
-        // A sample two render pixels from a centre is beyond the radius: its falloff is
-        // zero there and adds nothing, so all nine are taken for all four, branch-free, in
-        // `pixel`'s order.
-        for row in sample_rows {
-            for sample in &row[i - 1..i + 2] {
-                let weight = block_weights(sample, centres_x, centres_y, inverse_radius_squared);
-                sums[0] += sample.colour * weight.x;
-                sums[1] += sample.colour * weight.y;
-                sums[2] += sample.colour * weight.z;
-                sums[3] += sample.colour * weight.w;
-                weights += weight;
-            }
-        }
-        let weights = weights.to_array();
+        let weights = sums.map(|sum| sum.w);
         let moved = self.samples[j * render_width + i].moved;
         let bounds = self.bounds_at(i, j);
         let (corner, inside) = self.block_history_corner(i, j);
@@ -588,56 +723,46 @@ impl<'a> Blend<'a> {
     }
 
     /// `block` in AVX2's 8 lanes, two shown pixels' colours to a register: the same float
-    /// operations in the same order (no fused multiply-adds), so the same bits. Each
-    /// sample is added to two pixels' sums at once, the history's rows are filtered across
-    /// for both columns at once (the two columns' taps are the same pixels one apart, so
-    /// one 32-byte load holds a tap of each), and the history is clamped and added two
-    /// pixels at a time. Blocks whose history is off the film, or with no history, are left
-    /// to `block`; a block with a pixel that falls back on the interpolated render is
-    /// finished pixel by pixel by `finish`.
+    /// operations in the same order (no fused multiply-adds), so the same bits. The
+    /// history's rows are filtered across for both columns at once (the two columns' taps
+    /// are the same pixels one apart, so one 32-byte load holds a tap of each), and the
+    /// history is clamped and added two pixels at a time. Blocks whose history is off the
+    /// film, or with no history, are left to `block`; a block with a pixel that falls back
+    /// on the interpolated render is finished pixel by pixel by `finish`.
     ///
-    /// bench first-light 640x360 at half scale, one thread: these rows 117 M -> 94 M
-    /// instructions over 3 frames (callgrind); upscale p50 6.55, 6.47, 6.71 -> 5.13, 4.99,
-    /// 5.03 ms in alternating runs.
+    /// bench first-light 640x360 at half scale, one thread (the samples then gathered
+    /// here): these rows 117 M -> 94 M instructions over 3 frames (callgrind); upscale p50
+    /// 6.55, 6.47, 6.71 -> 5.13, 4.99, 5.03 ms in alternating runs.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn block_avx2(&self, i: usize, j: usize, sample_rows: &[&[Sample]; 3]) -> [Vec4; 4] {
+    unsafe fn block_avx2(
+        &self,
+        i: usize,
+        j: usize,
+        sample_rows: &[&[Sample]; 3],
+        sums: [Vec4; 4],
+    ) -> [Vec4; 4] {
         use std::arch::x86_64::*;
         let width = self.width;
-        let (left, top) = (2.0 * i as f32 + 0.5, 2.0 * j as f32 + 0.5);
         let (corner, inside) = self.block_history_corner(i, j);
         let Some(history) = self.history.filter(|_| inside) else {
-            return self.block(i, j, sample_rows);
+            return self.block(i, j, sums);
         };
-        let centres_x = Vec4::new(left, left + 1.0, left, left + 1.0);
-        let centres_y = Vec4::new(top, top, top + 1.0, top + 1.0);
-        let inverse_radius_squared = Vec4::splat(1.0 / (self.radius * self.radius));
-        // Lanes 0-3 take a Vec4's x, 4-7 its y (and z, w for the second pair).
-        let (first_pair, second_pair) = (
-            _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1),
-            _mm256_setr_epi32(2, 2, 2, 2, 3, 3, 3, 3),
-        );
-        let spread =
-            |v: Vec4, pair| _mm256_permutevar8x32_ps(_mm256_castps128_ps256(v.into()), pair);
         // Pixels 0 and 1 (top), 2 and 3 (bottom).
-        let (mut top_sums, mut bottom_sums) = (_mm256_setzero_ps(), _mm256_setzero_ps());
-        let mut weights = Vec4::ZERO;
-        // `bounds_at(i, j)` on the way: these are its nine samples.
+        // SAFETY: `sums` holds 4 Vec4s, two loaded into each register.
+        let (top_sums, bottom_sums) = unsafe {
+            (
+                _mm256_loadu_ps(sums.as_ptr().cast()),
+                _mm256_loadu_ps(sums[2..].as_ptr().cast()),
+            )
+        };
+        // `bounds_at(i, j)`: its nine samples.
         let (mut low, mut high) = (Vec4::INFINITY, Vec4::NEG_INFINITY);
         for row in sample_rows {
             for sample in &row[i - 1..i + 2] {
                 low = low.min(sample.colour);
                 high = high.max(sample.colour);
-                let weight = block_weights(sample, centres_x, centres_y, inverse_radius_squared);
-                let colour = _mm256_broadcast_ps(&sample.colour.into());
-                top_sums =
-                    _mm256_add_ps(top_sums, _mm256_mul_ps(colour, spread(weight, first_pair)));
-                bottom_sums = _mm256_add_ps(
-                    bottom_sums,
-                    _mm256_mul_ps(colour, spread(weight, second_pair)),
-                );
-                weights += weight;
             }
         }
 
@@ -697,9 +822,11 @@ impl<'a> Blend<'a> {
                 _mm256_add_ps(weights, kept),
             )
         };
-        let (top_sums, top_weights) = add_history(top_sums, spread(weights, first_pair), top_last);
+        // Each pixel's weight (in its sum's w) spread over its four lanes.
+        let weights = |sums| _mm256_permute_ps::<0xff>(sums);
+        let (top_sums, top_weights) = add_history(top_sums, weights(top_sums), top_last);
         let (bottom_sums, bottom_weights) =
-            add_history(bottom_sums, spread(weights, second_pair), bottom_last);
+            add_history(bottom_sums, weights(bottom_sums), bottom_last);
 
         let interpolated = _mm256_set1_ps(self.settings.interpolated);
         let too_light = _mm256_or_ps(
@@ -1110,25 +1237,51 @@ mod tests {
             (RENDER.0 as usize, RENDER.1 as usize),
         );
         assert!(blend.at_half);
-        let mut by_pixel = (vec![Vec4::ZERO; width * 2], vec![Vec3::ZERO; width * 2]);
+        let mut by_pixel = (
+            vec![Vec4::ZERO; width * height],
+            vec![Vec3::ZERO; width * height],
+        );
+        for y in 0..height {
+            let row = y * width..(y + 1) * width;
+            blend.row(y, &mut by_pixel.0[row.clone()], &mut by_pixel.1[row]);
+        }
         let mut by_block = by_pixel.clone();
-        let mut largest_difference = 0.0f32;
-        for j in 0..height / 2 {
-            for b in 0..2 {
-                let (next, shown) = (&mut by_pixel.0[b * width..], &mut by_pixel.1[b * width..]);
-                blend.row(2 * j + b, &mut next[..width], &mut shown[..width]);
-            }
-            blend.rows_at_half(has_avx2(), j, &mut by_block.0, &mut by_block.1);
-            for (pixel, block) in by_pixel.0.iter().zip(&by_block.0) {
-                largest_difference = largest_difference.max((*pixel - *block).abs().max_element());
-            }
-            assert!(
-                by_block
-                    .1
-                    .iter()
-                    .zip(&by_block.0)
-                    .all(|(s, n)| *s == n.truncate())
+        let mut scattered = Vec::new();
+        blend.rows_at_half(
+            has_avx2(),
+            0,
+            &mut by_block.0,
+            &mut by_block.1,
+            &mut scattered,
+        );
+        let largest_difference = by_pixel
+            .0
+            .iter()
+            .zip(&by_block.0)
+            .map(|(pixel, block)| (*pixel - *block).abs().max_element())
+            .fold(0.0f32, f32::max);
+        assert!(
+            by_block
+                .1
+                .iter()
+                .zip(&by_block.0)
+                .all(|(s, n)| *s == n.truncate())
+        );
+        // Bands of any size scatter the samples on their edges as a whole film does.
+        for band in [1, 2, 3, 7] {
+            let mut in_bands = (
+                vec![Vec4::ZERO; width * height],
+                vec![Vec3::ZERO; width * height],
             );
+            for (b, (next, shown)) in in_bands
+                .0
+                .chunks_mut(2 * width * band)
+                .zip(in_bands.1.chunks_mut(2 * width * band))
+                .enumerate()
+            {
+                blend.rows_at_half(has_avx2(), b * band, next, shown, &mut scattered);
+            }
+            assert!(in_bands.0 == by_block.0, "bands of {band} row pairs");
         }
         assert!(largest_difference < 1e-5, "{largest_difference}");
     }
