@@ -135,6 +135,17 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
     // The radiance cache ends some of the paths, never more than there are.
     let ended = report["cache_ended_share"].as_f64().unwrap();
     assert!(ended > 0.0 && ended < 1.0, "cache_ended_share {ended}");
+    // The film's share of the frames' time is its mean over the frame's (both summed over
+    // the same frames); rendered at the size shown, none of it is the upscaler's.
+    let share = &report["film_share"];
+    let mean = |summary: &Value| summary["mean_ms"].as_f64().unwrap();
+    let film_over_frame = mean(&report["stages"]["film"]) / mean(&report["frame"]);
+    let film = share["film"].as_f64().unwrap();
+    assert!(
+        (film - film_over_frame).abs() <= 1e-9 && film > 0.0 && film < 1.0,
+        "{share} against {film_over_frame}"
+    );
+    assert_eq!(share["upscale"].as_f64(), Some(0.0), "{share}");
     // Wardens walk in first-light: animation and refits take time every frame.
     assert!(report["stages"]["animation"]["mean_ms"].as_f64().unwrap() > 0.0);
     assert!(report["stages"]["blas_refit"]["mean_ms"].as_f64().unwrap() > 0.0);

@@ -368,6 +368,17 @@ pub struct Profile {
     pub accel_rounds: Vec<AccelRound>,
 }
 
+/// How much of a run's time went to the film (`Profile::film_share`), as fractions of
+/// the frames' time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FilmShare {
+    /// The whole film stage: the filters and, rendering below the shown resolution, the
+    /// upscaler.
+    pub film: f64,
+    /// The upscaler alone.
+    pub upscale: f64,
+}
+
 /// One timing of the accel alone, after the window of frames it is set beside.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct AccelRound {
@@ -509,6 +520,9 @@ impl Profile {
             "rays_per_frame": self.frames.iter().map(|f| f.rays).collect::<Vec<_>>(),
             "cache_ended_share": self.cache_ended_share(),
         });
+        if let Some(share) = self.film_share() {
+            report["film_share"] = json!({ "film": share.film, "upscale": share.upscale });
+        }
         if let Some(accel) = self.accel_rays() {
             report["accel_mrays_per_s"] = json!({
                 "camera": accel.camera,
@@ -550,6 +564,27 @@ impl Profile {
         let paths = u64::from(width) * u64::from(height) * self.frames.len() as u64;
         let ended: u64 = self.frames.iter().map(|frame| frame.cache_ended).sum();
         ended as f64 / paths.max(1) as f64
+    }
+
+    /// The film's share of the frames' time (its milliseconds summed over the frames, over
+    /// theirs), and of that the upscaler's: None without frames or with no film run.
+    pub fn film_share(&self) -> Option<FilmShare> {
+        let total: f64 = self.frames.iter().map(|frame| frame.frame_ms).sum();
+        let film: f64 = self
+            .frames
+            .iter()
+            .map(|frame| frame.stages[Stage::Film.index()])
+            .sum();
+        let upscale_phase = FILM_PHASES.iter().position(|&name| name == "upscale")?;
+        let upscale: f64 = self
+            .frames
+            .iter()
+            .map(|frame| frame.film_phases[upscale_phase])
+            .sum();
+        (total > 0.0 && film > 0.0).then(|| FilmShare {
+            film: film / total,
+            upscale: upscale / total,
+        })
     }
 
     /// The table `gloam bench` prints: a row per stage.
@@ -613,6 +648,14 @@ impl Profile {
                     "s"
                 },
                 ratio
+            );
+        }
+        if let Some(share) = self.film_share() {
+            text += &format!(
+                "film: {:.1}% of the frames' time (the filters {:.1}%, the upscaler {:.1}%)\n",
+                100.0 * share.film,
+                100.0 * (share.film - share.upscale),
+                100.0 * share.upscale
             );
         }
         if self.frames.iter().any(|frame| frame.cache_ended > 0) {
@@ -834,6 +877,35 @@ mod tests {
         assert_eq!(rounds[1]["after_frames"], 4);
         assert_eq!(rounds[1]["renderer_mrays_per_s"].as_f64(), Some(2.0));
         assert_eq!(Profile::default().renderer_vs_accel(), None);
+    }
+
+    #[test]
+    fn the_film_share_is_its_time_over_the_frames_time() {
+        let frame = |film: f64, upscale: f64, frame_ms: f64| {
+            let mut stages = [0.0; STAGES.len()];
+            stages[Stage::Render.index()] = frame_ms - film;
+            stages[Stage::Film.index()] = film;
+            FrameSample {
+                stages,
+                film_phases: [film - upscale, 0.0, 0.0, upscale],
+                frame_ms,
+                ..FrameSample::default()
+            }
+        };
+        let profile = Profile {
+            frames: vec![frame(2.0, 1.0, 10.0), frame(4.0, 1.0, 30.0)],
+            ..Profile::default()
+        };
+        let share = profile.film_share().unwrap();
+        assert!((share.film - 0.15).abs() < 1e-12, "{share:?}");
+        assert!((share.upscale - 0.05).abs() < 1e-12, "{share:?}");
+        assert!(
+            profile
+                .table()
+                .contains("film: 15.0% of the frames' time (the filters 10.0%, the upscaler 5.0%)")
+        );
+        assert_eq!(profile.to_json()["film_share"]["film"].as_f64(), Some(0.15));
+        assert_eq!(Profile::default().film_share(), None);
     }
 
     #[test]
