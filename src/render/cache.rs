@@ -32,6 +32,7 @@
 use glam::{Vec3, Vec3A};
 
 use super::Camera;
+use super::material::floor;
 
 /// How large cells are where: from the camera's eye, `CELL_PIXELS` of its pixels across.
 #[derive(Clone, Copy, Debug)]
@@ -80,7 +81,8 @@ impl CellKey {
     /// power of two times `CELL_MIN`, at most the side `sizing` asks for there.
     pub fn at(position: Vec3A, normal: Vec3A, sizing: &CellSizing) -> (CellKey, f32) {
         let wanted = position.distance(sizing.eye) * sizing.side_per_metre;
-        let level = (wanted / CELL_MIN).max(1.0).log2().floor().min(15.0) as u64;
+        // log2 of at least 1 is never negative: the cast's truncation is its floor.
+        let level = (wanted / CELL_MIN).max(1.0).log2().min(15.0) as u64;
         let side = CELL_MIN * (1u32 << level) as f32;
         let axis = {
             let a = normal.abs();
@@ -94,7 +96,7 @@ impl CellKey {
             2 * index + (value < 0.0) as u64
         };
         // 17 bits a coordinate: +-65536 cells, 3.2 km at the smallest side.
-        let coordinate = |value: f32| ((value / side).floor() as i64 & 0x1ffff) as u64;
+        let coordinate = |value: f32| (floor(value / side) as i64 & 0x1ffff) as u64;
         let key = 1 << 63
             | level << 54
             | axis << 51
