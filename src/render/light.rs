@@ -528,6 +528,17 @@ impl LightSet {
     ) -> (Option<LightSample>, Option<LightSample>) {
         let mut weights = self.punctual_weights(point);
         let weights = &mut weights[..self.punctual.len()];
+        // Where no punctual light reaches (outside every cone: most of a dark level), there
+        // is no dominant lamp and the punctual pick finds nothing: only the table's share
+        // can sample a light. The same answer as the walk below gives, without it.
+        if !weights.iter().any(|&weight| weight > 0.0) {
+            let sampled = if u_pick >= self.punctual_share {
+                self.sample_table(point, u_pick, u, emission)
+            } else {
+                None
+            };
+            return (None, sampled);
+        }
         let mut strongest = None;
         for (slot, &weight) in weights.iter().enumerate() {
             if weight > strongest.map_or(0.0, |(_, most)| most) {
