@@ -10,18 +10,29 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     if offset == Vec2::ZERO {
         return Vec2::ZERO;
     }
-    let (radius, theta) = if offset.x.abs() > offset.y.abs() {
-        (
-            offset.x,
-            std::f32::consts::FRAC_PI_4 * (offset.y / offset.x),
-        )
+    // The angle is pi/4 (b / a), a the larger offset, about a's axis: within a quarter turn.
+    if offset.x.abs() > offset.y.abs() {
+        let (cos, sin) = cos_sin_quarter(std::f32::consts::FRAC_PI_4 * (offset.y / offset.x));
+        offset.x * Vec2::new(cos, sin)
     } else {
-        (
-            offset.y,
-            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (offset.x / offset.y),
-        )
-    };
-    radius * Vec2::new(theta.cos(), theta.sin())
+        // theta = pi/2 - angle: cos theta = sin angle, sin theta = cos angle.
+        let (cos, sin) = cos_sin_quarter(std::f32::consts::FRAC_PI_4 * (offset.x / offset.y));
+        offset.y * Vec2::new(sin, cos)
+    }
+}
+
+/// (cos a, sin a) for |a| <= pi/4, by their Taylor series to the a^10 and a^9 terms (the
+/// first terms left out are below 2e-9 there, under an f32's rounding). Inlined, where
+/// `f32::sin_cos` calls libm's `sincosf` with its full range reduction: 1.2% of a
+/// first-light frame's cycles, at one Lambertian bounce a vertex.
+#[inline(always)]
+fn cos_sin_quarter(a: f32) -> (f32, f32) {
+    let a2 = a * a;
+    // Nested (Horner) form; the constants' reciprocals fold at compile time.
+    let term = |n: f32, rest: f32| 1.0 - a2 * (1.0 / n) * rest;
+    let sin = a * term(6.0, term(20.0, term(42.0, term(72.0, 1.0))));
+    let cos = term(2.0, term(12.0, term(30.0, term(56.0, term(90.0, 1.0)))));
+    (cos, sin)
 }
 
 /// A cosine-weighted direction about +Z (Malley's method); pdf = cos(theta) / pi.
@@ -94,6 +105,50 @@ impl Frame {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quarter_turn_cos_and_sin_agree_with_libm() {
+        let steps = 100_000;
+        for i in 0..=steps {
+            let a = std::f32::consts::FRAC_PI_4 * (2.0 * i as f32 / steps as f32 - 1.0);
+            let (cos, sin) = cos_sin_quarter(a);
+            assert!(
+                (cos - a.cos()).abs() <= 2e-7,
+                "cos {a}: {cos} against {}",
+                a.cos()
+            );
+            assert!(
+                (sin - a.sin()).abs() <= 2e-7,
+                "sin {a}: {sin} against {}",
+                a.sin()
+            );
+        }
+    }
+
+    /// Shirley & Chiu's map as they give it, angle and all, through libm.
+    #[test]
+    fn the_concentric_map_is_shirley_and_chius() {
+        use std::f32::consts::{FRAC_PI_2, FRAC_PI_4};
+        let n = 300;
+        for i in 0..n * n {
+            let u = Vec2::new(
+                ((i % n) as f32 + 0.5) / n as f32,
+                ((i / n) as f32 + 0.5) / n as f32,
+            );
+            let offset = u * 2.0 - Vec2::ONE;
+            let (radius, theta) = if offset.x.abs() > offset.y.abs() {
+                (offset.x, FRAC_PI_4 * (offset.y / offset.x))
+            } else {
+                (offset.y, FRAC_PI_2 - FRAC_PI_4 * (offset.x / offset.y))
+            };
+            let expected = radius * Vec2::new(theta.cos(), theta.sin());
+            let p = concentric_disk(u);
+            assert!(
+                (p - expected).abs().max_element() <= 3e-7,
+                "{u}: {p} against {expected}"
+            );
+        }
+    }
 
     #[test]
     fn mis_weights_of_two_strategies_sum_to_one() {
