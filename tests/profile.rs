@@ -126,6 +126,24 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
         (ratio - median).abs() <= 1e-9 * median,
         "{ratio} against {median} of {ratios:?}"
     );
+    // The render's mix of rays adds up to its rays a frame, and tracing it alone takes
+    // part of the render's time.
+    let tracing = &report["tracing"];
+    let mix: f64 = ["camera_rays", "shadow_rays", "bounce_rays"]
+        .iter()
+        .map(|kind| tracing[kind].as_f64().unwrap())
+        .sum();
+    let per_frame = report["rays_per_frame"].as_array().unwrap();
+    let mean = per_frame.iter().map(|r| r.as_f64().unwrap()).sum::<f64>() / per_frame.len() as f64;
+    assert!(
+        (mix - mean).abs() <= 1e-6 * mean,
+        "{tracing} against {mean}"
+    );
+    let share = tracing["share_of_render"].as_f64().unwrap();
+    assert!(
+        share > 0.0 && tracing["ms"].as_f64().unwrap() > 0.0,
+        "{tracing}"
+    );
     let last = rounds.last().unwrap()["after_frames"].as_u64();
     assert_eq!(
         last,

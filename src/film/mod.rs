@@ -23,7 +23,7 @@ use glam::Vec3;
 pub use denoise::{FilmPhaseTimes, FilterMode, FrameFilter};
 pub use upscale::{UpscaleSettings, Upscaler};
 
-use crate::profile::{Stage, StageTimes, TileSpan, since};
+use crate::profile::{RayMix, Stage, StageTimes, TileSpan, since};
 use crate::render::scene::SceneChanges;
 use crate::render::{
     Camera, Film, RadianceCache, RenderOutput, RenderScene, RenderSettings, render, render_guided,
@@ -197,7 +197,11 @@ impl Accumulation {
         let render_ms = since(start);
         times.add(Stage::Render, render_ms);
         times.render_phases = output.phases.share_of(render_ms);
-        times.rays = output.rays.total();
+        times.rays = RayMix {
+            camera: output.rays.camera,
+            shadow: output.rays.shadow,
+            bounce: output.rays.bounce,
+        };
         times.cache_ended = output.rays.cache_ended;
         self.tile_spans = std::mem::take(&mut output.tiles);
         let start = std::time::Instant::now();

@@ -157,10 +157,24 @@ pub struct StageTimes {
     pub film_phases: [f64; FILM_PHASES.len()],
     /// The gameplay stage's timed parts (`GameplayPhase`; `Rest` is filled in by `sample`).
     pub gameplay_phases: [f64; GAMEPLAY_PHASES.len()],
-    /// Rays the render traced (camera, bounce and shadow).
-    pub rays: u64,
+    /// Rays the render traced, by kind.
+    pub rays: RayMix,
     /// Paths the radiance cache ended at their second vertex.
     pub cache_ended: u64,
+}
+
+/// The rays a frame's render traced, by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayMix {
+    pub camera: u64,
+    pub shadow: u64,
+    pub bounce: u64,
+}
+
+impl RayMix {
+    pub fn total(&self) -> u64 {
+        self.camera + self.shadow + self.bounce
+    }
 }
 
 impl StageTimes {
@@ -300,7 +314,7 @@ pub struct FrameSample {
     /// The gameplay stage's milliseconds per part (`GAMEPLAY_PHASES`), summing to it.
     pub gameplay_phases: [f64; GAMEPLAY_PHASES.len()],
     pub frame_ms: f64,
-    pub rays: u64,
+    pub rays: RayMix,
     /// Paths the radiance cache ended at their second vertex.
     pub cache_ended: u64,
     /// The render's tiles, as `Accumulation::tile_spans` gives them; `bench` keeps them,
@@ -379,6 +393,17 @@ pub struct FilmShare {
     pub upscale: f64,
 }
 
+/// The render's rays and what tracing them alone costs (`Profile::tracing`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tracing {
+    /// Camera, shadow and bounce rays a frame, means over the frames.
+    pub rays: [f64; 3],
+    /// Milliseconds a frame the accel alone takes to trace them, and that as a share of the
+    /// render's time: medians over the windows of frames beside the accel's rounds.
+    pub ms: f64,
+    pub share_of_render: f64,
+}
+
 /// One timing of the accel alone, after the window of frames it is set beside.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct AccelRound {
@@ -446,24 +471,82 @@ impl Profile {
 
     fn mrays_per_s_of(frames: &[FrameSample]) -> f64 {
         let render = Stage::Render.index();
-        let rays: u64 = frames.iter().map(|f| f.rays).sum();
+        let rays: u64 = frames.iter().map(|f| f.rays.total()).sum();
         let seconds: f64 = frames.iter().map(|f| f.stages[render]).sum::<f64>() / 1e3;
         rays as f64 / seconds.max(1e-9) / 1e6
     }
 
-    /// Each accel round with the renderer's rays per second over its window of frames
+    /// Each accel round with its window of frames, the frames since the round before it
     /// (rounds with no frames before them are left out).
-    fn accel_windows(&self) -> Vec<(AccelRound, f64)> {
+    fn windows(&self) -> Vec<(AccelRound, &[FrameSample])> {
         let mut start = 0;
         let mut windows = Vec::new();
         for round in &self.accel_rounds {
             let end = round.after_frames.min(self.frames.len());
             if end > start {
-                windows.push((*round, Self::mrays_per_s_of(&self.frames[start..end])));
+                windows.push((*round, &self.frames[start..end]));
                 start = end;
             }
         }
         windows
+    }
+
+    /// Each accel round with the renderer's rays per second over its window of frames.
+    fn accel_windows(&self) -> Vec<(AccelRound, f64)> {
+        (self.windows().into_iter())
+            .map(|(round, frames)| (round, Self::mrays_per_s_of(frames)))
+            .collect()
+    }
+
+    /// The render's rays by kind, and how long the accel alone takes to trace them (each
+    /// kind at its own rate from the round beside the frames) against the render's time:
+    /// the render's time less the tracing is what shading the paths costs.
+    pub fn tracing(&self) -> Option<Tracing> {
+        let render = Stage::Render.index();
+        let mut windows = Vec::new();
+        for (round, frames) in self.windows() {
+            let rates = round.rays;
+            if [rates.camera, rates.shadow, rates.bounce]
+                .iter()
+                .any(|&rate| rate <= 0.0)
+            {
+                continue;
+            }
+            // Rays over Mrays/s are microseconds.
+            let microseconds: f64 = (frames.iter())
+                .map(|frame| {
+                    let rays = frame.rays;
+                    rays.camera as f64 / rates.camera
+                        + rays.shadow as f64 / rates.shadow
+                        + rays.bounce as f64 / rates.bounce
+                })
+                .sum();
+            let ms = microseconds / 1e3 / frames.len() as f64;
+            let render_ms =
+                frames.iter().map(|f| f.stages[render]).sum::<f64>() / frames.len() as f64;
+            if render_ms > 0.0 {
+                windows.push((ms, ms / render_ms));
+            }
+        }
+        if windows.is_empty() {
+            return None;
+        }
+        let frames = self.frames.len() as f64;
+        let mean = |kind: fn(&RayMix) -> u64| {
+            self.frames
+                .iter()
+                .map(|f| kind(&f.rays) as f64)
+                .sum::<f64>()
+                / frames
+        };
+        let median = |part: fn(&(f64, f64)) -> f64| {
+            Summary::of(&windows.iter().map(part).collect::<Vec<_>>()).p50
+        };
+        Some(Tracing {
+            rays: [mean(|r| r.camera), mean(|r| r.shadow), mean(|r| r.bounce)],
+            ms: median(|w| w.0),
+            share_of_render: median(|w| w.1),
+        })
     }
 
     /// The accel alone's rates, each the median over the rounds.
@@ -517,7 +600,7 @@ impl Profile {
             "stages": stages,
             "frame": self.frame().json(),
             "mrays_per_s": self.mrays_per_s(),
-            "rays_per_frame": self.frames.iter().map(|f| f.rays).collect::<Vec<_>>(),
+            "rays_per_frame": self.frames.iter().map(|f| f.rays.total()).collect::<Vec<_>>(),
             "cache_ended_share": self.cache_ended_share(),
         });
         if let Some(share) = self.film_share() {
@@ -531,6 +614,16 @@ impl Profile {
                 "harmonic_mean": accel.harmonic_mean(),
             });
             report["renderer_vs_accel"] = json!(self.renderer_vs_accel());
+            if let Some(tracing) = self.tracing() {
+                let [camera, shadow, bounce] = tracing.rays;
+                report["tracing"] = json!({
+                    "camera_rays": camera,
+                    "shadow_rays": shadow,
+                    "bounce_rays": bounce,
+                    "ms": tracing.ms,
+                    "share_of_render": tracing.share_of_render,
+                });
+            }
             report["accel_rounds"] = self
                 .accel_windows()
                 .into_iter()
@@ -650,6 +743,16 @@ impl Profile {
                 ratio
             );
         }
+        if let Some(tracing) = self.tracing() {
+            let [camera, shadow, bounce] = tracing.rays;
+            text += &format!(
+                "tracing: {camera:.0} camera, {shadow:.0} shadow and {bounce:.0} bounce rays a \
+                 frame, which the accel alone traces in {:.2} ms: {:.0}% of the render's time \
+                 (the rest shades the paths)\n",
+                tracing.ms,
+                100.0 * tracing.share_of_render
+            );
+        }
         if let Some(share) = self.film_share() {
             text += &format!(
                 "film: {:.1}% of the frames' time (the filters {:.1}%, the upscaler {:.1}%)\n",
@@ -689,7 +792,7 @@ impl Profile {
                 "{index},{},{:.6},{}\n",
                 stages.join(","),
                 frame.frame_ms,
-                frame.rays
+                frame.rays.total()
             );
         }
         text
@@ -731,7 +834,7 @@ impl Profile {
             events.push(json!({
                 "name": "frame", "cat": "frame", "ph": "X", "pid": 1, "tid": 1,
                 "ts": frame_start_us, "dur": frame.frame_ms * 1e3,
-                "args": { "index": index, "rays": frame.rays },
+                "args": { "index": index, "rays": frame.rays.total() },
             }));
             let mut at = frame_start_us;
             for (name, ms) in STAGES.iter().zip(frame.stages) {
@@ -826,7 +929,10 @@ mod tests {
         assert_eq!(none.harmonic_mean(), 0.0);
         let mut profile = Profile {
             frames: vec![FrameSample {
-                rays: 3_000,
+                rays: RayMix {
+                    camera: 3_000,
+                    ..RayMix::default()
+                },
                 ..FrameSample::default()
             }],
             accel_rounds: vec![AccelRound {
@@ -847,7 +953,10 @@ mod tests {
         // machine whose load changed: the accel alone was slower in the second round.
         let frame = || {
             let mut frame = FrameSample {
-                rays: 2_000,
+                rays: RayMix {
+                    bounce: 2_000,
+                    ..RayMix::default()
+                },
                 ..FrameSample::default()
             };
             frame.stages[Stage::Render.index()] = 1.0;
@@ -877,6 +986,59 @@ mod tests {
         assert_eq!(rounds[1]["after_frames"], 4);
         assert_eq!(rounds[1]["renderer_mrays_per_s"].as_f64(), Some(2.0));
         assert_eq!(Profile::default().renderer_vs_accel(), None);
+    }
+
+    #[test]
+    fn tracing_takes_each_kind_of_ray_at_its_own_rate() {
+        // 1,000 camera rays at 10 Mrays/s (100 us), 400 shadow at 20 (20 us) and 2,000
+        // bounce at 40 (50 us): 0.17 ms of a 0.5 ms render.
+        let frame = |render_ms: f64| {
+            let mut frame = FrameSample {
+                rays: RayMix {
+                    camera: 1_000,
+                    shadow: 400,
+                    bounce: 2_000,
+                },
+                ..FrameSample::default()
+            };
+            frame.stages[Stage::Render.index()] = render_ms;
+            frame
+        };
+        let rays = AccelRays {
+            camera: 10.0,
+            shadow: 20.0,
+            bounce: 40.0,
+        };
+        let round = |after_frames, scale: f64| AccelRound {
+            after_frames,
+            rays: AccelRays {
+                camera: rays.camera * scale,
+                shadow: rays.shadow * scale,
+                bounce: rays.bounce * scale,
+            },
+        };
+        let profile = Profile {
+            frames: vec![frame(0.5), frame(1.0), frame(0.5)],
+            // The second window's round ran at half the rates (0.34 ms of its 1 ms render),
+            // the third's at twice (0.085 ms of 0.5 ms).
+            accel_rounds: vec![round(1, 1.0), round(2, 0.5), round(3, 2.0)],
+            ..Profile::default()
+        };
+        let tracing = profile.tracing().unwrap();
+        assert_eq!(tracing.rays, [1_000.0, 400.0, 2_000.0]);
+        // Medians of the windows: of 0.17, 0.34 and 0.085 ms, and of 34%, 34% and 17%.
+        assert!((tracing.ms - 0.17).abs() < 1e-12, "{tracing:?}");
+        assert!(
+            (tracing.share_of_render - 0.34).abs() < 1e-12,
+            "{tracing:?}"
+        );
+        let report = profile.to_json();
+        assert_eq!(report["tracing"]["shadow_rays"].as_f64(), Some(400.0));
+        assert!(profile.table().contains(
+            "tracing: 1000 camera, 400 shadow and 2000 bounce rays a frame, which the accel \
+             alone traces in 0.17 ms: 34% of the render's time"
+        ));
+        assert_eq!(Profile::default().tracing(), None);
     }
 
     #[test]
@@ -933,7 +1095,10 @@ mod tests {
             film_phases: [0.1, 0.05, 0.05, 0.0],
             gameplay_phases: [0.0, 0.0, 0.0, 0.0],
             frame_ms: render + 1.5,
-            rays: 10,
+            rays: RayMix {
+                camera: 10,
+                ..RayMix::default()
+            },
             cache_ended: 0,
             tiles: vec![
                 TileSpan {

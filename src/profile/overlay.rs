@@ -103,13 +103,17 @@ pub fn draw(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::profile::RayMix;
 
     #[test]
     fn overlay_stacks_stage_colours_and_survives_tiny_frames() {
         let sample = FrameSample {
             stages: [0.5, 0.0, 1.0, 0.2, 0.1, 2.0, 0.3, 20.0, 0.5, 3.0],
             frame_ms: 28.0,
-            rays: 100_000,
+            rays: RayMix {
+                camera: 100_000,
+                ..RayMix::default()
+            },
             ..FrameSample::default()
         };
         let (width, height) = (480, 270);
