@@ -247,6 +247,18 @@ impl<'a> PixelSampler<'a> {
     /// The next pair of values in [0, 1)^2 (for directions, light points, lens, jitter).
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
+        // A blue-noise sampler's first pair, the pixel jitter every camera ray draws,
+        // inline in the caller's loop; the rest of this function is too large to inline,
+        // and the call cost as much as the jitter itself.
+        if self.kind == SamplerKind::BlueNoise && self.dimension == 0 {
+            self.dimension = 1;
+            return self.pixel_jitter();
+        }
+        self.next_2d_drawn()
+    }
+
+    /// `next_2d` past a blue-noise sampler's pixel jitter.
+    fn next_2d_drawn(&mut self) -> Vec2 {
         match self.kind {
             SamplerKind::White => Vec2::new(self.next_1d(), self.next_1d()),
             SamplerKind::Stratified => {
@@ -284,9 +296,6 @@ impl<'a> PixelSampler<'a> {
                 // The Sobol' (0,2)-sequence's two dimensions over the scrambled index, each
                 // Owen-scrambled.
                 let dimension = self.next_dimension();
-                if dimension == 0 {
-                    return self.pixel_jitter();
-                }
                 let keys = self.blue_keys(dimension);
                 let index = self.scrambled_index(keys.index);
                 let salt = self.sequence_salt;
