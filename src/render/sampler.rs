@@ -678,6 +678,15 @@ fn reversed_sequence_index(pixel: (u32, u32), sample: u32, sample_count: u32) ->
             0,
         );
     }
+    reversed_sequence_index_in_full(pixel, sample, sample_count)
+}
+
+/// `reversed_sequence_index` from the 64-bit `sequence_index`: its general path.
+fn reversed_sequence_index_in_full(
+    pixel: (u32, u32),
+    sample: u32,
+    sample_count: u32,
+) -> (u32, u32) {
     let index = sequence_index(pixel, sample, sample_count);
     let salt = match (index >> 32) as u32 {
         0 => 0,
@@ -1057,14 +1066,6 @@ mod blue_noise_tests {
 
     #[test]
     fn the_reversed_sequence_index_is_the_sequence_index_reversed() {
-        let general = |pixel, sample, count| {
-            let index = sequence_index(pixel, sample, count);
-            let salt = match (index >> 32) as u32 {
-                0 => 0,
-                high => mix(high),
-            };
-            ((index as u32).reverse_bits(), salt)
-        };
         let mut state = 0x2545_f491u32;
         let mut next = || {
             state = mix(state);
@@ -1082,7 +1083,7 @@ mod blue_noise_tests {
                 let sample = next();
                 assert_eq!(
                     reversed_sequence_index(pixel, sample, count),
-                    general(pixel, sample, count),
+                    reversed_sequence_index_in_full(pixel, sample, count),
                     "pixel {pixel:?} sample {sample} of {count}"
                 );
             }
