@@ -29,19 +29,6 @@ pub(super) struct LastPixel {
     pub instance: u32,
 }
 
-impl LastPixel {
-    /// Pixel `x` of `row` with its new `history`.
-    #[inline(always)]
-    pub fn new(row: &SurfaceRow, x: usize, history: History) -> LastPixel {
-        LastPixel {
-            history,
-            normal: row.normal(x),
-            depth: row.depth[x],
-            instance: row.instances[x],
-        }
-    }
-}
-
 /// A row of this frame's first hits as validation reads them, each plane's row cut once
 /// (cut per pixel, the eight guide reads of a pixel were eight slicings with their bounds
 /// checks).
@@ -62,6 +49,26 @@ impl<'a> SurfaceRow<'a> {
             normal_z: guides.row(y, NORMAL_Z),
             depth: guides.row(y, DEPTH),
             instances: &guides.instances()[y * width..(y + 1) * width],
+        }
+    }
+
+    /// Each pixel's record for the next frame, `out` (a row), with its new history.
+    #[inline(always)]
+    pub fn keep(&self, out: &mut [LastPixel], history: impl Fn(usize) -> History) {
+        let width = out.len();
+        let (normal_x, normal_y, normal_z) = (
+            &self.normal_x[..width],
+            &self.normal_y[..width],
+            &self.normal_z[..width],
+        );
+        let (depth, instances) = (&self.depth[..width], &self.instances[..width]);
+        for (x, out) in out.iter_mut().enumerate() {
+            *out = LastPixel {
+                history: history(x),
+                normal: Vec3::new(normal_x[x], normal_y[x], normal_z[x]),
+                depth: depth[x],
+                instance: instances[x],
+            };
         }
     }
 

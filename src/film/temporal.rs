@@ -17,7 +17,7 @@
 //!    `alpha_min`, for the illumination and its first two luminance moments, whose spread
 //!    is the variance the spatial filter (`atrous`) steers by.
 
-use glam::{Affine3A, Vec2, Vec3, Vec4};
+use glam::{Affine3A, Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::reproject::{LastPixel, LastTransforms, ProjectedRow, Reprojection, SurfaceRow};
@@ -83,10 +83,6 @@ pub struct Accumulated {
     pub signal: SignalPlanes,
 }
 
-/// History lengths below this use the neighbourhood's variance (SVGF's rule: the moments
-/// of a few frames say little).
-const SHORT_HISTORY: f32 = 4.0;
-
 #[derive(Default)]
 pub struct TemporalFilter {
     pub settings: TemporalSettings,
@@ -137,12 +133,10 @@ impl TemporalFilter {
             self.height = height;
         }
         let count = (width * height) as usize;
-        let band = width as usize * BAND_ROWS;
+        let band_pixels = width as usize * BAND_ROWS;
         self.next.resize(count, LastPixel::default());
-        // 1-5 a band of rows at a time: demodulate (the band and a row either side, for the
-        // neighbourhoods), project a row, then per pixel move, validate, clamp, blend; and
-        // keep this frame's history and first hits for the next. (Demodulated in a pass of
-        // its own, the image went through memory once more: 2 MB written and read again.)
+        // 1-5 a band of rows at a time (`Band::accumulate`). (Demodulated in a pass of its
+        // own, the image went through memory once more: 2 MB written and read again.)
         let motions = self.instances.motions(instance_transforms);
         let reprojection = self.camera.as_ref().map(|previous_camera| Reprojection {
             projection: previous_camera.projection(),
@@ -155,52 +149,28 @@ impl TemporalFilter {
         });
         let accumulated = &mut self.accumulated;
         accumulated.signal.resize(width as usize, height as usize);
-        let settings = &self.settings;
-        let instances = guides.instances();
-        let width = width as usize;
+        let band = Band {
+            radiance,
+            guides,
+            reprojection: reprojection.as_ref(),
+            settings: &self.settings,
+        };
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = std::arch::is_x86_feature_detected!("avx2");
         self.next
-            .par_chunks_mut(band)
+            .par_chunks_mut(band_pixels)
             .zip(accumulated.signal.bands_mut())
             .for_each_init(
-                || (NeighbourhoodRows::new(width), ProjectedRow::default()),
-                |(rows, projected), (next, (first_row, signal))| {
-                    let last_row = first_row + next.len() / width - 1;
-                    rows.sum_band(radiance, guides, first_row as u32, last_row as u32);
-                    for (row, (next, signal)) in next
-                        .chunks_mut(width)
-                        .zip(signal.chunks_mut(SIGNAL_PLANES * width))
-                        .enumerate()
-                    {
-                        let y = first_row + row;
-                        let instances = &instances[y * width..][..width];
-                        let surfaces = SurfaceRow::new(guides, y);
-                        if let Some(reprojection) = &reprojection {
-                            reprojection.project_row(guides, y, projected);
-                        }
-                        for x in 0..width {
-                            let (history, variance) = if instances[x] == NO_INSTANCE {
-                                (History::default(), 0.0)
-                            } else {
-                                let before = reprojection.as_ref().and_then(|reprojection| {
-                                    reprojection.history_at(
-                                        guides,
-                                        &surfaces,
-                                        projected,
-                                        x,
-                                        y,
-                                        instances[x],
-                                    )
-                                });
-                                let around = rows.neighbourhood(x as u32, y as u32);
-                                blend(rows.current(x as u32, y as u32), &around, before, settings)
-                            };
-                            next[x] = LastPixel::new(&surfaces, x, history);
-                            signal[RED * width + x] = history.illumination.x;
-                            signal[GREEN * width + x] = history.illumination.y;
-                            signal[BLUE * width + x] = history.illumination.z;
-                            signal[VARIANCE * width + x] = variance;
-                        }
+                || Workspace::new(width as usize),
+                |workspace, (next, (first_row, signal))| {
+                    #[cfg(target_arch = "x86_64")]
+                    if avx2 {
+                        // SAFETY: the CPU has AVX2, the only feature `accumulate_avx2`
+                        // enables.
+                        unsafe { band.accumulate_avx2(workspace, first_row, next, signal) };
+                        return;
                     }
+                    band.accumulate(workspace, first_row, next, signal);
                 },
             );
         std::mem::swap(&mut self.last, &mut self.next);
@@ -260,105 +230,189 @@ impl TemporalFilter {
     }
 }
 
+/// What every band of a frame's accumulation reads.
+struct Band<'a> {
+    radiance: &'a Film,
+    guides: &'a Guides,
+    /// Last frame, if there was one.
+    reprojection: Option<&'a Reprojection<'a>>,
+    settings: &'a TemporalSettings,
+}
+
+/// A worker's rows, kept from band to band.
+struct Workspace {
+    rows: NeighbourhoodRows,
+    projected: ProjectedRow,
+    blend: BlendRow,
+}
+
+impl Workspace {
+    fn new(width: usize) -> Workspace {
+        let mut blend = BlendRow::default();
+        blend.resize(width);
+        Workspace {
+            rows: NeighbourhoodRows::new(width),
+            projected: ProjectedRow::default(),
+            blend,
+        }
+    }
+}
+
+impl Band<'_> {
+    /// The same code compiled for 8 lanes. No FMA, so both give the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn accumulate_avx2(
+        &self,
+        workspace: &mut Workspace,
+        first_row: usize,
+        next: &mut [LastPixel],
+        signal: &mut [f32],
+    ) {
+        self.accumulate(workspace, first_row, next, signal);
+    }
+
+    /// Steps 1-5 for the band of rows from `first_row` (`next`, its pixels' records for
+    /// the next frame, and `signal`, its planes): demodulate the band and a row either
+    /// side (for the neighbourhoods), then a row at a time project, find the histories,
+    /// clamp and blend, and keep this frame's history and first hits for the next.
+    #[inline(always)]
+    fn accumulate(
+        &self,
+        workspace: &mut Workspace,
+        first_row: usize,
+        next: &mut [LastPixel],
+        signal: &mut [f32],
+    ) {
+        let guides = self.guides;
+        let width = guides.width as usize;
+        let Workspace {
+            rows,
+            projected,
+            blend,
+        } = workspace;
+        let last_row = first_row + next.len() / width - 1;
+        rows.sum_band(self.radiance, guides, first_row as u32, last_row as u32);
+        for (row, (next, signal)) in next
+            .chunks_mut(width)
+            .zip(signal.chunks_mut(SIGNAL_PLANES * width))
+            .enumerate()
+        {
+            let y = first_row + row;
+            let instances = &guides.instances()[y * width..][..width];
+            let surfaces = SurfaceRow::new(guides, y);
+            if let Some(reprojection) = self.reprojection {
+                reprojection.project_row(guides, y, projected);
+            }
+            blend.find_histories(
+                self.reprojection,
+                guides,
+                &surfaces,
+                projected,
+                y,
+                instances,
+            );
+            blend.blend(rows, y as u32, instances, self.settings, signal);
+            blend.keep(&surfaces, signal, next);
+        }
+    }
+}
+
+/// The channels a row's lanes keep for a pixel's demodulated illumination: its colour
+/// and its luminance, whose first two moments the neighbourhood gives with the colour's.
+const CHANNELS: usize = 4;
+const LUMINANCE: usize = 3;
+
+/// glam's `Vec3::max`, one lane: `a` where it is larger, else `b` (so NaN gives `b`).
+#[inline(always)]
+fn larger(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// glam's `Vec3::min`, one lane.
+#[inline(always)]
+fn smaller(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
 /// Step 1 for row `y`: each pixel demodulated (`GuidePixel::demodulate`, from the guide
-/// planes), with its luminance in w (the neighbourhood's sums of c and c^2 then give the
-/// colour and luminance moments in four lanes at once).
-fn demodulate_row(radiance: &Film, guides: &Guides, y: usize, current: &mut [Vec4]) {
+/// planes) into `current`'s red, green and blue rows, with its luminance in the fourth.
+#[inline(always)]
+fn demodulate_row(radiance: &Film, guides: &Guides, y: usize, current: [&mut [f32]; CHANNELS]) {
     let width = guides.width as usize;
     let start = y * width;
     let radiance = &radiance.pixels[start..start + width];
     let instances = &guides.instances()[start..start + width];
-    let row = |plane| guides.row(y, plane);
-    let (albedo_r, albedo_g, albedo_b) = (row(ALBEDO_R), row(ALBEDO_G), row(ALBEDO_B));
-    let (unfiltered_r, unfiltered_g, unfiltered_b) =
-        (row(UNFILTERED_R), row(UNFILTERED_G), row(UNFILTERED_B));
+    // Each row its own slice of `width` (as arrays of slices, the loop kept a bounds check
+    // per read and branched around the division for the sky rather than vectorise).
+    let (albedo_r, albedo_g, albedo_b) = (
+        &guides.row(y, ALBEDO_R)[..width],
+        &guides.row(y, ALBEDO_G)[..width],
+        &guides.row(y, ALBEDO_B)[..width],
+    );
+    let (unfiltered_r, unfiltered_g, unfiltered_b) = (
+        &guides.row(y, UNFILTERED_R)[..width],
+        &guides.row(y, UNFILTERED_G)[..width],
+        &guides.row(y, UNFILTERED_B)[..width],
+    );
+    let [red, green, blue, luminance] = current.map(|row| &mut row[..width]);
     for x in 0..width {
-        let albedo = Vec3::new(albedo_r[x], albedo_g[x], albedo_b[x]);
-        let unfiltered = Vec3::new(unfiltered_r[x], unfiltered_g[x], unfiltered_b[x]);
-        let illumination = if instances[x] == NO_INSTANCE {
-            Vec3::ZERO
-        } else {
-            (radiance[x] - unfiltered).max(Vec3::ZERO) / albedo.max(Vec3::splat(ALBEDO_FLOOR))
+        let sky = instances[x] == NO_INSTANCE;
+        let channel = |radiance: f32, unfiltered: f32, albedo: f32| {
+            let illumination = larger(radiance - unfiltered, 0.0) / larger(albedo, ALBEDO_FLOOR);
+            if sky { 0.0 } else { illumination }
         };
-        current[x] = illumination.extend(luminance(illumination));
+        let r = channel(radiance[x].x, unfiltered_r[x], albedo_r[x]);
+        let g = channel(radiance[x].y, unfiltered_g[x], albedo_g[x]);
+        let b = channel(radiance[x].z, unfiltered_b[x], albedo_b[x]);
+        (red[x], green[x], blue[x]) = (r, g, b);
+        // `luminance`'s dot product, term by term in its order.
+        luminance[x] = r * 0.2126 + g * 0.7152 + b * 0.0722;
     }
 }
 
-/// Steps 4 and 5 for a pixel (demodulated illumination `current`, luminance in w, amid
-/// `around`), given its history `before` (None: disoccluded): the new history and the
-/// variance the spatial filter reads.
-fn blend(
-    current: Vec4,
-    around: &Neighbourhood,
-    before: Option<History>,
-    settings: &TemporalSettings,
-) -> (History, f32) {
-    let (c, lum) = (current.truncate(), current.w);
-    let Neighbourhood {
-        mean,
-        sigma,
-        luminance_variance: spatial_variance,
-    } = *around;
-    let fresh = Vec2::new(lum, lum * lum);
-    let Some(before) = before else {
-        let history = History {
-            illumination: c,
-            moments: fresh,
-            length: 1.0,
-        };
-        return (history, spatial_variance);
-    };
-    let length = before.length + 1.0;
-    let alpha = (1.0 / length).max(settings.alpha_min);
-    let moments_alpha = (1.0 / length).max(settings.moments_alpha_min);
-    let band = if settings.clamp_sigma.is_finite() {
-        sigma * settings.clamp_sigma
-    } else {
-        Vec3::INFINITY
-    };
-    let clamped = before
-        .illumination
-        .clamp((mean - band).max(Vec3::ZERO), mean + band);
-    let moments = before.moments.lerp(fresh, moments_alpha);
-    let variance = if length < SHORT_HISTORY {
-        spatial_variance
-    } else {
-        (moments.y - moments.x * moments.x).max(0.0)
-    };
-    let history = History {
-        illumination: clamped.lerp(c, alpha),
-        moments,
-        length,
-    };
-    (history, variance)
-}
-
-/// The 3 x 3 neighbourhood's illumination over pixels that are not sky.
-#[derive(Clone, Copy)]
-struct Neighbourhood {
-    mean: Vec3,
-    /// Standard deviation per channel.
-    sigma: Vec3,
-    luminance_variance: f32,
-}
+/// History lengths below this use the neighbourhood's variance (SVGF's rule: the moments
+/// of a few frames say little).
+const SHORT_HISTORY: f32 = 4.0;
 
 /// The 3 x 3 neighbourhood sums of a band of rows, taken separably: each row's sums of
 /// three across, then three of those down (6 additions a pixel instead of 9 taps: 13%
-/// fewer instructions in the temporal pass, counted by callgrind at 480 x 270).
+/// fewer instructions in the temporal pass, counted by callgrind at 480 x 270). Kept as
+/// rows of lanes, so each step runs over a row in vectors.
 struct NeighbourhoodRows {
     width: usize,
     /// The first row summed (the band's first row, less one where there is one).
     first: u32,
-    /// Per summed row, per pixel: the sum of c and of c^2 (colour and luminance in four
-    /// lanes) over the pixel and its left and right neighbours that are not sky, ...
-    sum: Vec<Vec4>,
-    squares: Vec<Vec4>,
-    /// ... and how many of them there are.
-    count: Vec<f32>,
-    /// The summed rows demodulated (`demodulate_row`).
-    current: Vec<Vec4>,
     /// The band's last row summed.
     last: u32,
+    /// Per channel (`CHANNELS`), the summed rows one after another: the demodulated
+    /// illumination (`demodulate_row`), ...
+    current: [Vec<f32>; CHANNELS],
+    /// ... its sum and the sum of its squares over the pixel and its left and right
+    /// neighbours that are not sky, ...
+    sum: [Vec<f32>; CHANNELS],
+    squares: [Vec<f32>; CHANNELS],
+    /// ... and how many of them there are.
+    count: Vec<f32>,
+}
+
+/// The sums across of one row (`NeighbourhoodRows`): `out[x]` = f(x) + f(x - 1) + f(x + 1)
+/// over the neighbours there are, in that order.
+#[inline(always)]
+fn sum_across<T: Copy>(values: &[T], out: &mut [f32], f: impl Fn(T) -> f32) {
+    let width = values.len();
+    let out = &mut out[..width];
+    match width {
+        0 => {}
+        1 => out[0] = f(values[0]),
+        _ => {
+            out[0] = f(values[0]) + f(values[1]);
+            for x in 1..width - 1 {
+                out[x] = f(values[x]) + f(values[x - 1]) + f(values[x + 1]);
+            }
+            out[width - 1] = f(values[width - 1]) + f(values[width - 2]);
+        }
+    }
 }
 
 impl NeighbourhoodRows {
@@ -367,85 +421,260 @@ impl NeighbourhoodRows {
             width,
             first: 0,
             last: 0,
-            sum: Vec::new(),
-            squares: Vec::new(),
+            current: Default::default(),
+            sum: Default::default(),
+            squares: Default::default(),
             count: Vec::new(),
-            current: Vec::new(),
         }
     }
 
     /// Demodulates rows `first_row..=last_row` and the rows either side, and takes their
     /// row sums.
+    #[inline(always)]
     fn sum_band(&mut self, radiance: &Film, guides: &Guides, first_row: u32, last_row: u32) {
         let (width, height) = (guides.width as usize, guides.height);
+        self.width = width;
         self.first = first_row.saturating_sub(1);
         self.last = (last_row + 1).min(height - 1);
         let rows = (self.last - self.first + 1) as usize;
-        self.sum.resize(rows * width, Vec4::ZERO);
-        self.squares.resize(rows * width, Vec4::ZERO);
+        for plane in self
+            .current
+            .iter_mut()
+            .chain(&mut self.sum)
+            .chain(&mut self.squares)
+        {
+            plane.resize(rows * width, 0.0);
+        }
         self.count.resize(rows * width, 0.0);
-        self.current.resize(rows * width, Vec4::ZERO);
         for row in 0..rows {
             let y = self.first as usize + row;
-            let current = &mut self.current[row * width..][..width];
-            demodulate_row(radiance, guides, y, current);
-            let instances = &guides.instances()[y * width..(y + 1) * width];
-            let (sum, squares, count) = (
-                &mut self.sum[row * width..][..width],
-                &mut self.squares[row * width..][..width],
-                &mut self.count[row * width..][..width],
+            let span = row * width..(row + 1) * width;
+            let [r, g, b, l] = &mut self.current;
+            demodulate_row(
+                radiance,
+                guides,
+                y,
+                [r, g, b, l].map(|plane| &mut plane[span.clone()]),
             );
+            for c in 0..CHANNELS {
+                let current = &self.current[c][span.clone()];
+                sum_across(current, &mut self.sum[c][span.clone()], |v| v);
+                sum_across(current, &mut self.squares[c][span.clone()], |v| v * v);
+            }
             // A sky pixel's demodulated value is zero, so only its count needs masking.
-            let seen = |x: usize| {
-                if instances[x] == NO_INSTANCE {
-                    0.0
-                } else {
-                    1.0
-                }
+            let instances = &guides.instances()[y * width..(y + 1) * width];
+            let count = &mut self.count[span];
+            sum_across(instances, count, |instance| {
+                if instance == NO_INSTANCE { 0.0 } else { 1.0 }
+            });
+        }
+    }
+}
+
+/// One row's steps 3 to 5 in lanes: the histories found (step 3, a pixel at a time), then
+/// the neighbourhood, clamp and blend over the whole row at once. Kept per worker.
+#[derive(Default)]
+struct BlendRow {
+    /// Whether a history was found under each pixel, and if so the history.
+    found: Vec<bool>,
+    before_illumination: [Vec<f32>; 3],
+    before_moments: [Vec<f32>; 2],
+    before_length: Vec<f32>,
+    /// The neighbourhood's sums down the row's three rows.
+    sum: [Vec<f32>; CHANNELS],
+    squares: [Vec<f32>; CHANNELS],
+    count: Vec<f32>,
+    /// The new histories' moments and lengths (their illumination goes to the signal).
+    moments: [Vec<f32>; 2],
+    length: Vec<f32>,
+}
+
+impl BlendRow {
+    fn resize(&mut self, width: usize) {
+        self.found.resize(width, false);
+        let planes = self
+            .before_illumination
+            .iter_mut()
+            .chain(&mut self.before_moments);
+        let planes = planes.chain(&mut self.sum).chain(&mut self.squares);
+        for plane in planes.chain(&mut self.moments) {
+            plane.resize(width, 0.0);
+        }
+        for plane in [&mut self.before_length, &mut self.count, &mut self.length] {
+            plane.resize(width, 0.0);
+        }
+    }
+
+    /// Steps 2 and 3 for row `y` (its first hits `surfaces`, projected as `projected`):
+    /// the history under each pixel that is not sky, if any.
+    #[inline(always)]
+    fn find_histories(
+        &mut self,
+        reprojection: Option<&Reprojection>,
+        guides: &Guides,
+        surfaces: &SurfaceRow,
+        projected: &ProjectedRow,
+        y: usize,
+        instances: &[u32],
+    ) {
+        let Some(reprojection) = reprojection else {
+            self.found.fill(false);
+            return;
+        };
+        for (x, &instance) in instances.iter().enumerate() {
+            let before = if instance == NO_INSTANCE {
+                None
+            } else {
+                reprojection.history_at(guides, surfaces, projected, x, y, instance)
             };
-            for x in 0..width {
-                let (mut s, mut q, mut n) = (current[x], current[x] * current[x], seen(x));
-                if x > 0 {
-                    s += current[x - 1];
-                    q += current[x - 1] * current[x - 1];
-                    n += seen(x - 1);
-                }
-                if x + 1 < width {
-                    s += current[x + 1];
-                    q += current[x + 1] * current[x + 1];
-                    n += seen(x + 1);
-                }
-                sum[x] = s;
-                squares[x] = q;
-                count[x] = n;
+            self.found[x] = before.is_some();
+            if let Some(before) = before {
+                self.before_illumination[0][x] = before.illumination.x;
+                self.before_illumination[1][x] = before.illumination.y;
+                self.before_illumination[2][x] = before.illumination.z;
+                self.before_moments[0][x] = before.moments.x;
+                self.before_moments[1][x] = before.moments.y;
+                self.before_length[x] = before.length;
             }
         }
-        self.width = width;
     }
 
-    /// Pixel (x, y)'s demodulated illumination and luminance (y within the band).
-    fn current(&self, x: u32, y: u32) -> Vec4 {
-        self.current[(y - self.first) as usize * self.width + x as usize]
+    /// Steps 4 and 5 for row `y` of the band `rows` summed: each pixel's history blended
+    /// with its demodulated illumination, clamped to its 3 x 3 neighbourhood (over pixels
+    /// that are not sky); the illumination and the variance the spatial filter reads go
+    /// into `signal`, the moments and lengths into `self`. Sky pixels keep nothing.
+    #[inline(always)]
+    fn blend(
+        &mut self,
+        rows: &NeighbourhoodRows,
+        y: u32,
+        instances: &[u32],
+        settings: &TemporalSettings,
+        signal: &mut [f32],
+    ) {
+        let width = rows.width;
+        // The neighbourhood's sums down, from zero in row order (as the pixel's own were).
+        let (top, bottom) = (y.saturating_sub(1).max(rows.first), (y + 1).min(rows.last));
+        let summed = |plane: &[f32], total: &mut [f32]| {
+            total.fill(0.0);
+            for row in top..=bottom {
+                let start = (row - rows.first) as usize * width;
+                for (total, value) in total.iter_mut().zip(&plane[start..start + width]) {
+                    *total += value;
+                }
+            }
+        };
+        for c in 0..CHANNELS {
+            summed(&rows.sum[c], &mut self.sum[c]);
+            summed(&rows.squares[c], &mut self.squares[c]);
+        }
+        summed(&rows.count, &mut self.count);
+        let start = (y - rows.first) as usize * width;
+        let current = rows
+            .current
+            .each_ref()
+            .map(|plane| &plane[start..start + width]);
+        let [sum_r, sum_g, sum_b, sum_l] = self.sum.each_ref().map(|plane| &plane[..width]);
+        let [squares_r, squares_g, squares_b, squares_l] =
+            self.squares.each_ref().map(|plane| &plane[..width]);
+        let count = &self.count[..width];
+        let found = &self.found[..width];
+        let before = self
+            .before_illumination
+            .each_ref()
+            .map(|plane| &plane[..width]);
+        let [before_mean, before_square] = self.before_moments.each_ref().map(|p| &p[..width]);
+        let before_length = &self.before_length[..width];
+        let [moment_mean, moment_square] = self.moments.each_mut().map(|p| &mut p[..width]);
+        let length_out = &mut self.length[..width];
+        let instances = &instances[..width];
+        // The signal's planes in the order `SignalPlanes` keeps them.
+        const _: () = assert!(RED == 0 && GREEN == 1 && BLUE == 2 && VARIANCE == 3);
+        let (colour, variance_out) = signal.split_at_mut(3 * width);
+        let (red_out, colour) = colour.split_at_mut(width);
+        let (green_out, blue_out) = colour.split_at_mut(width);
+        let variance_out = &mut variance_out[..width];
+        let clamp_sigma = settings.clamp_sigma;
+        let band_of = |sigma: f32| {
+            if clamp_sigma.is_finite() {
+                sigma * clamp_sigma
+            } else {
+                f32::INFINITY
+            }
+        };
+        for x in 0..width {
+            // The neighbourhood (SVGF's spatial estimate, and the clamp's box).
+            let n = count[x];
+            let mean = [sum_r[x] / n, sum_g[x] / n, sum_b[x] / n, sum_l[x] / n];
+            let spread = |square: f32, mean: f32| larger(square / n - mean * mean, 0.0);
+            let sigma = [
+                spread(squares_r[x], mean[0]).sqrt(),
+                spread(squares_g[x], mean[1]).sqrt(),
+                spread(squares_b[x], mean[2]).sqrt(),
+            ];
+            let spatial_variance = spread(squares_l[x], mean[3]);
+            let c = [current[0][x], current[1][x], current[2][x]];
+            let lum = current[LUMINANCE][x];
+            let fresh = [lum, lum * lum];
+            // Blended with the history found: weights 1/length down to their floors.
+            let length = before_length[x] + 1.0;
+            let alpha = (1.0 / length).max(settings.alpha_min);
+            let moments_alpha = (1.0 / length).max(settings.moments_alpha_min);
+            let blended = |channel: usize| {
+                let band = band_of(sigma[channel]);
+                let (low, high) = (larger(mean[channel] - band, 0.0), mean[channel] + band);
+                let clamped = smaller(larger(before[channel][x], low), high);
+                clamped * (1.0 - alpha) + c[channel] * alpha
+            };
+            let illumination = [blended(0), blended(1), blended(2)];
+            let moments = [
+                before_mean[x] * (1.0 - moments_alpha) + fresh[0] * moments_alpha,
+                before_square[x] * (1.0 - moments_alpha) + fresh[1] * moments_alpha,
+            ];
+            let variance = if length < SHORT_HISTORY {
+                spatial_variance
+            } else {
+                (moments[1] - moments[0] * moments[0]).max(0.0)
+            };
+            // Or none found: the history starts here, with the neighbourhood's variance.
+            let (illumination, moments, length, variance) = if found[x] {
+                (illumination, moments, length, variance)
+            } else {
+                (c, fresh, 1.0, spatial_variance)
+            };
+            // The sky keeps nothing.
+            let sky = instances[x] == NO_INSTANCE;
+            let kept = |value: f32| if sky { 0.0 } else { value };
+            red_out[x] = kept(illumination[0]);
+            green_out[x] = kept(illumination[1]);
+            blue_out[x] = kept(illumination[2]);
+            variance_out[x] = kept(variance);
+            moment_mean[x] = kept(moments[0]);
+            moment_square[x] = kept(moments[1]);
+            length_out[x] = kept(length);
+        }
     }
 
-    /// Pixel (x, y)'s `Neighbourhood`, over its 3 x 3 pixels that are not sky (y within
-    /// the band last summed).
-    fn neighbourhood(&self, x: u32, y: u32) -> Neighbourhood {
-        let (mut sum, mut sum_squares, mut count) = (Vec4::ZERO, Vec4::ZERO, 0.0f32);
-        for row in y.saturating_sub(1).max(self.first)..=(y + 1).min(self.last) {
-            let index = (row - self.first) as usize * self.width + x as usize;
-            sum += self.sum[index];
-            sum_squares += self.squares[index];
-            count += self.count[index];
-        }
-        let mean = sum / count;
-        let spread = (sum_squares / count - mean * mean).max(Vec4::ZERO);
-        let sigma = Vec3::new(spread.x.sqrt(), spread.y.sqrt(), spread.z.sqrt());
-        Neighbourhood {
-            mean: mean.truncate(),
-            sigma,
-            luminance_variance: spread.w,
-        }
+    /// The row's records for the next frame (`next`): each pixel's first hit (`surfaces`)
+    /// and its new history, from `blend`'s row (its illumination from `signal`'s).
+    #[inline(always)]
+    fn keep(&self, surfaces: &SurfaceRow, signal: &[f32], next: &mut [LastPixel]) {
+        let width = next.len();
+        let (red, green, blue) = (
+            &signal[RED * width..][..width],
+            &signal[GREEN * width..][..width],
+            &signal[BLUE * width..][..width],
+        );
+        let (mean, square, length) = (
+            &self.moments[0][..width],
+            &self.moments[1][..width],
+            &self.length[..width],
+        );
+        surfaces.keep(next, |x| History {
+            illumination: Vec3::new(red[x], green[x], blue[x]),
+            moments: Vec2::new(mean[x], square[x]),
+            length: length[x],
+        });
     }
 }
 
