@@ -17,8 +17,9 @@ use std::time::Instant;
 use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
-use super::atrous::{self, AtrousSettings};
-use super::temporal::{TemporalFilter, TemporalSettings};
+use super::atrous::{self, AtrousSettings, FilteredPlanes};
+use super::reproject::LastPixel;
+use super::temporal::{TemporalFilter, TemporalSettings, feed_back_row};
 use crate::render::camera::Camera;
 use crate::render::film::Film;
 use crate::render::guides::Guides;
@@ -192,9 +193,9 @@ impl FrameFilter {
             // 3. Remodulate, and keep the first pass as history.
             let start = Instant::now();
             profiling::scope!("film.remodulate");
-            remodulate(guides, filtered.illumination, image);
-            if *feed_back {
-                temporal.feed_back(filtered.first_iteration);
+            match feed_back.then(|| temporal.history_rows(filtered.first_iteration)) {
+                Some(Some(history)) => remodulate_feeding_back(guides, filtered, history, image),
+                _ => remodulate(guides, filtered.illumination, image),
             }
             last_times.remodulate = milliseconds_since(start);
         } else {
@@ -205,6 +206,27 @@ impl FrameFilter {
             last_times.remodulate = milliseconds_since(start);
         }
     }
+}
+
+/// Step 3 with SVGF's feedback: `remodulate`, and the first pass's output put into the
+/// history (`feed_back_row`), in one pass over the rows.
+fn remodulate_feeding_back(
+    guides: &Guides,
+    filtered: FilteredPlanes,
+    history: rayon::slice::ChunksMut<'_, LastPixel>,
+    image: &mut Film,
+) {
+    let width = guides.width as usize;
+    image
+        .pixels
+        .par_chunks_mut(width.max(1))
+        .zip(history)
+        .enumerate()
+        .for_each(|(y, (pixels, history))| {
+            let rows = [RED, GREEN, BLUE].map(|plane| filtered.illumination.row(y, plane));
+            guides.modulate_row(y, rows, pixels);
+            feed_back_row(filtered.first_iteration, y, history);
+        });
 }
 
 /// Step 3: `image` = `illumination` x albedo + the unfiltered light, pixel by pixel (sky:

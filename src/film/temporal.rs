@@ -207,26 +207,29 @@ impl TemporalFilter {
         self.last[index].history.length
     }
 
-    /// Replaces the history's illumination (SVGF keeps the first a-trous iteration's
-    /// output as history: less noise carried forward).
-    pub fn feed_back(&mut self, illumination: &SignalPlanes) {
+    /// The history's rows, for `feed_back_row` to replace their illumination (SVGF keeps
+    /// the first a-trous iteration's output as history: less noise carried forward); None
+    /// unless `illumination` is the history's size.
+    pub(super) fn history_rows(
+        &mut self,
+        illumination: &SignalPlanes,
+    ) -> Option<rayon::slice::ChunksMut<'_, LastPixel>> {
         let width = illumination.width();
-        if width * illumination.height() != self.last.len() || width == 0 {
-            return;
-        }
-        self.last
-            .par_chunks_mut(width)
-            .enumerate()
-            .for_each(|(y, last)| {
-                let (red, green, blue) = (
-                    illumination.row(y, RED),
-                    illumination.row(y, GREEN),
-                    illumination.row(y, BLUE),
-                );
-                for (x, last) in last.iter_mut().enumerate() {
-                    last.history.illumination = Vec3::new(red[x], green[x], blue[x]);
-                }
-            });
+        (width > 0 && width * illumination.height() == self.last.len())
+            .then(|| self.last.par_chunks_mut(width))
+    }
+}
+
+/// Row `y` of the history (`TemporalFilter::history_rows`) given `illumination`'s.
+pub(super) fn feed_back_row(illumination: &SignalPlanes, y: usize, history: &mut [LastPixel]) {
+    let width = history.len();
+    let (red, green, blue) = (
+        &illumination.row(y, RED)[..width],
+        &illumination.row(y, GREEN)[..width],
+        &illumination.row(y, BLUE)[..width],
+    );
+    for (x, last) in history.iter_mut().enumerate() {
+        last.history.illumination = Vec3::new(red[x], green[x], blue[x]);
     }
 }
 
