@@ -466,21 +466,31 @@ impl Pass<'_> {
                 continue;
             };
             let end_of_surfaces = centres.iter().rposition(|&i| i != NO_INSTANCE).unwrap_or(0) + 1;
-            let (chunk_start, chunk_end) =
-                (chunk_start + first_surface, chunk_start + end_of_surfaces);
+            let surfaces = (chunk_start + first_surface, chunk_start + end_of_surfaces);
             for (dx, dy, kernel, diagonal) in TAPS {
                 let tap_y = y as isize + dy * step as isize;
                 if tap_y < 0 || tap_y >= height as isize {
                     continue;
                 }
                 let tap_y = tap_y as usize;
-                // The centres whose tap lies inside the row.
+                // The surface's centres whose tap lies inside the row, ...
                 let shift = dx * step as isize;
-                let first = ((-shift).max(0) as usize).max(chunk_start);
-                let end = ((width as isize - shift).max(0) as usize).min(chunk_end);
+                let (in_row_first, in_row_end) = (
+                    (-shift).max(0) as usize,
+                    (width as isize - shift).max(0) as usize,
+                );
+                let first = in_row_first.max(surfaces.0);
+                let end = in_row_end.min(surfaces.1);
                 if end <= first {
                     continue;
                 }
+                // ... and the chunk's sky beside them as far as whole vectors take it (its
+                // sums are never read, and a run's last partial vector is done a lane at a
+                // time, at about 100 instructions a lane).
+                let (first, end) = whole_vectors(
+                    (first, end),
+                    (in_row_first.max(chunk_start), in_row_end.min(chunk_end)),
+                );
                 let len = end - first;
                 let tap_first = (first as isize + shift) as usize;
                 // Every slice cut to `len` (`TapRun::add` runs without bounds checks).
@@ -644,6 +654,15 @@ impl TapRun<'_> {
     }
 }
 
+/// The run `first..end` grown, within `bounds`, towards a whole number of vectors of 8
+/// lanes: at its end first, then at its start.
+fn whole_vectors((first, end): (usize, usize), bounds: (usize, usize)) -> (usize, usize) {
+    let short = (8 - (end - first) % 8) % 8;
+    let after = short.min(bounds.1.saturating_sub(end));
+    let before = (short - after).min(first.saturating_sub(bounds.0));
+    (first - before, end + after)
+}
+
 /// The longest run of pixels `Pass::taps` takes all 8 taps of before the next run's: the
 /// run's centre terms, sums and tap rows stay in L1 across its taps (whole 480-pixel rows
 /// spilled to L2 each tap: 5.8 ns a tap against 3.4).
@@ -798,6 +817,32 @@ mod tests {
                 length.div_ceil(MAX_CHUNK),
                 "{length}"
             );
+        }
+    }
+
+    #[test]
+    fn a_run_grows_over_its_bounds_to_whole_vectors() {
+        // Room after the run: it grows there.
+        assert_eq!(whole_vectors((10, 21), (0, 160)), (10, 26));
+        // Only three lanes of room after: the other two before.
+        assert_eq!(whole_vectors((10, 21), (0, 24)), (8, 24));
+        // Already whole, or no room at all: unchanged.
+        assert_eq!(whole_vectors((8, 24), (0, 160)), (8, 24));
+        assert_eq!(whole_vectors((1, 160), (1, 160)), (1, 160));
+        for first in 0..20 {
+            for end in first + 1..40 {
+                for (low, high) in [(0, 40), (first, 40), (0, end), (first / 2, end + 3)] {
+                    let (grown_first, grown_end) = whole_vectors((first, end), (low, high));
+                    assert!(grown_first <= first && end <= grown_end, "contains the run");
+                    assert!(low <= grown_first && grown_end <= high, "within the bounds");
+                    let room = high - low;
+                    let whole = (grown_end - grown_first) % 8 == 0;
+                    assert!(
+                        whole || grown_end - grown_first == room,
+                        "whole unless bounded"
+                    );
+                }
+            }
         }
     }
 
