@@ -18,8 +18,7 @@ use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
 use super::atrous::{self, AtrousSettings, FilteredPlanes};
-use super::reproject::LastPixel;
-use super::temporal::{TemporalFilter, TemporalSettings, feed_back_row};
+use super::temporal::{HistoryRow, TemporalFilter, TemporalSettings, feed_back_row};
 use crate::render::camera::Camera;
 use crate::render::film::Film;
 use crate::render::guides::Guides;
@@ -210,10 +209,10 @@ impl FrameFilter {
 
 /// Step 3 with SVGF's feedback: `remodulate`, and the first pass's output put into the
 /// history (`feed_back_row`), in one pass over the rows.
-fn remodulate_feeding_back(
+fn remodulate_feeding_back<'a>(
     guides: &Guides,
     filtered: FilteredPlanes,
-    history: rayon::slice::ChunksMut<'_, LastPixel>,
+    history: impl IndexedParallelIterator<Item = HistoryRow<'a>>,
     image: &mut Film,
 ) {
     let width = guides.width as usize;

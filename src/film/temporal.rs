@@ -88,7 +88,10 @@ pub struct TemporalFilter {
     pub settings: TemporalSettings,
     width: u32,
     height: u32,
-    /// Last frame's pixels: history, and first hits as much as validation reads.
+    /// Last frame's pixels: their instances (`NO_INSTANCE` for the sky), and for those
+    /// that are not sky their history and as much of their first hits as validation reads
+    /// (`LastPixel`: the sky's records are stale).
+    last_instances: Vec<u32>,
     last: Vec<LastPixel>,
     camera: Option<Camera>,
     /// Last frame's world-from-object per instance.
@@ -96,6 +99,7 @@ pub struct TemporalFilter {
     /// This frame's result; its buffers, like the others here, are reused frame to frame
     /// (fresh megabyte buffers each frame cost more in page faults than the blending).
     accumulated: Accumulated,
+    next_instances: Vec<u32>,
     next: Vec<LastPixel>,
 }
 
@@ -112,6 +116,7 @@ impl TemporalFilter {
     /// Forgets everything (a new level, a new resolution): the next frame starts afresh.
     pub fn reset(&mut self) {
         self.last.clear();
+        self.last_instances.clear();
         self.camera = None;
         self.instances.clear();
     }
@@ -135,11 +140,13 @@ impl TemporalFilter {
         let count = (width * height) as usize;
         let band_pixels = width as usize * BAND_ROWS;
         self.next.resize(count, LastPixel::default());
+        self.next_instances.resize(count, NO_INSTANCE);
         // 1-5 a band of rows at a time (`Band::accumulate`). (Demodulated in a pass of its
         // own, the image went through memory once more: 2 MB written and read again.)
         let motions = self.instances.motions(instance_transforms);
         let reprojection = self.camera.as_ref().map(|previous_camera| Reprojection {
             projection: previous_camera.projection(),
+            last_instances: &self.last_instances,
             last: &self.last,
             width: width as usize,
             height: height as usize,
@@ -157,8 +164,9 @@ impl TemporalFilter {
         };
         #[cfg(target_arch = "x86_64")]
         let avx2 = std::arch::is_x86_feature_detected!("avx2");
-        self.next
+        self.next_instances
             .par_chunks_mut(band_pixels)
+            .zip(self.next.par_chunks_mut(band_pixels))
             .zip(accumulated.signal.bands_mut())
             .for_each_init(
                 || Workspace::new(width as usize),
@@ -174,6 +182,7 @@ impl TemporalFilter {
                 },
             );
         std::mem::swap(&mut self.last, &mut self.next);
+        std::mem::swap(&mut self.last_instances, &mut self.next_instances);
         self.camera = Some(camera.clone());
         self.instances.record(instance_transforms);
         &self.accumulated
@@ -185,10 +194,10 @@ impl TemporalFilter {
     /// instance's pixels lose theirs, as a disocclusion would.
     pub fn renumber_instances(&mut self, new_index: &[Option<u32>]) {
         self.instances.renumber(new_index);
-        for pixel in &mut self.last {
-            if pixel.instance != NO_INSTANCE {
-                pixel.instance = new_index
-                    .get(pixel.instance as usize)
+        for instance in &mut self.last_instances {
+            if *instance != NO_INSTANCE {
+                *instance = new_index
+                    .get(*instance as usize)
                     .copied()
                     .flatten()
                     .unwrap_or(NO_INSTANCE);
@@ -204,6 +213,9 @@ impl TemporalFilter {
     /// Pixel `index`'s (row-major) history length after the last `accumulate`: 1 where
     /// its history started again.
     pub fn history_length(&self, index: usize) -> f32 {
+        if self.last_instances[index] == NO_INSTANCE {
+            return 0.0;
+        }
         self.last[index].history.length
     }
 
@@ -213,23 +225,37 @@ impl TemporalFilter {
     pub(super) fn history_rows(
         &mut self,
         illumination: &SignalPlanes,
-    ) -> Option<rayon::slice::ChunksMut<'_, LastPixel>> {
+    ) -> Option<impl IndexedParallelIterator<Item = HistoryRow<'_>>> {
         let width = illumination.width();
-        (width > 0 && width * illumination.height() == self.last.len())
-            .then(|| self.last.par_chunks_mut(width))
+        (width > 0 && width * illumination.height() == self.last.len()).then(|| {
+            self.last_instances
+                .par_chunks(width)
+                .zip(self.last.par_chunks_mut(width))
+        })
     }
 }
 
-/// Row `y` of the history (`TemporalFilter::history_rows`) given `illumination`'s.
-pub(super) fn feed_back_row(illumination: &SignalPlanes, y: usize, history: &mut [LastPixel]) {
+/// A row of the history: its pixels' instances and records (`TemporalFilter::last`).
+pub(super) type HistoryRow<'a> = (&'a [u32], &'a mut [LastPixel]);
+
+/// Row `y` of the history (`TemporalFilter::history_rows`) given `illumination`'s (the
+/// sky's records, never read, are left alone).
+pub(super) fn feed_back_row(
+    illumination: &SignalPlanes,
+    y: usize,
+    (instances, history): HistoryRow,
+) {
     let width = history.len();
+    let instances = &instances[..width];
     let (red, green, blue) = (
         &illumination.row(y, RED)[..width],
         &illumination.row(y, GREEN)[..width],
         &illumination.row(y, BLUE)[..width],
     );
     for (x, last) in history.iter_mut().enumerate() {
-        last.history.illumination = Vec3::new(red[x], green[x], blue[x]);
+        if instances[x] != NO_INSTANCE {
+            last.history.illumination = Vec3::new(red[x], green[x], blue[x]);
+        }
     }
 }
 
@@ -269,14 +295,14 @@ impl Band<'_> {
         &self,
         workspace: &mut Workspace,
         first_row: usize,
-        next: &mut [LastPixel],
+        next: (&mut [u32], &mut [LastPixel]),
         signal: &mut [f32],
     ) {
         self.accumulate(workspace, first_row, next, signal);
     }
 
-    /// Steps 1-5 for the band of rows from `first_row` (`next`, its pixels' records for
-    /// the next frame, and `signal`, its planes): demodulate the band and a row either
+    /// Steps 1-5 for the band of rows from `first_row` (`next`, its pixels' instances and
+    /// records for the next frame, and `signal`, its planes): demodulate the band and a row either
     /// side (for the neighbourhoods), then a row at a time project, find the histories,
     /// clamp and blend, and keep this frame's history and first hits for the next.
     #[inline(always)]
@@ -284,7 +310,7 @@ impl Band<'_> {
         &self,
         workspace: &mut Workspace,
         first_row: usize,
-        next: &mut [LastPixel],
+        (next_instances, next): (&mut [u32], &mut [LastPixel]),
         signal: &mut [f32],
     ) {
         let guides = self.guides;
@@ -296,8 +322,9 @@ impl Band<'_> {
         } = workspace;
         let last_row = first_row + next.len() / width - 1;
         rows.sum_band(self.radiance, guides, first_row as u32, last_row as u32);
-        for (row, (next, signal)) in next
+        for (row, ((next_instances, next), signal)) in next_instances
             .chunks_mut(width)
+            .zip(next.chunks_mut(width))
             .zip(signal.chunks_mut(SIGNAL_PLANES * width))
             .enumerate()
         {
@@ -316,7 +343,7 @@ impl Band<'_> {
                 instances,
             );
             blend.blend(rows, y as u32, instances, self.settings, signal);
-            blend.keep(&surfaces, signal, next);
+            blend.keep(&surfaces, signal, (next_instances, next));
         }
     }
 }
@@ -658,11 +685,12 @@ impl BlendRow {
         }
     }
 
-    /// The row's records for the next frame (`next`): each pixel's first hit (`surfaces`)
-    /// and its new history, from `blend`'s row (its illumination from `signal`'s).
+    /// The row's instances and records for the next frame (`next`): each pixel's first
+    /// hit (`surfaces`) and its new history, from `blend`'s row (its illumination from
+    /// `signal`'s).
     #[inline(always)]
-    fn keep(&self, surfaces: &SurfaceRow, signal: &[f32], next: &mut [LastPixel]) {
-        let width = next.len();
+    fn keep(&self, surfaces: &SurfaceRow, signal: &[f32], next: (&mut [u32], &mut [LastPixel])) {
+        let width = next.1.len();
         let (red, green, blue) = (
             &signal[RED * width..][..width],
             &signal[GREEN * width..][..width],
