@@ -302,9 +302,10 @@ impl Band<'_> {
     }
 
     /// Steps 1-5 for the band of rows from `first_row` (`next`, its pixels' instances and
-    /// records for the next frame, and `signal`, its planes): demodulate the band and a row either
-    /// side (for the neighbourhoods), then a row at a time project, find the histories,
-    /// clamp and blend, and keep this frame's history and first hits for the next.
+    /// records for the next frame, and `signal`, its planes): demodulate the band and a
+    /// row either side (for the neighbourhoods), then a row at a time project, find the
+    /// histories, clamp and blend, and keep this frame's history and first hits for the
+    /// next.
     #[inline(always)]
     fn accumulate(
         &self,
