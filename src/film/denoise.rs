@@ -3,9 +3,11 @@
 //! 1. `temporal`: demodulate, reproject last frame's history through each instance's motion
 //!    and the camera's, validate it, clamp it, blend;
 //! 2. `atrous`: edge-avoiding wavelet passes over the accumulated illumination, steered by
-//!    its variance (SVGF); the first pass's output goes back into the history;
+//!    its variance (SVGF);
 //! 3. remodulate: illumination x albedo + the light left unfiltered (the hit's emission,
-//!    its dominant lamp's direct light: `GuidePixel::unfiltered`), `Guides::modulate_row`.
+//!    its dominant lamp's direct light: `GuidePixel::unfiltered`), `Guides::modulate_row`;
+//!    in the same pass over the rows, the first a-trous pass's output goes back into the
+//!    history (SVGF's feedback).
 //!
 //! Every step reads and writes images as rows of planes (`planes`, `Guides`), so each reads
 //! only the channels it needs and one step's output is the next one's input as it stands.
