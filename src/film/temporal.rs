@@ -386,7 +386,7 @@ fn demodulate_row(radiance: &Film, guides: &Guides, y: usize, current: [&mut [f3
         &guides.row(y, UNFILTERED_G)[..width],
         &guides.row(y, UNFILTERED_B)[..width],
     );
-    let [red, green, blue, luminance] = current.map(|row| &mut row[..width]);
+    let [red, green, blue, luminance_row] = current.map(|row| &mut row[..width]);
     for x in 0..width {
         let sky = instances[x] == NO_INSTANCE;
         let channel = |radiance: f32, unfiltered: f32, albedo: f32| {
@@ -397,8 +397,7 @@ fn demodulate_row(radiance: &Film, guides: &Guides, y: usize, current: [&mut [f3
         let g = channel(radiance[x].y, unfiltered_g[x], albedo_g[x]);
         let b = channel(radiance[x].z, unfiltered_b[x], albedo_b[x]);
         (red[x], green[x], blue[x]) = (r, g, b);
-        // `luminance`'s dot product, term by term in its order.
-        luminance[x] = r * 0.2126 + g * 0.7152 + b * 0.0722;
+        luminance_row[x] = luminance(Vec3::new(r, g, b));
     }
 }
 
