@@ -16,7 +16,7 @@ use super::batch::{StaticBatch, batch_statics};
 use super::blas::{Blas, PendingHit, Traversal};
 use super::packet::{PACKET, RayPacket, first_lanes, lanes_of};
 use super::stream::{Job, occluded_jobs};
-use super::wide::{Kernels, Portable, RayLanes, WideBvh, WideTlas};
+use super::wide::{Kernels, Portable, RayLanes, WideBvh, WideTlas, prefetch};
 use super::{AlphaTest, Hit, InstanceMask, Ray, SurfaceHit};
 
 /// How far from the world's origin an instance's box may reach (metres) and still go into
@@ -742,6 +742,43 @@ impl AccelScene {
                     f32::INFINITY
                 }
             })
+    }
+
+    /// Asks the CPU for the first lines `surface(hit)` will read: the triangle's corners
+    /// and material (a hint: no effect on results). Then, once they have arrived,
+    /// `prefetch_corners` asks for the lines those corners index.
+    #[inline(always)]
+    pub fn prefetch_triangle(&self, hit: &Hit) {
+        let geometry = &self.blases[self.instances[hit.instance as usize].blas as usize].geometry;
+        let triangle = hit.primitive as usize;
+        if let Some(corners) = geometry.triangles.get(triangle) {
+            prefetch(corners);
+        }
+        if let Some(material) = geometry.materials.get(triangle) {
+            prefetch(material);
+        }
+    }
+
+    /// Asks the CPU for the corners' positions, normals and UVs `surface(hit)` will read
+    /// (after `prefetch_triangle`: the corners' own line should be in the cache by now).
+    #[inline(always)]
+    pub fn prefetch_corners(&self, hit: &Hit) {
+        let geometry = &self.blases[self.instances[hit.instance as usize].blas as usize].geometry;
+        let Some(corners) = geometry.triangles.get(hit.primitive as usize) else {
+            return;
+        };
+        for &corner in corners {
+            let corner = corner as usize;
+            if let Some(position) = geometry.positions.get(corner) {
+                prefetch(position);
+            }
+            if let Some(normal) = geometry.normals.get(corner) {
+                prefetch(normal);
+            }
+            if let Some(uv) = geometry.uvs.get(corner) {
+                prefetch(uv);
+            }
+        }
     }
 
     /// The shading data at `hit` (found by `intersect` with `ray`).

@@ -193,7 +193,7 @@ const PREFETCH_AHEAD: usize = 16;
 /// Asks the CPU to fetch `value`'s cache line (a hint: no effect on results; nothing on
 /// targets without one).
 #[inline(always)]
-fn prefetch<T>(value: &T) {
+pub(super) fn prefetch<T>(value: &T) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch reads nothing architecturally and cannot fault; SSE is part of
     // x86-64's baseline.

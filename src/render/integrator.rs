@@ -107,7 +107,7 @@ pub fn next_hits(
 }
 
 /// What `ray` meets at `hit`: the surface, the way back and the light it emits that way.
-fn surface_at(scene: &RenderScene, ray: &Ray, hit: Hit) -> NextHit {
+pub fn surface_at(scene: &RenderScene, ray: &Ray, hit: Hit) -> NextHit {
     let surface = scene.accel.surface(&hit);
     let wo_world = -ray.direction.normalize();
     let material = scene.material(hit.instance, surface.material);

@@ -17,10 +17,11 @@
 //!      interleaved streams of single rays (`AccelScene::occluded_stream`; as packets
 //!      they measured slower: see accel/packet.rs and accel/stream.rs);
 //!    - `bounces`: every path onwards, a vertex at a time: each live path's bounce ray
-//!      alone (incoherent: neither packets nor streams paid), then every vertex shaded,
-//!      then that vertex's shadow rays as one stream, until every path has ended; with a
-//!      radiance cache (the real-time view's), a path whose second vertex's cell has
-//!      learnt its light ends there with that light, unless it is one of the frame's
+//!      alone (incoherent: neither packets nor streams paid), then every hit's surface
+//!      (its lines asked for ahead: `AccelScene::prefetch_triangle`), then every vertex
+//!      shaded, then that vertex's shadow rays as one stream, until every path has ended;
+//!      with a radiance cache (the real-time view's), a path whose second vertex's cell
+//!      has learnt its light ends there with that light, unless it is one of the frame's
 //!      teachers (`cache.rs`);
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
 //!    thread count) and store the mean in the film (and the kept-apart lamp light's mean
@@ -67,13 +68,17 @@ use camera::FilmPoints;
 use guides::GuideRects;
 use integrator::{
     CacheMark, CacheVertex, NextHit, PathState, ShadowQuery, VertexOutcome, cache_vertex,
-    camera_sample, end_at_cache, next_hit, next_hits, path_vertex, reference_radiance,
+    camera_sample, end_at_cache, next_hit, next_hits, path_vertex, reference_radiance, surface_at,
 };
 use planes::SharedRuns;
 use sampler::{BlueNoise, PixelSampler, VertexDrawBatch};
 use scene::SceneAlpha;
 
 const TILE: u32 = 16;
+
+/// How many bounce hits ahead of the one whose surface is read its corners' lines are
+/// asked for (`AccelScene::prefetch_corners`).
+const SURFACE_AHEAD: usize = 8;
 
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
@@ -216,6 +221,8 @@ struct TileScratch<'a> {
     trains: Vec<bool>,
     marks: Vec<Option<CacheMark>>,
     hits: Vec<Option<NextHit>>,
+    /// A bounce's closest hits, before their surfaces are read.
+    bounce_hits: Vec<Option<Hit>>,
     /// A bounce's hits, and for each second vertex the radiance cache may end, its cell.
     found: Vec<(Option<NextHit>, Option<CacheVertex>)>,
     /// The camera rays' film points (a pinhole's rays are made together), the rays, and
@@ -589,15 +596,33 @@ impl<'a> Tile<'a> {
                         &mut scratch.samplers,
                         scratch.live.iter().map(|&(index, _)| index),
                     );
-                    // Every ray traced first, then every vertex shaded: the second
-                    // vertices' cells are asked of the cache ahead (`prefetch`), so their
-                    // slots of its 2 MB table arrive while the other rays trace. Looked up
-                    // between one vertex's shading and the next's, the slot's load stalled
-                    // the core: a third of the tile loop's own cycles (perf, the-keep); so
-                    // arranged, the phase's p50 fell 12% (one thread, 6 alternated pairs).
+                    // Every ray traced first, then every hit's surface read, then every
+                    // vertex shaded, each pass asking for what a later one reads. The
+                    // second vertices' cells are asked of the cache ahead (`prefetch`), so
+                    // their slots of its 2 MB table arrive while the other surfaces are
+                    // read. Looked up between one vertex's shading and the next's, the
+                    // slot's load stalled the core: a third of the tile loop's own cycles
+                    // (perf, the-keep); so arranged, the phase's p50 fell 12% (one thread,
+                    // 6 alternated pairs). Likewise an incoherent hit's triangle, then its
+                    // corners' positions, normals and UVs, were two misses in a row: the
+                    // triangle's line is asked for as its ray is traced, its corners'
+                    // `SURFACE_AHEAD` hits before its surface is read.
+                    scratch.bounce_hits.clear();
+                    for (_, ray) in &scratch.live {
+                        let hit = scene.accel.intersect(ray, InstanceMask::BOUNCE, &alpha);
+                        if let Some(hit) = &hit {
+                            scene.accel.prefetch_triangle(hit);
+                        }
+                        scratch.bounce_hits.push(hit);
+                    }
                     scratch.found.clear();
-                    for &(index, ray) in &scratch.live {
-                        let found = next_hit(scene, &ray, InstanceMask::BOUNCE, &alpha);
+                    for (at, (&(index, ray), hit)) in
+                        scratch.live.iter().zip(&scratch.bounce_hits).enumerate()
+                    {
+                        if let Some(Some(ahead)) = scratch.bounce_hits.get(at + SURFACE_AHEAD) {
+                            scene.accel.prefetch_corners(ahead);
+                        }
+                        let found = hit.map(|hit| surface_at(scene, &ray, hit));
                         let vertex = match (self.cache, &found) {
                             (Some(cache), Some(hit)) => {
                                 cache_vertex(scene, &scratch.paths[index], hit, &sizing)
