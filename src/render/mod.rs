@@ -68,7 +68,8 @@ use camera::FilmPoints;
 use guides::GuideRects;
 use integrator::{
     CacheMark, CacheVertex, NextHit, PathState, ShadowQuery, VertexOutcome, cache_vertex,
-    camera_sample, end_at_cache, next_hit, next_hits, path_vertex, reference_radiance, surface_at,
+    camera_sample, end_at_cache, next_hit, next_hits, path_vertex, path_vertex_inlined,
+    reference_radiance, surface_at,
 };
 use planes::SharedRuns;
 use sampler::{BlueNoise, PixelSampler, VertexDrawBatch};
@@ -560,7 +561,7 @@ impl<'a> Tile<'a> {
                         shadow,
                         dominant,
                         next,
-                    } = path_vertex(
+                    } = path_vertex_inlined(
                         scene,
                         path,
                         hit.as_ref(),
