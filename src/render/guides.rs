@@ -47,7 +47,10 @@ impl GuidePixel {
         unfiltered: Vec3::ZERO,
     };
 
-    /// The guides of a camera ray from `origin` that found `hit` (None: the sky).
+    /// The guides of a camera ray from `origin` that found `hit` (None: the sky). Inlined:
+    /// returned through memory, each pixel's guides were read back before their stores
+    /// had landed (the primary phase's p50 fell 3.36 -> 3.18 ms on first-light).
+    #[inline(always)]
     pub fn from_hit(scene: &RenderScene, origin: Vec3A, hit: Option<&NextHit>) -> GuidePixel {
         let Some(found) = hit else {
             return GuidePixel {
