@@ -43,6 +43,22 @@ use glam::{Vec2, Vec3A};
 use obvhs::ray::Ray as ObvhsRay;
 use obvhs::rt_triangle::RtTriangle;
 
+/// Asks the CPU to fetch `value`'s cache line (a hint: no effect on results; nothing on
+/// targets without one). Traversals fetch the nodes they will read next with it, and
+/// `render` the lines a later pass over its paths will read.
+#[inline(always)]
+pub fn prefetch<T>(value: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch reads nothing architecturally and cannot fault; SSE is part of
+    // x86-64's baseline.
+    unsafe {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        _mm_prefetch::<_MM_HINT_T0>((value as *const T).cast());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = value;
+}
+
 /// A ray segment: points origin + t * direction for t in [t_min, t_max].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {

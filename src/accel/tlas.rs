@@ -16,8 +16,8 @@ use super::batch::{StaticBatch, batch_statics};
 use super::blas::{Blas, PendingHit, Traversal};
 use super::packet::{PACKET, RayPacket, first_lanes, lanes_of};
 use super::stream::{Job, occluded_jobs};
-use super::wide::{Kernels, Portable, RayLanes, WideBvh, WideTlas, prefetch};
-use super::{AlphaTest, Hit, InstanceMask, Ray, SurfaceHit};
+use super::wide::{Kernels, Portable, RayLanes, WideBvh, WideTlas};
+use super::{AlphaTest, Hit, InstanceMask, Ray, SurfaceHit, prefetch};
 
 /// How far from the world's origin an instance's box may reach (metres) and still go into
 /// the TLAS; levels span tens of metres, a million kilometres is room to spare.

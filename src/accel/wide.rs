@@ -30,6 +30,8 @@ use obvhs::bvh2::Bvh2;
 use obvhs::ray::Ray as ObvhsRay;
 use obvhs::rt_triangle::RtTriangle;
 
+use super::prefetch;
+
 /// Children per node and triangles per block.
 pub(crate) const WIDTH: usize = 8;
 
@@ -189,21 +191,6 @@ pub enum CollapseError {
 
 /// How many queued nodes ahead of the one being read a walk over a BVH2 fetches.
 const PREFETCH_AHEAD: usize = 16;
-
-/// Asks the CPU to fetch `value`'s cache line (a hint: no effect on results; nothing on
-/// targets without one).
-#[inline(always)]
-pub(super) fn prefetch<T>(value: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch reads nothing architecturally and cannot fault; SSE is part of
-    // x86-64's baseline.
-    unsafe {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        _mm_prefetch::<_MM_HINT_T0>((value as *const T).cast());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
-}
 
 /// The BVH2 being collapsed, with the triangle count under each of its nodes and the
 /// triangles of each wide leaf it holds.

@@ -33,6 +33,7 @@ use glam::{Vec3, Vec3A};
 
 use super::Camera;
 use super::material::floor;
+use crate::accel::prefetch;
 
 /// How large cells are where: from the camera's eye, `CELL_PIXELS` of its pixels across.
 #[derive(Clone, Copy, Debug)]
@@ -59,6 +60,8 @@ const CELL_PIXELS: f32 = 4.0;
 const SLOTS: usize = 1 << 16;
 /// Slots probed from a key's hash before a cell gives up its place.
 const PROBES: usize = 8;
+/// How many samples ahead of the one `learn` folds in it asks for the slots of.
+const LEARN_AHEAD: usize = 4;
 /// A cell's running mean weighs its newest samples at least this much (against all it has
 /// learnt). A cell learns only every few frames, so its light trails a moving lamp's by
 /// more frames than this suggests; 1/8 measured no better (`gloam flythrough` the-gallery,
@@ -223,20 +226,12 @@ impl RadianceCache {
     /// of the lookups that stalled (perf).
     #[inline(always)]
     pub fn prefetch(&self, cell: CellKey) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            let home = cell.home();
-            // Two 32-byte cells a 64-byte line: every other slot, and the last, touches
-            // every line the probes read.
-            for probe in (0..PROBES).step_by(2).chain([PROBES - 1]) {
-                let slot = &self.cells[(home + probe) % SLOTS];
-                // SAFETY: a prefetch of an address inside `cells`; it reads nothing.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>((slot as *const Cell).cast()) };
-            }
+        let home = cell.home();
+        // Two 32-byte cells a 64-byte line: every other slot, and the last, touches every
+        // line the probes read.
+        for probe in (0..PROBES).step_by(2).chain([PROBES - 1]) {
+            prefetch(&self.cells[(home + probe) % SLOTS]);
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = cell;
     }
 
     fn find(&self, cell: CellKey) -> Option<usize> {
@@ -287,9 +282,22 @@ impl RadianceCache {
 
     /// Folds a frame's samples in, in the order given (the tiles' image order), and moves on
     /// to the next frame.
-    pub fn learn<'a>(&mut self, samples: impl IntoIterator<Item = &'a CacheSample>) {
+    pub fn learn<'a>(
+        &mut self,
+        samples: impl IntoIterator<Item = &'a CacheSample, IntoIter: Clone>,
+    ) {
         self.frame += 1;
+        let samples = samples.into_iter();
+        // Each sample's cell is a slot anywhere in the 2 MB table: one after another, every
+        // lookup waited for its line. The slots `LEARN_AHEAD` samples on are asked for
+        // first, so the misses overlap.
+        let mut ahead = samples.clone().skip(LEARN_AHEAD);
         for sample in samples {
+            if let Some(later) = ahead.next() {
+                let home = later.cell.home();
+                prefetch(&self.cells[home]);
+                prefetch(&self.gathered[home]);
+            }
             if !sample.light.is_finite() {
                 continue;
             }
@@ -303,7 +311,12 @@ impl RadianceCache {
             gathered.sum += sample.light;
             gathered.count += 1;
         }
-        for slot in self.touched.drain(..) {
+        for at in 0..self.touched.len() {
+            if let Some(&later) = self.touched.get(at + LEARN_AHEAD) {
+                prefetch(&self.gathered[later]);
+                prefetch(&self.cells[later]);
+            }
+            let slot = self.touched[at];
             let Gathered { sum, count } = std::mem::take(&mut self.gathered[slot]);
             let cell = &mut self.cells[slot];
             let count = count as f32;
@@ -313,6 +326,7 @@ impl RadianceCache {
             cell.averaged += count;
             cell.trained = self.frame;
         }
+        self.touched.clear();
     }
 }
 
