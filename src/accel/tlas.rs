@@ -13,7 +13,7 @@ use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 use obvhs::ray::{Ray as ObvhsRay, RayHit};
 
 use super::batch::{StaticBatch, batch_statics};
-use super::blas::{Blas, PendingHit, Traversal};
+use super::blas::{Blas, MeshGeometry, PendingHit, Traversal};
 use super::packet::{PACKET, RayPacket, first_lanes, lanes_of};
 use super::stream::{Job, occluded_jobs};
 use super::wide::{Kernels, Portable, RayLanes, WideBvh, WideTlas};
@@ -749,7 +749,7 @@ impl AccelScene {
     /// `prefetch_corners` asks for the lines those corners index.
     #[inline(always)]
     pub fn prefetch_triangle(&self, hit: &Hit) {
-        let geometry = &self.blases[self.instances[hit.instance as usize].blas as usize].geometry;
+        let geometry = self.geometry_of(hit);
         let triangle = hit.primitive as usize;
         if let Some(corners) = geometry.triangles.get(triangle) {
             prefetch(corners);
@@ -763,7 +763,7 @@ impl AccelScene {
     /// (after `prefetch_triangle`: the corners' own line should be in the cache by now).
     #[inline(always)]
     pub fn prefetch_corners(&self, hit: &Hit) {
-        let geometry = &self.blases[self.instances[hit.instance as usize].blas as usize].geometry;
+        let geometry = self.geometry_of(hit);
         let Some(corners) = geometry.triangles.get(hit.primitive as usize) else {
             return;
         };
@@ -779,6 +779,12 @@ impl AccelScene {
                 prefetch(uv);
             }
         }
+    }
+
+    /// The mesh `hit` is on.
+    #[inline(always)]
+    fn geometry_of(&self, hit: &Hit) -> &MeshGeometry {
+        &self.blases[self.instances[hit.instance as usize].blas as usize].geometry
     }
 
     /// The shading data at `hit` (found by `intersect` with `ray`).

@@ -274,19 +274,19 @@ impl GuideRects<'_> {
             // SAFETY: the rectangle's run in `plane`, which no other caller sets.
             let run =
                 |plane: usize| unsafe { self.planes.run(first + plane * width, pixels.len()) };
-            set_plane::<NORMAL_X>(run(NORMAL_X), pixels);
-            set_plane::<NORMAL_Y>(run(NORMAL_Y), pixels);
-            set_plane::<NORMAL_Z>(run(NORMAL_Z), pixels);
-            set_plane::<DEPTH>(run(DEPTH), pixels);
-            set_plane::<ALBEDO_R>(run(ALBEDO_R), pixels);
-            set_plane::<ALBEDO_G>(run(ALBEDO_G), pixels);
-            set_plane::<ALBEDO_B>(run(ALBEDO_B), pixels);
-            set_plane::<POSITION_X>(run(POSITION_X), pixels);
-            set_plane::<POSITION_Y>(run(POSITION_Y), pixels);
-            set_plane::<POSITION_Z>(run(POSITION_Z), pixels);
-            set_plane::<UNFILTERED_R>(run(UNFILTERED_R), pixels);
-            set_plane::<UNFILTERED_G>(run(UNFILTERED_G), pixels);
-            set_plane::<UNFILTERED_B>(run(UNFILTERED_B), pixels);
+            set_plane::<NORMAL_X>(&run, pixels);
+            set_plane::<NORMAL_Y>(&run, pixels);
+            set_plane::<NORMAL_Z>(&run, pixels);
+            set_plane::<DEPTH>(&run, pixels);
+            set_plane::<ALBEDO_R>(&run, pixels);
+            set_plane::<ALBEDO_G>(&run, pixels);
+            set_plane::<ALBEDO_B>(&run, pixels);
+            set_plane::<POSITION_X>(&run, pixels);
+            set_plane::<POSITION_Y>(&run, pixels);
+            set_plane::<POSITION_Z>(&run, pixels);
+            set_plane::<UNFILTERED_R>(&run, pixels);
+            set_plane::<UNFILTERED_G>(&run, pixels);
+            set_plane::<UNFILTERED_B>(&run, pixels);
             // SAFETY: as above.
             let instances = unsafe { self.instances.run(y * width + x0, pixels.len()) };
             for (slot, pixel) in instances.iter_mut().zip(pixels) {
@@ -296,10 +296,10 @@ impl GuideRects<'_> {
     }
 }
 
-/// Sets a run of plane `PLANE` from its pixels.
+/// Sets plane `PLANE`'s run (`run(PLANE)`) from its pixels.
 #[inline(always)]
-fn set_plane<const PLANE: usize>(run: &mut [f32], pixels: &[GuidePixel]) {
-    for (slot, pixel) in run.iter_mut().zip(pixels) {
+fn set_plane<'r, const PLANE: usize>(run: &impl Fn(usize) -> &'r mut [f32], pixels: &[GuidePixel]) {
+    for (slot, pixel) in run(PLANE).iter_mut().zip(pixels) {
         *slot = pixel_planes(pixel)[PLANE];
     }
 }
