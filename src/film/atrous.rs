@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use crate::render::guides::{
     ALBEDO_B, ALBEDO_G, ALBEDO_R, DEPTH, Guides, NO_INSTANCE, NORMAL_X, NORMAL_Y, NORMAL_Z,
 };
-use crate::render::planes::{BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
+use crate::render::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct AtrousSettings {
@@ -100,6 +100,16 @@ fn luminance(r: f32, g: f32, b: f32) -> f32 {
     0.2126 * r + 0.7152 * g + 0.0722 * b
 }
 
+/// `out` = the luminance of the rows `red`, `green` and `blue`.
+#[inline(always)]
+fn luminance_row([red, green, blue]: [&[f32]; 3], out: &mut [f32]) {
+    let width = out.len();
+    let (red, green, blue) = (&red[..width], &green[..width], &blue[..width]);
+    for x in 0..width {
+        out[x] = luminance(red[x], green[x], blue[x]);
+    }
+}
+
 /// The filter's buffers, kept from frame to frame (`FrameFilter` owns one).
 #[derive(Default)]
 pub struct Workspace {
@@ -110,6 +120,10 @@ pub struct Workspace {
     outputs: [SignalPlanes; 3],
     /// The variance under SVGF's 3 x 3 prefilter, row-major.
     blurred_variance: Vec<f32>,
+    /// Each pass's input's luminance, row-major, written by the pass before (the first
+    /// pass's by the prepass), so a tap reads it rather than weighing its colour again:
+    /// pass i reads `luminance[i % 2]` and writes the other.
+    luminance: [Vec<f32>; 2],
     /// Run the portable rows even where AVX2 is present (tests compare the two).
     portable_only: bool,
 }
@@ -143,21 +157,32 @@ pub fn filter_with<'a>(
         depth_slope,
         outputs,
         blurred_variance,
+        luminance,
         portable_only,
     } = workspace;
     // SVGF prefilters the variance before every pass; here only before the first (later
     // passes read the variance the wavelet passes themselves filtered), a pass's cost less.
-    // One parallel pass over the rows does both (a handoff less than two).
+    // One parallel pass over the rows takes the depth slopes, prefilters the variance and
+    // weighs the first pass's input's luminance (one handoff, not three).
     depth_slope.resize(width * height, 0.0);
     blurred_variance.resize(width * height, 0.0);
+    for plane in luminance.iter_mut() {
+        plane.resize(width * height, 0.0);
+    }
+    let [first_luminance, second_luminance] = luminance;
     depth_slope
         .par_chunks_mut(width.max(1))
         .zip(blurred_variance.par_chunks_mut(width.max(1)))
+        .zip(first_luminance.par_chunks_mut(width.max(1)))
         .enumerate()
         .for_each_init(
             || vec![0.0f32; width],
-            |weights, (y, (slopes, blurred))| {
+            |weights, (y, ((slopes, blurred), luminance))| {
                 prepass_row(*portable_only, input, guides, y, weights, (slopes, blurred));
+                luminance_row(
+                    [RED, GREEN, BLUE].map(|plane| input.row(y, plane)),
+                    luminance,
+                );
             },
         );
     // Pass i reads pass i - 1's output (the first reads `input`) and writes `outputs[0]`
@@ -169,6 +194,10 @@ pub fn filter_with<'a>(
     for iteration in 0..settings.iterations {
         let mut output = std::mem::take(&mut outputs[output_of(iteration)]);
         output.resize(width, height);
+        let (input_luminance, output_luminance) = match iteration % 2 {
+            0 => (&*first_luminance, &mut *second_luminance),
+            _ => (&*second_luminance, &mut *first_luminance),
+        };
         let pass = Pass {
             step: 1 << iteration,
             guides,
@@ -178,19 +207,29 @@ pub fn filter_with<'a>(
                 i => &outputs[output_of(i - 1)],
             },
             steering_variance: (iteration == 0).then_some(&blurred_variance[..]),
+            luminance: input_luminance,
             settings,
             portable_only: *portable_only,
             carry_variance: iteration + 1 < settings.iterations,
         };
         // One set of row arrays per worker, not per band.
-        output.bands_mut().for_each_init(
-            || RowScratch::new(width),
-            |scratch, (first_row, rows)| {
-                for (row_in_band, out) in rows.chunks_mut(width * SIGNAL_PLANES).enumerate() {
-                    pass.row(first_row + row_in_band, scratch, out);
-                }
-            },
-        );
+        output
+            .bands_mut()
+            .zip(output_luminance.par_chunks_mut((width * BAND_ROWS).max(1)))
+            .for_each_init(
+                || RowScratch::new(width),
+                |scratch, ((first_row, rows), luminance)| {
+                    for (row_in_band, (out, luminance)) in rows
+                        .chunks_mut(width * SIGNAL_PLANES)
+                        .zip(luminance.chunks_mut(width.max(1)))
+                        .enumerate()
+                    {
+                        pass.row(first_row + row_in_band, scratch, out);
+                        let planes = [RED, GREEN, BLUE].map(|plane| &out[plane * width..]);
+                        luminance_row(planes, luminance);
+                    }
+                },
+            );
         outputs[output_of(iteration)] = output;
     }
     if settings.iterations == 0 {
@@ -317,7 +356,6 @@ fn prepass_row(
 
 /// Per-row working arrays (one set per band, reused row after row).
 struct RowScratch {
-    luminance: Vec<f32>,
     luminance_scale: Vec<f32>,
     depth_straight: Vec<f32>,
     depth_diagonal: Vec<f32>,
@@ -329,7 +367,6 @@ impl RowScratch {
     fn new(width: usize) -> RowScratch {
         let row = || vec![0.0f32; width];
         RowScratch {
-            luminance: row(),
             luminance_scale: row(),
             depth_straight: row(),
             depth_diagonal: row(),
@@ -348,6 +385,8 @@ struct Pass<'a> {
     /// The prefiltered variance steering the luminance weight on the first pass (row-major);
     /// later passes steer by the variance they carry.
     steering_variance: Option<&'a [f32]>,
+    /// The input's luminance, row-major.
+    luminance: &'a [f32],
     settings: &'a AtrousSettings,
     portable_only: bool,
     /// Whether the variance is filtered too: not on the last pass, where nothing reads it
@@ -423,7 +462,6 @@ impl Pass<'_> {
         let slope = &self.depth_slope[y * width..(y + 1) * width];
         let variance = input.row(y, VARIANCE);
         for x in 0..width {
-            scratch.luminance[x] = luminance(red[x], green[x], blue[x]);
             scratch.luminance_scale[x] =
                 1.0 / (settings.sigma_luminance * steering[x].max(0.0).sqrt() + 1e-6);
             let depth_epsilon = 1e-3 * depth[x] + 1e-4;
@@ -509,7 +547,8 @@ impl Pass<'_> {
                     centre_instance: &instances[y * width + first..][..len],
                     tap_instance: &instances[tap_y * width + tap_first..][..len],
                     tap_signal: [RED, GREEN, BLUE, VARIANCE].map(tap_signal),
-                    centre_luminance: &scratch.luminance[first..end],
+                    centre_luminance: &self.luminance[y * width..][first..end],
+                    tap_luminance: &self.luminance[tap_y * width + tap_first..][..len],
                     luminance_scale: &scratch.luminance_scale[first..end],
                     depth_scale: if diagonal {
                         &scratch.depth_diagonal[first..end]
@@ -587,6 +626,7 @@ struct TapRun<'a> {
     /// The tap's red, green, blue and variance.
     tap_signal: [&'a [f32]; SIGNAL_PLANES],
     centre_luminance: &'a [f32],
+    tap_luminance: &'a [f32],
     luminance_scale: &'a [f32],
     depth_scale: &'a [f32],
 }
@@ -614,8 +654,9 @@ impl TapRun<'_> {
         let (centre_depth, tap_depth) = (&self.centre_depth[..len], &self.tap_depth[..len]);
         let (centre_instance, tap_instance) =
             (&self.centre_instance[..len], &self.tap_instance[..len]);
-        let (centre_luminance, luminance_scale, depth_scale) = (
+        let (centre_luminance, tap_luminance, luminance_scale, depth_scale) = (
             &self.centre_luminance[..len],
+            &self.tap_luminance[..len],
             &self.luminance_scale[..len],
             &self.depth_scale[..len],
         );
@@ -634,12 +675,11 @@ impl TapRun<'_> {
             };
             let cosine =
                 centre_nx[i] * tap_nx[i] + centre_ny[i] * tap_ny[i] + centre_nz[i] * tap_nz[i];
-            let tap_luminance = luminance(tap_red[i], tap_green[i], tap_blue[i]);
             let albedo_distance = (centre_ar[i] - tap_ar[i]).abs()
                 + (centre_ag[i] - tap_ag[i]).abs()
                 + (centre_ab[i] - tap_ab[i]).abs();
             let exponent = (centre_depth[i] - tap_depth[i]).abs() * depth_scale[i]
-                + (centre_luminance[i] - tap_luminance).abs() * luminance_scale[i]
+                + (centre_luminance[i] - tap_luminance[i]).abs() * luminance_scale[i]
                 + albedo_distance * albedo_scale
                 + NORMAL_SHARPNESS * (1.0 - cosine);
             let weight = kernel * same_instance * fast_exp(-exponent);
