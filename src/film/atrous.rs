@@ -225,8 +225,11 @@ pub fn filter_with<'a>(
                         .enumerate()
                     {
                         pass.row(first_row + row_in_band, scratch, out);
-                        let planes = [RED, GREEN, BLUE].map(|plane| &out[plane * width..]);
-                        luminance_row(planes, luminance);
+                        // The next pass's taps read it; after the last, nothing does.
+                        if pass.carry_variance {
+                            let planes = [RED, GREEN, BLUE].map(|plane| &out[plane * width..]);
+                            luminance_row(planes, luminance);
+                        }
                     }
                 },
             );
