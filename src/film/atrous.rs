@@ -137,20 +137,36 @@ pub fn filter(
 ) -> Filtered {
     let input = SignalPlanes::from_pixels(illumination, variance, guides.width as usize);
     let mut workspace = Workspace::default();
-    let output = filter_with(&mut workspace, &input, guides, settings);
+    let output = filter_with(&mut workspace, &input, guides, settings, |_| {});
     Filtered {
         illumination: output.illumination.colours(),
         first_iteration: output.first_iteration.colours(),
     }
 }
 
+/// A row a pass has just written, handed to `filter_with`'s `row_done` while it is still
+/// in the worker's cache.
+pub struct PassRow<'a> {
+    /// The pass's number, from 0.
+    pub iteration: u32,
+    /// Whether it is the last pass (the first may be the last too).
+    pub last: bool,
+    pub y: usize,
+    /// The row's red, green and blue illumination.
+    pub illumination: [&'a [f32]; 3],
+}
+
 /// Filters `input` (demodulated illumination and its variance), seen with `guides`; the
 /// result stays in `workspace`. With no iterations both outputs are a copy of the input.
+/// Each pass hands every row it writes to `row_done` (from many threads, each row once),
+/// so what the frame does with a pass's output next (SVGF's feedback, remodulation) reads
+/// it from the cache, not in another pass over the image.
 pub fn filter_with<'a>(
     workspace: &'a mut Workspace,
     input: &SignalPlanes,
     guides: &Guides,
     settings: &AtrousSettings,
+    row_done: impl Fn(PassRow) + Sync,
 ) -> FilteredPlanes<'a> {
     let (width, height) = (guides.width as usize, guides.height as usize);
     let Workspace {
@@ -224,12 +240,20 @@ pub fn filter_with<'a>(
                         .zip(luminance.chunks_mut(width.max(1)))
                         .enumerate()
                     {
-                        pass.row(first_row + row_in_band, scratch, out);
+                        let y = first_row + row_in_band;
+                        pass.row(y, scratch, out);
+                        let illumination = [RED, GREEN, BLUE]
+                            .map(|plane| &out[plane * width..(plane + 1) * width]);
                         // The next pass's taps read it; after the last, nothing does.
                         if pass.carry_variance {
-                            let planes = [RED, GREEN, BLUE].map(|plane| &out[plane * width..]);
-                            luminance_row(planes, luminance);
+                            luminance_row(illumination, luminance);
                         }
+                        row_done(PassRow {
+                            iteration,
+                            last: iteration + 1 == settings.iterations,
+                            y,
+                            illumination,
+                        });
                     }
                 },
             );
@@ -960,7 +984,7 @@ mod tests {
                 ..Workspace::default()
             };
             let input = SignalPlanes::from_pixels(&illumination, &variance, width as usize);
-            let a = filter_with(&mut portable, &input, &guides, &settings);
+            let a = filter_with(&mut portable, &input, &guides, &settings, |_| {});
             let (a_illumination, a_first) = (a.illumination.colours(), a.first_iteration.colours());
             let b = filter(&illumination, &variance, &guides, &settings);
             assert!(a_illumination.iter().all(|c| c.is_finite()));

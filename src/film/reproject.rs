@@ -7,7 +7,7 @@
 //! 3. the 2 x 2 bilinear taps there, each kept only if it saw the same surface (instance,
 //!    depth within a tolerance, normal within a cone); none kept is a disocclusion.
 
-use glam::{Affine3A, Vec3, Vec3A};
+use glam::{Affine3A, Vec2, Vec3, Vec3A};
 
 use super::temporal::{History, TemporalSettings};
 use crate::render::camera::Projection;
@@ -28,10 +28,137 @@ use crate::render::guides::{
 /// from the first a-trous pass, each tap read three more cache lines, and the temporal
 /// pass took 2.35 ms against 1.93 (one thread).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
 pub(super) struct LastPixel {
     pub history: History,
     pub normal: Vec3,
     pub depth: f32,
+}
+
+/// A `LastPixel`'s fields in the order it keeps them (`keep_lanes` writes them so).
+const FIELDS: usize = 10;
+const _: () = assert!(size_of::<LastPixel>() == FIELDS * size_of::<f32>());
+const _: () = assert!(std::mem::offset_of!(History, moments) == 3 * size_of::<f32>());
+const _: () = assert!(std::mem::offset_of!(History, length) == 5 * size_of::<f32>());
+const _: () = assert!(std::mem::offset_of!(LastPixel, normal) == 6 * size_of::<f32>());
+const _: () = assert!(std::mem::offset_of!(LastPixel, depth) == 9 * size_of::<f32>());
+
+impl LastPixel {
+    /// From its fields in the order it keeps them: illumination, moments, length, normal,
+    /// depth.
+    #[inline(always)]
+    fn from_fields(f: [f32; FIELDS]) -> LastPixel {
+        LastPixel {
+            history: History {
+                illumination: Vec3::new(f[0], f[1], f[2]),
+                moments: Vec2::new(f[3], f[4]),
+                length: f[5],
+            },
+            normal: Vec3::new(f[6], f[7], f[8]),
+            depth: f[9],
+        }
+    }
+}
+
+/// A row of new histories, as the blend leaves them: a row per field.
+pub(super) struct HistoryRow<'a> {
+    pub illumination: [&'a [f32]; 3],
+    pub moments: [&'a [f32]; 2],
+    pub length: &'a [f32],
+}
+
+/// Proof that the CPU has what `keep_lanes` needs (AVX2): only `detect` makes one, once a
+/// frame, and the temporal pass hands it down to its rows.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct RecordLanes(());
+
+impl RecordLanes {
+    pub fn detect() -> Option<RecordLanes> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Some(RecordLanes(()));
+        }
+        None
+    }
+}
+
+/// `SurfaceRow::keep`'s records 8 pixels at a time: the ten fields' rows (`fields`, in
+/// the record's order, each as long as `out`) transposed in registers into 8 records, each
+/// written with one 32-byte and one 8-byte store. Written a field at a time, a record's 10
+/// scalar stores were 15% of the temporal pass's samples; in lanes the pass runs 7% fewer
+/// instructions (133.0 M against 123.9 M over 7 frames of first-light at 320 x 180) and
+/// takes 3% less time on one thread, 2% on two. A run of 8 that is all sky is
+/// skipped; one with some sky writes its sky records too, which is harmless: a tap reads a
+/// record only under its own instance, and a sky record's history is zero. Returns how
+/// many pixels it kept (whole runs of 8 from the first).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn keep_lanes(fields: &[&[f32]; FIELDS], instances: &[u32], out: &mut [LastPixel]) -> usize {
+    use std::arch::x86_64::*;
+    let width = out.len();
+    assert!(instances.len() >= width && fields.iter().all(|field| field.len() >= width));
+    let all_sky = _mm256_set1_epi32(NO_INSTANCE as i32);
+    for x in (0..width / 8).map(|run| run * 8) {
+        // SAFETY (every load and store below): x + 8 <= width, and every row is at least
+        // `width` long (asserted); a run of 8 records is 80 floats.
+        unsafe {
+            let instances = _mm256_loadu_si256(instances.as_ptr().add(x).cast());
+            let sky = _mm256_castsi256_ps(_mm256_cmpeq_epi32(instances, all_sky));
+            if _mm256_movemask_ps(sky) == 0xff {
+                continue;
+            }
+            let field = |f: usize| _mm256_loadu_ps(fields[f].as_ptr().add(x));
+            // The first 8 fields: an 8 x 8 transpose, lane k of field f to field f of
+            // record k.
+            let [a0, a1, a2, a3, a4, a5, a6, a7] = std::array::from_fn(field);
+            let (t0, t1) = (_mm256_unpacklo_ps(a0, a1), _mm256_unpackhi_ps(a0, a1));
+            let (t2, t3) = (_mm256_unpacklo_ps(a2, a3), _mm256_unpackhi_ps(a2, a3));
+            let (t4, t5) = (_mm256_unpacklo_ps(a4, a5), _mm256_unpackhi_ps(a4, a5));
+            let (t6, t7) = (_mm256_unpacklo_ps(a6, a7), _mm256_unpackhi_ps(a6, a7));
+            // Records k and k + 4 of the first and second four fields.
+            let quads = [
+                _mm256_shuffle_ps::<0x44>(t0, t2),
+                _mm256_shuffle_ps::<0xee>(t0, t2),
+                _mm256_shuffle_ps::<0x44>(t1, t3),
+                _mm256_shuffle_ps::<0xee>(t1, t3),
+            ];
+            let highs = [
+                _mm256_shuffle_ps::<0x44>(t4, t6),
+                _mm256_shuffle_ps::<0xee>(t4, t6),
+                _mm256_shuffle_ps::<0x44>(t5, t7),
+                _mm256_shuffle_ps::<0xee>(t5, t7),
+            ];
+            let records: *mut f32 = out.as_mut_ptr().add(x).cast();
+            for k in 0..4 {
+                let (low, high) = (quads[k], highs[k]);
+                let first = _mm256_permute2f128_ps::<0x20>(low, high);
+                let fifth = _mm256_permute2f128_ps::<0x31>(low, high);
+                _mm256_storeu_ps(records.add(k * FIELDS), first);
+                _mm256_storeu_ps(records.add((k + 4) * FIELDS), fifth);
+            }
+            // The last 2 fields: pairs (f8, f9) of records 0, 1, 4, 5 and 2, 3, 6, 7.
+            let (f8, f9) = (field(8), field(9));
+            let pairs = [_mm256_unpacklo_ps(f8, f9), _mm256_unpackhi_ps(f8, f9)];
+            for (half, pairs) in pairs.into_iter().enumerate() {
+                for (lane, quad) in [
+                    _mm256_castps256_ps128(pairs),
+                    _mm256_extractf128_ps::<1>(pairs),
+                ]
+                .into_iter()
+                .enumerate()
+                {
+                    let quad = _mm_castps_si128(quad);
+                    let k = 4 * lane + 2 * half;
+                    _mm_storeu_si64(records.add(k * FIELDS + 8).cast(), quad);
+                    _mm_storeu_si64(
+                        records.add((k + 1) * FIELDS + 8).cast(),
+                        _mm_unpackhi_epi64(quad, quad),
+                    );
+                }
+            }
+        }
+    }
+    width / 8 * 8
 }
 
 /// A row of this frame's first hits as validation reads them, each plane's row cut once
@@ -57,29 +184,48 @@ impl<'a> SurfaceRow<'a> {
         }
     }
 
-    /// The row's instances, and each surface pixel's record with its new history, for the
-    /// next frame (`out`, a row of each; the sky's records are left as they were).
+    /// The row's instances, and each surface pixel's record with its new history
+    /// (`history`), for the next frame (`out`, a row of each).
     #[inline(always)]
     pub fn keep(
         &self,
         (out_instances, out): (&mut [u32], &mut [LastPixel]),
-        history: impl Fn(usize) -> History,
+        history: HistoryRow,
+        lanes: Option<RecordLanes>,
     ) {
         let width = out.len();
-        let (normal_x, normal_y, normal_z) = (
+        let instances = &self.instances[..width];
+        out_instances[..width].copy_from_slice(instances);
+        let HistoryRow {
+            illumination: [red, green, blue],
+            moments: [mean, square],
+            length,
+        } = history;
+        // Each row cut to the width once, not with `map`: its calls, a closure each,
+        // tipped the inliner over in the temporal pass and its blend stopped vectorising.
+        let fields = [
+            &red[..width],
+            &green[..width],
+            &blue[..width],
+            &mean[..width],
+            &square[..width],
+            &length[..width],
             &self.normal_x[..width],
             &self.normal_y[..width],
             &self.normal_z[..width],
-        );
-        let (depth, instances) = (&self.depth[..width], &self.instances[..width]);
-        out_instances[..width].copy_from_slice(instances);
-        for (x, out) in out.iter_mut().enumerate() {
+            &self.depth[..width],
+        ];
+        let mut kept = 0;
+        #[cfg(target_arch = "x86_64")]
+        if let Some(RecordLanes(())) = lanes {
+            // SAFETY: the CPU has AVX2 (`RecordLanes`), the only feature `keep_lanes`
+            // enables.
+            kept = unsafe { keep_lanes(&fields, instances, out) };
+        }
+        for x in kept..width {
+            // The sky's records are left as they were.
             if instances[x] != NO_INSTANCE {
-                *out = LastPixel {
-                    history: history(x),
-                    normal: Vec3::new(normal_x[x], normal_y[x], normal_z[x]),
-                    depth: depth[x],
-                };
+                out[x] = LastPixel::from_fields(std::array::from_fn(|f| fields[f][x]));
             }
         }
     }
@@ -417,5 +563,71 @@ mod tests {
         }
         // Both sides of the camera were tried.
         assert!(behind > 10 && behind < 37 * 5 - 10, "{behind} behind");
+    }
+
+    #[test]
+    fn records_kept_in_lanes_are_the_records_kept_one_at_a_time() {
+        let Some(lanes) = RecordLanes::detect() else {
+            println!("skipped: this CPU has no AVX2, so the records are never kept in lanes");
+            return;
+        };
+        // 37 wide: four runs of eight and a tail. Sky at both ends of a run, a run of
+        // surface only, a run of sky only (pixels 16..24), and sky in the tail.
+        let width = 37u32;
+        let sky = |x: usize| x < 3 || x == 13 || (16..24).contains(&x) || x == 35;
+        let pixels: Vec<GuidePixel> = (0..width as usize)
+            .map(|x| {
+                if sky(x) {
+                    return GuidePixel::SKY;
+                }
+                let f = x as f32;
+                GuidePixel {
+                    position: Vec3A::ZERO,
+                    normal: Vec3A::new(0.1 * f, 1.0, -0.2 * f).normalize(),
+                    depth: 1.0 + 0.5 * f,
+                    instance: x as u32 % 3,
+                    albedo: Vec3::ONE,
+                    unfiltered: Vec3::ZERO,
+                }
+            })
+            .collect();
+        let guides = Guides::from_pixels(width, 1, &pixels);
+        let field = |offset: f32| -> Vec<f32> {
+            (0..width as usize)
+                .map(|x| if sky(x) { 0.0 } else { offset + x as f32 })
+                .collect()
+        };
+        let planes: Vec<Vec<f32>> = (0..6).map(|f| field(100.0 * f as f32)).collect();
+        let history = || HistoryRow {
+            illumination: [&planes[0][..], &planes[1], &planes[2]],
+            moments: [&planes[3][..], &planes[4]],
+            length: &planes[5],
+        };
+        let untouched = LastPixel {
+            depth: -7.0,
+            ..LastPixel::default()
+        };
+        let keep = |lanes| {
+            let mut instances = vec![0; width as usize];
+            let mut records = vec![untouched; width as usize];
+            SurfaceRow::new(&guides, 0).keep((&mut instances, &mut records), history(), lanes);
+            (instances, records)
+        };
+        let (in_lanes, one_at_a_time) = (keep(Some(lanes)), keep(None));
+        assert_eq!(in_lanes.0, one_at_a_time.0);
+        for x in 0..width as usize {
+            let (a, b) = (in_lanes.1[x], one_at_a_time.1[x]);
+            if sky(x) {
+                // Left alone where the whole run is sky; a sky record is never read.
+                assert_eq!(b, untouched, "pixel {x}");
+                if (16..24).contains(&x) || x == 35 {
+                    assert_eq!(a, untouched, "pixel {x}");
+                }
+                continue;
+            }
+            assert_eq!(a, b, "pixel {x}");
+            assert_eq!(a.history.moments.y, 400.0 + x as f32, "pixel {x}");
+            assert_eq!(a.depth, 1.0 + 0.5 * x as f32, "pixel {x}");
+        }
     }
 }

@@ -22,14 +22,18 @@ use std::sync::Mutex;
 
 use rayon::prelude::*;
 
-use super::reproject::{LastPixel, LastTransforms, ProjectedRow, Reprojection, SurfaceRow};
+use super::reproject::{
+    HistoryRow, LastPixel, LastTransforms, ProjectedRow, RecordLanes, Reprojection, SurfaceRow,
+};
 use crate::render::camera::Camera;
 use crate::render::film::Film;
 use crate::render::guides::{
     ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, Guides, NO_INSTANCE, UNFILTERED_B, UNFILTERED_G,
     UNFILTERED_R,
 };
-use crate::render::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
+use crate::render::planes::{
+    BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SharedRuns, SignalPlanes, VARIANCE,
+};
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
 #[derive(Clone, Debug, PartialEq)]
@@ -65,8 +69,9 @@ impl Default for TemporalSettings {
     }
 }
 
-/// One pixel's history.
+/// One pixel's history (its fields in this order: `LastPixel` is written as floats).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
 pub struct History {
     /// Demodulated illumination, averaged.
     pub illumination: Vec3,
@@ -165,6 +170,7 @@ impl TemporalFilter {
             guides,
             reprojection: reprojection.as_ref(),
             settings: &self.settings,
+            record_lanes: RecordLanes::detect(),
         };
         #[cfg(target_arch = "x86_64")]
         let avx2 = std::arch::is_x86_feature_detected!("avx2");
@@ -225,40 +231,42 @@ impl TemporalFilter {
         self.last[index].history.length
     }
 
-    /// The history's rows, for `feed_back_row` to replace their illumination (SVGF keeps
-    /// the first a-trous iteration's output as history: less noise carried forward); None
-    /// unless `illumination` is the history's size.
-    pub(super) fn history_rows(
+    /// What the last `accumulate` gave, and the history, for `feed_back_row` to replace
+    /// its illumination row by row (SVGF keeps the first a-trous iteration's output as
+    /// history: less noise carried forward); no history unless it is `width` pixels wide.
+    pub(super) fn accumulated_and_history(
         &mut self,
-        illumination: &SignalPlanes,
-    ) -> Option<impl IndexedParallelIterator<Item = HistoryRow<'_>>> {
-        let width = illumination.width();
-        (width > 0 && width * illumination.height() == self.last.len()).then(|| {
-            self.last_instances
-                .par_chunks(width)
-                .zip(self.last.par_chunks_mut(width))
-        })
+        width: usize,
+    ) -> (&Accumulated, Option<HistoryRecords<'_>>) {
+        let history = (width > 0 && width * self.accumulated.signal.height() == self.last.len())
+            .then(|| HistoryRecords {
+                width,
+                instances: &self.last_instances,
+                records: SharedRuns::new(&mut self.last),
+            });
+        (&self.accumulated, history)
     }
 }
 
-/// A row of the history: its pixels' instances and records (`TemporalFilter::last`).
-pub(super) type HistoryRow<'a> = (&'a [u32], &'a mut [LastPixel]);
+/// The history's records, whose rows `feed_back_row` replaces from many threads at once.
+pub(super) struct HistoryRecords<'a> {
+    width: usize,
+    instances: &'a [u32],
+    records: SharedRuns<'a, LastPixel>,
+}
 
-/// Row `y` of the history (`TemporalFilter::history_rows`) given `illumination`'s (the
+/// Row `y` of the history given the red, green and blue `illumination` of its pixels (the
 /// sky's records, never read, are left alone).
-pub(super) fn feed_back_row(
-    illumination: &SignalPlanes,
-    y: usize,
-    (instances, history): HistoryRow,
-) {
-    let width = history.len();
-    let instances = &instances[..width];
-    let (red, green, blue) = (
-        &illumination.row(y, RED)[..width],
-        &illumination.row(y, GREEN)[..width],
-        &illumination.row(y, BLUE)[..width],
-    );
-    for (x, last) in history.iter_mut().enumerate() {
+///
+/// # Safety
+/// No other call for the same row may run at the same time.
+pub(super) unsafe fn feed_back_row(illumination: [&[f32]; 3], y: usize, history: &HistoryRecords) {
+    let width = history.width;
+    let instances = &history.instances[y * width..(y + 1) * width];
+    // SAFETY: the row's records are this call's alone (the caller's promise).
+    let records = unsafe { history.records.run(y * width, width) };
+    let [red, green, blue] = illumination.map(|plane| &plane[..width]);
+    for (x, last) in records.iter_mut().enumerate() {
         if instances[x] != NO_INSTANCE {
             last.history.illumination = Vec3::new(red[x], green[x], blue[x]);
         }
@@ -272,6 +280,8 @@ struct Band<'a> {
     /// Last frame, if there was one.
     reprojection: Option<&'a Reprojection<'a>>,
     settings: &'a TemporalSettings,
+    /// Whether the records can be written in lanes.
+    record_lanes: Option<RecordLanes>,
 }
 
 /// A worker's rows, kept from band to band.
@@ -394,7 +404,7 @@ impl Band<'_> {
                 instances,
             );
             blend.blend(rows, y as u32, instances, self.settings, signal);
-            blend.keep(&surfaces, signal, (next_instances, next));
+            blend.keep(&surfaces, signal, (next_instances, next), self.record_lanes);
         }
     }
 }
@@ -666,81 +676,48 @@ impl BlendRow {
             .map(|plane| &plane[..width]);
         let [before_mean, before_square] = self.before_moments.each_ref().map(|p| &p[..width]);
         let before_length = &self.before_length[..width];
-        let [moment_mean, moment_square] = self.moments.each_mut().map(|p| &mut p[..width]);
-        let length_out = &mut self.length[..width];
         let instances = &instances[..width];
+        let reads = BlendReads {
+            current,
+            sum: [sum_r, sum_g, sum_b, sum_l],
+            squares: [squares_r, squares_g, squares_b, squares_l],
+            count,
+            found,
+            before,
+            before_moments: [before_mean, before_square],
+            before_length,
+            instances,
+        };
+        let [moment_mean, moment_square] = self.moments.each_mut().map(|p| &mut p[..width]);
         // The signal's planes in the order `SignalPlanes` keeps them.
         const _: () = assert!(RED == 0 && GREEN == 1 && BLUE == 2 && VARIANCE == 3);
         let (colour, variance_out) = signal.split_at_mut(3 * width);
         let (red_out, colour) = colour.split_at_mut(width);
         let (green_out, blue_out) = colour.split_at_mut(width);
-        let variance_out = &mut variance_out[..width];
-        let clamp_sigma = settings.clamp_sigma;
-        let band_of = |sigma: f32| {
-            if clamp_sigma.is_finite() {
-                sigma * clamp_sigma
-            } else {
-                f32::INFINITY
-            }
-        };
-        for x in 0..width {
-            // The neighbourhood (SVGF's spatial estimate, and the clamp's box).
-            let n = count[x];
-            let mean = [sum_r[x] / n, sum_g[x] / n, sum_b[x] / n, sum_l[x] / n];
-            let spread = |square: f32, mean: f32| larger(square / n - mean * mean, 0.0);
-            let sigma = [
-                spread(squares_r[x], mean[0]).sqrt(),
-                spread(squares_g[x], mean[1]).sqrt(),
-                spread(squares_b[x], mean[2]).sqrt(),
-            ];
-            let spatial_variance = spread(squares_l[x], mean[3]);
-            let c = [current[0][x], current[1][x], current[2][x]];
-            let lum = current[LUMINANCE][x];
-            let fresh = [lum, lum * lum];
-            // Blended with the history found: weights 1/length down to their floors.
-            let length = before_length[x] + 1.0;
-            let alpha = (1.0 / length).max(settings.alpha_min);
-            let moments_alpha = (1.0 / length).max(settings.moments_alpha_min);
-            let blended = |channel: usize| {
-                let band = band_of(sigma[channel]);
-                let (low, high) = (larger(mean[channel] - band, 0.0), mean[channel] + band);
-                let clamped = smaller(larger(before[channel][x], low), high);
-                clamped * (1.0 - alpha) + c[channel] * alpha
-            };
-            let illumination = [blended(0), blended(1), blended(2)];
-            let moments = [
-                before_mean[x] * (1.0 - moments_alpha) + fresh[0] * moments_alpha,
-                before_square[x] * (1.0 - moments_alpha) + fresh[1] * moments_alpha,
-            ];
-            let variance = if length < SHORT_HISTORY {
-                spatial_variance
-            } else {
-                (moments[1] - moments[0] * moments[0]).max(0.0)
-            };
-            // Or none found: the history starts here, with the neighbourhood's variance.
-            let (illumination, moments, length, variance) = if found[x] {
-                (illumination, moments, length, variance)
-            } else {
-                (c, fresh, 1.0, spatial_variance)
-            };
-            // The sky keeps nothing.
-            let sky = instances[x] == NO_INSTANCE;
-            let kept = |value: f32| if sky { 0.0 } else { value };
-            red_out[x] = kept(illumination[0]);
-            green_out[x] = kept(illumination[1]);
-            blue_out[x] = kept(illumination[2]);
-            variance_out[x] = kept(variance);
-            moment_mean[x] = kept(moments[0]);
-            moment_square[x] = kept(moments[1]);
-            length_out[x] = kept(length);
-        }
+        blend_pixels(
+            &reads,
+            settings,
+            red_out,
+            green_out,
+            blue_out,
+            &mut variance_out[..width],
+            moment_mean,
+            moment_square,
+            &mut self.length[..width],
+        );
     }
 
     /// The row's instances and records for the next frame (`next`): each pixel's first
     /// hit (`surfaces`) and its new history, from `blend`'s row (its illumination from
     /// `signal`'s).
     #[inline(always)]
-    fn keep(&self, surfaces: &SurfaceRow, signal: &[f32], next: (&mut [u32], &mut [LastPixel])) {
+    fn keep(
+        &self,
+        surfaces: &SurfaceRow,
+        signal: &[f32],
+        next: (&mut [u32], &mut [LastPixel]),
+        lanes: Option<RecordLanes>,
+    ) {
         let width = next.1.len();
         let (red, green, blue) = (
             &signal[RED * width..][..width],
@@ -752,11 +729,130 @@ impl BlendRow {
             &self.moments[1][..width],
             &self.length[..width],
         );
-        surfaces.keep(next, |x| History {
-            illumination: Vec3::new(red[x], green[x], blue[x]),
-            moments: Vec2::new(mean[x], square[x]),
-            length: length[x],
-        });
+        surfaces.keep(
+            next,
+            HistoryRow {
+                illumination: [red, green, blue],
+                moments: [mean, square],
+                length,
+            },
+            lanes,
+        );
+    }
+}
+
+/// What `blend_pixels` reads of a row, each cut to the row.
+struct BlendReads<'a> {
+    current: [&'a [f32]; CHANNELS],
+    sum: [&'a [f32]; CHANNELS],
+    squares: [&'a [f32]; CHANNELS],
+    count: &'a [f32],
+    found: &'a [bool],
+    before: [&'a [f32]; 3],
+    before_moments: [&'a [f32]; 2],
+    before_length: &'a [f32],
+    instances: &'a [u32],
+}
+
+/// `BlendRow::blend`'s pixels. The seven rows written are arguments of their own, so the
+/// compiler knows they alias none of the rows read and vectorises the loop without checks
+/// at run time, whatever it is inlined into. (Written through the row's fields it needed
+/// those checks, and a change elsewhere in the temporal pass, an extra call in its row
+/// loop, was enough for it to give up: the pass went from 1.75 to 2.3 ms, one thread.)
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn blend_pixels(
+    reads: &BlendReads,
+    settings: &TemporalSettings,
+    red_out: &mut [f32],
+    green_out: &mut [f32],
+    blue_out: &mut [f32],
+    variance_out: &mut [f32],
+    moment_mean: &mut [f32],
+    moment_square: &mut [f32],
+    length_out: &mut [f32],
+) {
+    let width = reads.instances.len();
+    let current = reads.current.map(|plane| &plane[..width]);
+    let [sum_r, sum_g, sum_b, sum_l] = reads.sum.map(|plane| &plane[..width]);
+    let [squares_r, squares_g, squares_b, squares_l] = reads.squares.map(|plane| &plane[..width]);
+    let (count, found, instances) = (
+        &reads.count[..width],
+        &reads.found[..width],
+        reads.instances,
+    );
+    let before = reads.before.map(|plane| &plane[..width]);
+    let [before_mean, before_square] = reads.before_moments.map(|plane| &plane[..width]);
+    let before_length = &reads.before_length[..width];
+    let (red_out, green_out, blue_out, variance_out) = (
+        &mut red_out[..width],
+        &mut green_out[..width],
+        &mut blue_out[..width],
+        &mut variance_out[..width],
+    );
+    let (moment_mean, moment_square, length_out) = (
+        &mut moment_mean[..width],
+        &mut moment_square[..width],
+        &mut length_out[..width],
+    );
+    let clamp_sigma = settings.clamp_sigma;
+    let band_of = |sigma: f32| {
+        if clamp_sigma.is_finite() {
+            sigma * clamp_sigma
+        } else {
+            f32::INFINITY
+        }
+    };
+    for x in 0..width {
+        // The neighbourhood (SVGF's spatial estimate, and the clamp's box).
+        let n = count[x];
+        let mean = [sum_r[x] / n, sum_g[x] / n, sum_b[x] / n, sum_l[x] / n];
+        let spread = |square: f32, mean: f32| larger(square / n - mean * mean, 0.0);
+        let sigma = [
+            spread(squares_r[x], mean[0]).sqrt(),
+            spread(squares_g[x], mean[1]).sqrt(),
+            spread(squares_b[x], mean[2]).sqrt(),
+        ];
+        let spatial_variance = spread(squares_l[x], mean[3]);
+        let c = [current[0][x], current[1][x], current[2][x]];
+        let lum = current[LUMINANCE][x];
+        let fresh = [lum, lum * lum];
+        // Blended with the history found: weights 1/length down to their floors.
+        let length = before_length[x] + 1.0;
+        let alpha = (1.0 / length).max(settings.alpha_min);
+        let moments_alpha = (1.0 / length).max(settings.moments_alpha_min);
+        let blended = |channel: usize| {
+            let band = band_of(sigma[channel]);
+            let (low, high) = (larger(mean[channel] - band, 0.0), mean[channel] + band);
+            let clamped = smaller(larger(before[channel][x], low), high);
+            clamped * (1.0 - alpha) + c[channel] * alpha
+        };
+        let illumination = [blended(0), blended(1), blended(2)];
+        let moments = [
+            before_mean[x] * (1.0 - moments_alpha) + fresh[0] * moments_alpha,
+            before_square[x] * (1.0 - moments_alpha) + fresh[1] * moments_alpha,
+        ];
+        let variance = if length < SHORT_HISTORY {
+            spatial_variance
+        } else {
+            (moments[1] - moments[0] * moments[0]).max(0.0)
+        };
+        // Or none found: the history starts here, with the neighbourhood's variance.
+        let (illumination, moments, length, variance) = if found[x] {
+            (illumination, moments, length, variance)
+        } else {
+            (c, fresh, 1.0, spatial_variance)
+        };
+        // The sky keeps nothing.
+        let sky = instances[x] == NO_INSTANCE;
+        let kept = |value: f32| if sky { 0.0 } else { value };
+        red_out[x] = kept(illumination[0]);
+        green_out[x] = kept(illumination[1]);
+        blue_out[x] = kept(illumination[2]);
+        variance_out[x] = kept(variance);
+        moment_mean[x] = kept(moments[0]);
+        moment_square[x] = kept(moments[1]);
+        length_out[x] = kept(length);
     }
 }
 
