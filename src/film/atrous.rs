@@ -124,6 +124,9 @@ pub struct Workspace {
     /// pass's by the prepass), so a tap reads it rather than weighing its colour again:
     /// pass i reads `luminance[i % 2]` and writes the other.
     luminance: [Vec<f32>; 2],
+    /// A row of zero variance and a row of sky: what the variance prefilter reads past the
+    /// film's top and bottom.
+    past_edge: (Vec<f32>, Vec<u32>),
     /// Run the portable rows even where AVX2 is present (tests compare the two).
     portable_only: bool,
 }
@@ -174,6 +177,7 @@ pub fn filter_with<'a>(
         outputs,
         blurred_variance,
         luminance,
+        past_edge,
         portable_only,
     } = workspace;
     // SVGF prefilters the variance before every pass; here only before the first (later
@@ -186,21 +190,29 @@ pub fn filter_with<'a>(
         plane.resize(width * height, 0.0);
     }
     let [first_luminance, second_luminance] = luminance;
+    // What the variance prefilter reads past the film's top and bottom: sky.
+    past_edge.0.resize(width, 0.0);
+    past_edge.1.resize(width, NO_INSTANCE);
+    let past_edge = (&past_edge.0[..], &past_edge.1[..]);
     depth_slope
         .par_chunks_mut(width.max(1))
         .zip(blurred_variance.par_chunks_mut(width.max(1)))
         .zip(first_luminance.par_chunks_mut(width.max(1)))
         .enumerate()
-        .for_each_init(
-            || vec![0.0f32; width],
-            |weights, (y, ((slopes, blurred), luminance))| {
-                prepass_row(*portable_only, input, guides, y, weights, (slopes, blurred));
-                luminance_row(
-                    [RED, GREEN, BLUE].map(|plane| input.row(y, plane)),
-                    luminance,
-                );
-            },
-        );
+        .for_each(|(y, ((slopes, blurred), luminance))| {
+            prepass_row(
+                *portable_only,
+                input,
+                guides,
+                y,
+                past_edge,
+                (slopes, blurred),
+            );
+            luminance_row(
+                [RED, GREEN, BLUE].map(|plane| input.row(y, plane)),
+                luminance,
+            );
+        });
     // Pass i reads pass i - 1's output (the first reads `input`) and writes `outputs[0]`
     // (the first), then `outputs[1]`, `outputs[2]`, `outputs[1]`, ... .
     let output_of = |iteration: u32| match iteration {
@@ -356,7 +368,7 @@ fn prepass_row(
     input: &SignalPlanes,
     guides: &Guides,
     y: usize,
-    weights: &mut [f32],
+    past_edge: (&[f32], &[u32]),
     (slopes, blurred): (&mut [f32], &mut [f32]),
 ) {
     #[cfg(target_arch = "x86_64")]
@@ -366,19 +378,19 @@ fn prepass_row(
             input: &SignalPlanes,
             guides: &Guides,
             y: usize,
-            weights: &mut [f32],
+            past_edge: (&[f32], &[u32]),
             slopes: &mut [f32],
             blurred: &mut [f32],
         ) {
             depth_slope_row(guides, y, slopes);
-            blur_variance_row(input, guides, y, weights, blurred);
+            blur_variance_row(input, guides, y, past_edge, blurred);
         }
         // SAFETY: the CPU has AVX2, the only feature `prepass_row_avx2` enables.
-        unsafe { prepass_row_avx2(input, guides, y, weights, slopes, blurred) };
+        unsafe { prepass_row_avx2(input, guides, y, past_edge, slopes, blurred) };
         return;
     }
     depth_slope_row(guides, y, slopes);
-    blur_variance_row(input, guides, y, weights, blurred);
+    blur_variance_row(input, guides, y, past_edge, blurred);
 }
 
 /// Per-row working arrays (one set per band, reused row after row).
@@ -769,49 +781,76 @@ fn fast_exp(x: f32) -> f32 {
 }
 
 /// Row `y` of the variance under a 3 x 3 Gaussian (1/4, 1/2, 1/4 per axis), over non-sky pixels:
-/// SVGF's prefilter, so one noisy variance estimate does not decide a weight.
+/// SVGF's prefilter, so one noisy variance estimate does not decide a weight. Each pixel
+/// sums its nine taps in registers, row by row and left to right, with a row past the
+/// film's top or bottom read as `past_edge` (zero variance, sky): that adds +0 to sums that
+/// are never -0, the bits of leaving the row out. (As nine passes over the row, each
+/// reading and writing the row's sums and weights, the spatial filter ran 1% more
+/// instructions: 131.8 M against 130.5 M over 7 frames of first-light at 320 x 180.)
 #[inline(always)]
 fn blur_variance_row(
     input: &SignalPlanes,
     guides: &Guides,
     y: usize,
-    weights: &mut [f32],
+    past_edge: (&[f32], &[u32]),
     out: &mut [f32],
 ) {
     let (width, height) = (guides.width as usize, guides.height as usize);
     let instances = guides.instances();
-    weights.fill(0.0);
-    out.fill(0.0);
-    for (ky, tap_y) in [y.wrapping_sub(1), y, y + 1].into_iter().enumerate() {
-        // wrapping_sub turns -1 into usize::MAX, which fails the bound.
-        if tap_y >= height {
-            continue;
+    let out = &mut out[..width];
+    // wrapping_sub turns -1 into usize::MAX, which fails the bound.
+    let row = |tap_y: usize| -> (&[f32], &[u32]) {
+        match tap_y < height {
+            true => (
+                &input.row(tap_y, VARIANCE)[..width],
+                &instances[tap_y * width..][..width],
+            ),
+            false => (&past_edge.0[..width], &past_edge.1[..width]),
         }
-        for (kx, shift) in [-1isize, 0, 1].into_iter().enumerate() {
-            let first = (-shift).max(0) as usize;
-            let end = (width as isize - shift).min(width as isize) as usize;
-            let tap_first = (first as isize + shift) as usize;
-            let len = end - first;
-            let tap_variance = &input.row(tap_y, VARIANCE)[tap_first..][..len];
-            let tap_instance = &instances[tap_y * width + tap_first..][..len];
-            let kernel = KERNEL[kx] * KERNEL[ky];
-            for ((sum, weight), (v, instance)) in out[first..end]
-                .iter_mut()
-                .zip(&mut weights[first..end])
-                .zip(tap_variance.iter().zip(tap_instance))
-            {
-                let w = if *instance == NO_INSTANCE {
-                    0.0
-                } else {
-                    kernel
-                };
-                *sum += v * w;
-                *weight += w;
+    };
+    let rows = [row(y.wrapping_sub(1)), row(y), row(y + 1)];
+    let weight_of = |instance: u32, kernel: f32| {
+        if instance == NO_INSTANCE { 0.0 } else { kernel }
+    };
+    let normalised = |sum: f32, weight: f32| if weight > 0.0 { sum / weight } else { 0.0 };
+    // The film's first and last pixels, their taps off the row left out.
+    for x in [0, width.saturating_sub(1)].into_iter().take(width.min(2)) {
+        let (mut sum, mut weight) = (0.0f32, 0.0f32);
+        for (ky, (variance, instance)) in rows.iter().enumerate() {
+            for (kx, tap) in [x.wrapping_sub(1), x, x + 1].into_iter().enumerate() {
+                if tap < width {
+                    let w = weight_of(instance[tap], KERNEL[kx] * KERNEL[ky]);
+                    sum += variance[tap] * w;
+                    weight += w;
+                }
             }
         }
+        out[x] = normalised(sum, weight);
     }
-    for (sum, weight) in out.iter_mut().zip(weights.iter()) {
-        *sum = if *weight > 0.0 { *sum / weight } else { 0.0 };
+    // The rest, every tap inside the row: each tap's rows cut to line up with the centres
+    // (no index arithmetic in the loop, so it vectorises).
+    if width < 3 {
+        return;
+    }
+    let inner = width - 2;
+    let taps = rows.map(|(variance, instance)| {
+        [0, 1, 2].map(|kx| (&variance[kx..kx + inner], &instance[kx..kx + inner]))
+    });
+    let out = &mut out[1..1 + inner];
+    for x in 0..inner {
+        let (mut sum, mut weight) = (0.0f32, 0.0f32);
+        for (ky, row) in taps.iter().enumerate() {
+            for (kx, (variance, instance)) in row.iter().enumerate() {
+                let w = if instance[x] == NO_INSTANCE {
+                    0.0
+                } else {
+                    KERNEL[kx] * KERNEL[ky]
+                };
+                sum += variance[x] * w;
+                weight += w;
+            }
+        }
+        out[x] = if weight > 0.0 { sum / weight } else { 0.0 };
     }
 }
 
@@ -847,6 +886,72 @@ mod tests {
         h = h.wrapping_mul(0x2c1b_3c6d);
         h ^= h >> 12;
         (h >> 8) as f32 / (1u32 << 24) as f32
+    }
+
+    #[test]
+    fn the_variance_prefilter_gives_the_bits_of_adding_its_taps_a_pass_each() {
+        // The prefilter as nine passes over the row, each tap added into the row's sums
+        // where it lies inside the film (the definition the one pass must match).
+        fn tap_by_tap(input: &SignalPlanes, guides: &Guides, y: usize) -> Vec<f32> {
+            let (width, height) = (guides.width as usize, guides.height as usize);
+            let (mut sums, mut weights) = (vec![0.0f32; width], vec![0.0f32; width]);
+            for (ky, tap_y) in [y.wrapping_sub(1), y, y + 1].into_iter().enumerate() {
+                if tap_y >= height {
+                    continue;
+                }
+                for (kx, shift) in [-1isize, 0, 1].into_iter().enumerate() {
+                    for x in 0..width {
+                        let tap_x = x as isize + shift;
+                        if tap_x < 0 || tap_x >= width as isize {
+                            continue;
+                        }
+                        let tap = tap_y * width + tap_x as usize;
+                        let w = match guides.instances()[tap] {
+                            NO_INSTANCE => 0.0,
+                            _ => KERNEL[kx] * KERNEL[ky],
+                        };
+                        sums[x] += input.row(tap_y, VARIANCE)[tap_x as usize] * w;
+                        weights[x] += w;
+                    }
+                }
+            }
+            (0..width)
+                .map(|x| match weights[x] > 0.0 {
+                    true => sums[x] / weights[x],
+                    false => 0.0,
+                })
+                .collect()
+        }
+        for (width, height) in [(1u32, 1u32), (2, 3), (3, 2), (37, 5)] {
+            let mut pixels = flat_pixels(width, height);
+            for (p, g) in pixels.iter_mut().enumerate() {
+                if p % 7 == 3 || p % 11 == 0 {
+                    *g = GuidePixel::SKY;
+                }
+            }
+            let guides = Guides::from_pixels(width, height, &pixels);
+            let count = (width * height) as usize;
+            let variance: Vec<f32> = (0..count)
+                .map(|i| match pixels[i].instance {
+                    NO_INSTANCE => 0.0,
+                    _ => noise(i) * 4.0,
+                })
+                .collect();
+            let input =
+                SignalPlanes::from_pixels(&vec![Vec3::ONE; count], &variance, width as usize);
+            let past_edge = (vec![0.0; width as usize], vec![NO_INSTANCE; width as usize]);
+            for y in 0..height as usize {
+                let mut one_pass = vec![f32::NAN; width as usize];
+                let edge = (&past_edge.0[..], &past_edge.1[..]);
+                blur_variance_row(&input, &guides, y, edge, &mut one_pass);
+                let expected = tap_by_tap(&input, &guides, y);
+                assert_eq!(
+                    one_pass.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    expected.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    "{width} x {height}, row {y}"
+                );
+            }
+        }
     }
 
     #[test]
