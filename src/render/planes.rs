@@ -7,7 +7,10 @@ use std::marker::PhantomData;
 use glam::Vec3;
 use rayon::prelude::*;
 
-/// Rows per parallel job in every filter pass: tall enough to amortise the handoff.
+/// Rows per parallel job in every filter pass: tall enough to amortise the handoff and
+/// the temporal pass's halo (a row either side of its band), short enough to share out
+/// evenly over the threads. 4 and 16 both measured slower than 8 (first-light at 640 x
+/// 360, half scale, two threads: temporal + spatial 2.04 -> 2.13 and 2.02 -> 2.13 ms).
 pub(crate) const BAND_ROWS: usize = 8;
 
 /// Images stored a row at a time, each row as `PLANES` consecutive runs of `width` floats
