@@ -841,16 +841,12 @@ fn blur_variance_row(
         let (mut sum, mut weight) = (0.0f32, 0.0f32);
         for (ky, row) in taps.iter().enumerate() {
             for (kx, (variance, instance)) in row.iter().enumerate() {
-                let w = if instance[x] == NO_INSTANCE {
-                    0.0
-                } else {
-                    KERNEL[kx] * KERNEL[ky]
-                };
+                let w = weight_of(instance[x], KERNEL[kx] * KERNEL[ky]);
                 sum += variance[x] * w;
                 weight += w;
             }
         }
-        out[x] = if weight > 0.0 { sum / weight } else { 0.0 };
+        out[x] = normalised(sum, weight);
     }
 }
 

@@ -201,8 +201,8 @@ impl<'a> SurfaceRow<'a> {
             moments: [mean, square],
             length,
         } = history;
-        // Each row cut to the width once, not with `map`: its calls, a closure each,
-        // tipped the inliner over in the temporal pass and its blend stopped vectorising.
+        // Each row cut to the width once, written out: `map`'s closure is a call the
+        // optimiser may leave out of line in a function the size of the temporal pass.
         let fields = [
             &red[..width],
             &green[..width],
