@@ -215,13 +215,13 @@ impl<'a> SurfaceRow<'a> {
             &self.normal_z[..width],
             &self.depth[..width],
         ];
-        let mut kept = 0;
-        #[cfg(target_arch = "x86_64")]
-        if let Some(RecordLanes(())) = lanes {
+        let kept = match lanes {
             // SAFETY: the CPU has AVX2 (`RecordLanes`), the only feature `keep_lanes`
             // enables.
-            kept = unsafe { keep_lanes(&fields, instances, out) };
-        }
+            #[cfg(target_arch = "x86_64")]
+            Some(RecordLanes(())) => unsafe { keep_lanes(&fields, instances, out) },
+            _ => 0,
+        };
         for x in kept..width {
             // The sky's records are left as they were.
             if instances[x] != NO_INSTANCE {
