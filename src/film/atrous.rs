@@ -15,15 +15,18 @@
 //! - instance: taps on another instance count zero.
 //!
 //! The variance is filtered alongside (weights squared), so later, wider iterations trust
-//! the already-smoothed luminance more. Rows are filtered in parallel bands.
+//! the already-smoothed luminance more. Rows are filtered in bands of rows, the prepass and the
+//! passes chained so that a band starts once the bands it reads are done (film/chain.rs).
 
 use glam::Vec3;
-use rayon::prelude::*;
 
+use super::chain::run_chain;
 use crate::render::guides::{
     ALBEDO_B, ALBEDO_G, ALBEDO_R, DEPTH, Guides, NO_INSTANCE, NORMAL_X, NORMAL_Y, NORMAL_Z,
 };
-use crate::render::planes::{BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SignalPlanes, VARIANCE};
+use crate::render::planes::{
+    BAND_ROWS, BLUE, GREEN, PlaneRows, RED, SIGNAL_PLANES, SharedRuns, SignalPlanes, VARIANCE,
+};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct AtrousSettings {
@@ -182,8 +185,8 @@ pub fn filter_with<'a>(
     } = workspace;
     // SVGF prefilters the variance before every pass; here only before the first (later
     // passes read the variance the wavelet passes themselves filtered), a pass's cost less.
-    // One parallel pass over the rows takes the depth slopes, prefilters the variance and
-    // weighs the first pass's input's luminance (one handoff, not three).
+    // The prepass (the chain's first stage) takes the depth slopes, prefilters the variance
+    // and weighs the first pass's input's luminance, a band at a time.
     depth_slope.resize(width * height, 0.0);
     blurred_variance.resize(width * height, 0.0);
     for plane in luminance.iter_mut() {
@@ -194,25 +197,6 @@ pub fn filter_with<'a>(
     past_edge.0.resize(width, 0.0);
     past_edge.1.resize(width, NO_INSTANCE);
     let past_edge = (&past_edge.0[..], &past_edge.1[..]);
-    depth_slope
-        .par_chunks_mut(width.max(1))
-        .zip(blurred_variance.par_chunks_mut(width.max(1)))
-        .zip(first_luminance.par_chunks_mut(width.max(1)))
-        .enumerate()
-        .for_each(|(y, ((slopes, blurred), luminance))| {
-            prepass_row(
-                *portable_only,
-                input,
-                guides,
-                y,
-                past_edge,
-                (slopes, blurred),
-            );
-            luminance_row(
-                [RED, GREEN, BLUE].map(|plane| input.row(y, plane)),
-                luminance,
-            );
-        });
     // Pass i reads pass i - 1's output (the first reads `input`) and writes `outputs[0]`
     // (the first), then `outputs[1]`, `outputs[2]`, `outputs[1]`, ... .
     let output_of = |iteration: u32| match iteration {
@@ -220,56 +204,106 @@ pub fn filter_with<'a>(
         i => 1 + (i as usize - 1) % 2,
     };
     for iteration in 0..settings.iterations {
-        let mut output = std::mem::take(&mut outputs[output_of(iteration)]);
-        output.resize(width, height);
-        let (input_luminance, output_luminance) = match iteration % 2 {
-            0 => (&*first_luminance, &mut *second_luminance),
-            _ => (&*second_luminance, &mut *first_luminance),
-        };
-        let pass = Pass {
-            step: 1 << iteration,
-            guides,
-            depth_slope,
-            input: match iteration {
-                0 => input,
-                i => &outputs[output_of(i - 1)],
-            },
-            steering_variance: (iteration == 0).then_some(&blurred_variance[..]),
-            luminance: input_luminance,
-            settings,
-            portable_only: *portable_only,
-            carry_variance: iteration + 1 < settings.iterations,
-        };
-        // One set of row arrays per worker, not per band.
-        output
-            .bands_mut()
-            .zip(output_luminance.par_chunks_mut((width * BAND_ROWS).max(1)))
-            .for_each_init(
-                || RowScratch::new(width),
-                |scratch, ((first_row, rows), luminance)| {
-                    for (row_in_band, (out, luminance)) in rows
-                        .chunks_mut(width * SIGNAL_PLANES)
-                        .zip(luminance.chunks_mut(width.max(1)))
-                        .enumerate()
-                    {
-                        let y = first_row + row_in_band;
-                        pass.row(y, scratch, out);
-                        let illumination = [RED, GREEN, BLUE]
-                            .map(|plane| &out[plane * width..(plane + 1) * width]);
-                        // The next pass's taps read it; after the last, nothing does.
-                        if pass.carry_variance {
-                            luminance_row(illumination, luminance);
-                        }
-                        row_done(PassRow {
-                            iteration,
-                            last: iteration + 1 == settings.iterations,
-                            y,
-                            illumination,
-                        });
-                    }
+        outputs[output_of(iteration)].resize(width, height);
+    }
+    let bands = height.div_ceil(BAND_ROWS);
+    let band_rows = |band: usize| band * BAND_ROWS..((band + 1) * BAND_ROWS).min(height);
+    // The chain: the prepass, then the wavelet passes, each band of a pass after the bands
+    // of the one before that it reads (film/chain.rs). A pass's taps reach `step` rows up
+    // and down, and what it overwrites (a luminance plane, an output two passes old) was
+    // read by the pass before within its own, shorter, reach: so it waits for the bands
+    // within `step` rows of its own.
+    let reach: Vec<usize> = std::iter::once(0)
+        .chain((0..settings.iterations).map(|i| (1usize << i).div_ceil(BAND_ROWS)))
+        .collect();
+    {
+        let output_runs = outputs.each_mut().map(|output| output.shared_runs());
+        let slope_runs = SharedRuns::new(depth_slope);
+        let blurred_runs = SharedRuns::new(blurred_variance);
+        let luminance_runs =
+            [first_luminance, second_luminance].map(|plane| SharedRuns::new(plane));
+        // SAFETY (every view below): the chain runs a band of a pass only once the bands of
+        // the pass before within its reach are done; a pass reads rows within its reach of
+        // its band, which those bands (or bands before them) wrote, and which no band running
+        // meanwhile writes (see `reach`).
+        let rows = |runs| unsafe { SharedRuns::rows::<1>(runs, width, height) };
+        let passes: Vec<Pass> = (0..settings.iterations)
+            .map(|iteration| Pass {
+                step: 1 << iteration,
+                guides,
+                depth_slope: rows(&slope_runs),
+                input: match iteration {
+                    0 => PlaneRows::of(input),
+                    // SAFETY: as above.
+                    i => unsafe {
+                        output_runs[output_of(i - 1)].rows::<SIGNAL_PLANES>(width, height)
+                    },
                 },
-            );
-        outputs[output_of(iteration)] = output;
+                steering_variance: (iteration == 0).then(|| rows(&blurred_runs)),
+                luminance: rows(&luminance_runs[iteration as usize % 2]),
+                settings,
+                portable_only: *portable_only,
+                carry_variance: iteration + 1 < settings.iterations,
+            })
+            .collect();
+        let portable_only = *portable_only;
+        run_chain(
+            bands,
+            &reach,
+            || RowScratch::new(width),
+            |scratch, stage, band| {
+                let rows = band_rows(band);
+                let band_pixels = rows.start * width..rows.end * width;
+                // SAFETY: the band's own rows of each buffer it writes, which no other band
+                // writes, and no band reads while this one runs (the chain's order).
+                let run = |runs, planes: usize| unsafe {
+                    SharedRuns::run(runs, band_pixels.start * planes, band_pixels.len() * planes)
+                };
+                if stage == 0 {
+                    // The prepass: depth slopes, the prefiltered variance, the first pass's
+                    // input's luminance.
+                    let (slopes, blurred) = (run(&slope_runs, 1), run(&blurred_runs, 1));
+                    let luminance = run(&luminance_runs[0], 1);
+                    for (row, y) in rows.enumerate() {
+                        let at = row * width..(row + 1) * width;
+                        prepass_row(
+                            portable_only,
+                            input,
+                            guides,
+                            y,
+                            past_edge,
+                            (&mut slopes[at.clone()], &mut blurred[at.clone()]),
+                        );
+                        luminance_row(
+                            [RED, GREEN, BLUE].map(|plane| input.row(y, plane)),
+                            &mut luminance[at],
+                        );
+                    }
+                    return;
+                }
+                let iteration = stage as u32 - 1;
+                let pass = &passes[iteration as usize];
+                let out = run(&output_runs[output_of(iteration)], SIGNAL_PLANES);
+                let luminance = run(&luminance_runs[(iteration as usize + 1) % 2], 1);
+                for (row, y) in rows.enumerate() {
+                    let out =
+                        &mut out[row * width * SIGNAL_PLANES..(row + 1) * width * SIGNAL_PLANES];
+                    pass.row(y, scratch, out);
+                    let illumination =
+                        [RED, GREEN, BLUE].map(|plane| &out[plane * width..(plane + 1) * width]);
+                    // The next pass's taps read it; after the last, nothing does.
+                    if pass.carry_variance {
+                        luminance_row(illumination, &mut luminance[row * width..(row + 1) * width]);
+                    }
+                    row_done(PassRow {
+                        iteration,
+                        last: iteration + 1 == settings.iterations,
+                        y,
+                        illumination,
+                    });
+                }
+            },
+        );
     }
     if settings.iterations == 0 {
         outputs[0].clone_from(input);
@@ -419,13 +453,13 @@ impl RowScratch {
 struct Pass<'a> {
     step: usize,
     guides: &'a Guides,
-    depth_slope: &'a [f32],
-    input: &'a SignalPlanes,
-    /// The prefiltered variance steering the luminance weight on the first pass (row-major);
-    /// later passes steer by the variance they carry.
-    steering_variance: Option<&'a [f32]>,
-    /// The input's luminance, row-major.
-    luminance: &'a [f32],
+    depth_slope: PlaneRows<'a, 1>,
+    input: PlaneRows<'a, SIGNAL_PLANES>,
+    /// The prefiltered variance steering the luminance weight on the first pass; later
+    /// passes steer by the variance they carry.
+    steering_variance: Option<PlaneRows<'a, 1>>,
+    /// The input's luminance.
+    luminance: PlaneRows<'a, 1>,
     settings: &'a AtrousSettings,
     portable_only: bool,
     /// Whether the variance is filtered too: not on the last pass, where nothing reads it
@@ -487,18 +521,18 @@ impl Pass<'_> {
     #[inline(always)]
     fn centre(&self, y: usize, scratch: &mut RowScratch) {
         let width = self.input.width();
-        let (guides, input, settings) = (self.guides, self.input, self.settings);
+        let (guides, input, settings) = (self.guides, &self.input, self.settings);
         let step = self.step;
 
         // The centre: per-pixel scales (divisions hoisted out of the taps) and the centre
         // tap itself, kernel 1/2 x 1/2 with every edge term 1.
-        let steering = match self.steering_variance {
-            Some(variance) => &variance[y * width..(y + 1) * width],
+        let steering = match &self.steering_variance {
+            Some(variance) => variance.row(y, 0),
             None => input.row(y, VARIANCE),
         };
         let (red, green, blue) = (input.row(y, RED), input.row(y, GREEN), input.row(y, BLUE));
         let depth = guides.row(y, DEPTH);
-        let slope = &self.depth_slope[y * width..(y + 1) * width];
+        let slope = self.depth_slope.row(y, 0);
         let variance = input.row(y, VARIANCE);
         for x in 0..width {
             scratch.luminance_scale[x] =
@@ -527,7 +561,7 @@ impl Pass<'_> {
         range_end: usize,
     ) {
         let (width, height) = (self.input.width(), self.input.height());
-        let (guides, input, settings) = (self.guides, self.input, self.settings);
+        let (guides, input, settings) = (self.guides, &self.input, self.settings);
         let step = self.step;
         let albedo_scale = 1.0 / settings.sigma_albedo;
         let chunk = chunk_length(range_end - range_start);
@@ -586,8 +620,8 @@ impl Pass<'_> {
                     centre_instance: &instances[y * width + first..][..len],
                     tap_instance: &instances[tap_y * width + tap_first..][..len],
                     tap_signal: [RED, GREEN, BLUE, VARIANCE].map(tap_signal),
-                    centre_luminance: &self.luminance[y * width..][first..end],
-                    tap_luminance: &self.luminance[tap_y * width + tap_first..][..len],
+                    centre_luminance: &self.luminance.row(y, 0)[first..end],
+                    tap_luminance: &self.luminance.row(tap_y, 0)[tap_first..][..len],
                     luminance_scale: &scratch.luminance_scale[first..end],
                     depth_scale: if diagonal {
                         &scratch.depth_diagonal[first..end]
@@ -615,7 +649,7 @@ impl Pass<'_> {
         scratch: &RowScratch,
         out: &mut [f32],
     ) {
-        let (width, input) = (self.input.width(), self.input);
+        let (width, input) = (self.input.width(), &self.input);
         let variance = input.row(y, VARIANCE);
         // Normalise; the sky keeps its value. Slices cut to `width` so the loops vectorise
         // (indexed by x they were scalar with a bounds check per store: 7% of a pass).
@@ -1051,6 +1085,67 @@ mod tests {
             spread(&illumination),
             spread(&out.illumination)
         );
+    }
+
+    /// The passes run as a chain of bands (film/chain.rs) give, on any thread count, the
+    /// bits they give on one thread, where the chain runs them a pass at a time: the
+    /// outputs, and every row each pass hands on. Five passes, so the widest taps reach
+    /// two bands away and the outputs' and luminance buffers are written again while the
+    /// image is taller than the threads' segments.
+    #[test]
+    fn chained_passes_give_the_same_bits_on_any_thread_count() {
+        let (width, height) = (67u32, 61u32);
+        let mut pixels = flat_pixels(width, height);
+        for (p, g) in pixels.iter_mut().enumerate() {
+            let x = p as u32 % width;
+            g.depth = 2.0 + noise(p + 7) + x as f32 * 0.1;
+            g.normal = Vec3A::new(noise(p + 3) - 0.5, 0.3, 1.0).normalize();
+            g.instance = (x / 13) % 3;
+            if p % 31 == 0 {
+                *g = GuidePixel::SKY;
+            }
+        }
+        let guides = Guides::from_pixels(width, height, &pixels);
+        let count = (width * height) as usize;
+        let illumination: Vec<Vec3> = (0..count)
+            .map(|i| Vec3::new(noise(i), noise(i + 1), noise(i + 2)) * 3.0)
+            .collect();
+        let variance: Vec<f32> = (0..count).map(|i| noise(i + 5)).collect();
+        let input = SignalPlanes::from_pixels(&illumination, &variance, width as usize);
+        let settings = AtrousSettings {
+            iterations: 5,
+            ..AtrousSettings::default()
+        };
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a thread pool");
+            let handed = std::sync::Mutex::new(Vec::new());
+            let mut workspace = Workspace::default();
+            let (filtered, first) = pool.install(|| {
+                let output = filter_with(&mut workspace, &input, &guides, &settings, |row| {
+                    let rows = row.illumination.map(<[f32]>::to_vec);
+                    (handed.lock().expect("no panics")).push((row.iteration, row.y, rows));
+                });
+                (
+                    output.illumination.colours(),
+                    output.first_iteration.colours(),
+                )
+            });
+            let mut handed = handed.into_inner().expect("no panics");
+            handed.sort_by_key(|&(iteration, y, _)| (iteration, y));
+            (filtered, first, handed)
+        };
+        let one = on(1);
+        assert_eq!(
+            one.2.len(),
+            5 * height as usize,
+            "every pass hands on every row"
+        );
+        for threads in [2, 3, 4] {
+            assert!(on(threads) == one, "{threads} threads");
+        }
     }
 
     #[test]

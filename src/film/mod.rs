@@ -13,6 +13,7 @@
 //! Knows nothing of the ECS or windows.
 
 pub mod atrous;
+mod chain;
 pub mod denoise;
 mod reproject;
 pub mod temporal;

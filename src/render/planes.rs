@@ -139,6 +139,87 @@ impl<'a, T> SharedRuns<'a, T> {
     }
 }
 
+impl<'a> SharedRuns<'a, f32> {
+    /// Rows of the buffer as `width`-wide runs of `PLANES` planes (`RowPlanes`' layout),
+    /// to read while other threads write other rows through this `SharedRuns`.
+    ///
+    /// # Safety
+    /// While the view lives, every row read through it has been written (or holds what it
+    /// held before), and no run covering a row is held while a slice of that row lives.
+    pub(crate) unsafe fn rows<const PLANES: usize>(
+        &self,
+        width: usize,
+        height: usize,
+    ) -> PlaneRows<'_, PLANES> {
+        assert!(
+            width * height * PLANES <= self.len,
+            "{height} rows of {PLANES} x {width} past a buffer of {}",
+            self.len
+        );
+        PlaneRows {
+            start: self.start,
+            width,
+            height,
+            _data: PhantomData,
+        }
+    }
+}
+
+/// Rows of an image in `RowPlanes`' layout, which other threads may be writing elsewhere
+/// while these are read (a chain of passes, film/chain.rs): each row read is a slice of
+/// its own, so reading one row borrows nothing of the rows being written.
+#[derive(Clone, Copy)]
+pub(crate) struct PlaneRows<'a, const PLANES: usize> {
+    start: *const f32,
+    width: usize,
+    height: usize,
+    _data: PhantomData<&'a [f32]>,
+}
+
+// SAFETY: a `PlaneRows` only reads, and only rows no thread writes meanwhile (the promise
+// made when it was made from a `SharedRuns`; one made from a shared borrow has no writers).
+unsafe impl<const PLANES: usize> Sync for PlaneRows<'_, PLANES> {}
+// SAFETY: as for `Sync`.
+unsafe impl<const PLANES: usize> Send for PlaneRows<'_, PLANES> {}
+
+impl<'a, const PLANES: usize> PlaneRows<'a, PLANES> {
+    /// Every row of `planes`, which nothing writes while they are borrowed.
+    pub(crate) fn of(planes: &'a RowPlanes<PLANES>) -> PlaneRows<'a, PLANES> {
+        PlaneRows {
+            start: planes.data.as_ptr(),
+            width: planes.width,
+            height: planes.height,
+            _data: PhantomData,
+        }
+    }
+
+    pub(crate) fn width(&self) -> usize {
+        self.width
+    }
+
+    pub(crate) fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Row `y` of plane `plane`.
+    #[inline(always)]
+    pub(crate) fn row(&self, y: usize, plane: usize) -> &[f32] {
+        assert!(
+            y < self.height && plane < PLANES,
+            "row {y} of plane {plane} past {} rows of {PLANES}",
+            self.height
+        );
+        // SAFETY: inside the buffer (the constructors checked its length); no thread
+        // writes the row while it is read (their contract).
+        unsafe {
+            std::slice::from_raw_parts(
+                self.start.add((y * PLANES + plane) * self.width),
+                self.width,
+            )
+        }
+    }
+}
+
 /// Signal planes: demodulated illumination and its luminance variance.
 pub const RED: usize = 0;
 pub const GREEN: usize = 1;
