@@ -79,6 +79,25 @@ pub struct Filtered {
 pub struct FilteredPlanes<'a> {
     pub illumination: &'a SignalPlanes,
     pub first_iteration: &'a SignalPlanes,
+    /// CPU seconds the bands of a banded input (`Input::Banded`) took, and the filter's
+    /// own (its prepass and passes), summed over the threads.
+    pub input_seconds: f64,
+    pub filter_seconds: f64,
+}
+
+/// What the passes filter.
+#[derive(Clone, Copy)]
+pub(crate) enum Input<'a> {
+    /// An image already whole.
+    Whole(&'a SignalPlanes),
+    /// An image written a band of `BAND_ROWS` rows per call of `band` (each band once,
+    /// from any thread), whose rows `rows` reads once their band is done: the filter runs
+    /// its bands first in its chain (film/chain.rs), so its prepass starts on the first
+    /// bands while the last are still being written.
+    Banded {
+        rows: PlaneRows<'a, SIGNAL_PLANES>,
+        band: &'a (dyn Fn(usize) + Sync),
+    },
 }
 
 /// B-spline weights of the 3-tap kernel (the variance prefilter's; the wavelet passes
@@ -143,7 +162,13 @@ pub fn filter(
 ) -> Filtered {
     let input = SignalPlanes::from_pixels(illumination, variance, guides.width as usize);
     let mut workspace = Workspace::default();
-    let output = filter_with(&mut workspace, &input, guides, settings, |_| {});
+    let output = filter_with(
+        &mut workspace,
+        Input::Whole(&input),
+        guides,
+        settings,
+        |_| {},
+    );
     Filtered {
         illumination: output.illumination.colours(),
         first_iteration: output.first_iteration.colours(),
@@ -167,9 +192,9 @@ pub struct PassRow<'a> {
 /// Each pass hands every row it writes to `row_done` (from many threads, each row once),
 /// so what the frame does with a pass's output next (SVGF's feedback, remodulation) reads
 /// it from the cache, not in another pass over the image.
-pub fn filter_with<'a>(
+pub(crate) fn filter_with<'a>(
     workspace: &'a mut Workspace,
-    input: &SignalPlanes,
+    input: Input,
     guides: &Guides,
     settings: &AtrousSettings,
     row_done: impl Fn(PassRow) + Sync,
@@ -213,10 +238,19 @@ pub fn filter_with<'a>(
     // and down, and what it overwrites (a luminance plane, an output two passes old) was
     // read by the pass before within its own, shorter, reach: so it waits for the bands
     // within `step` rows of its own.
-    let reach: Vec<usize> = std::iter::once(0)
-        .chain((0..settings.iterations).map(|i| (1usize << i).div_ceil(BAND_ROWS)))
-        .collect();
-    {
+    let (input, producer) = match input {
+        Input::Whole(planes) => (PlaneRows::of(planes), None),
+        Input::Banded { rows, band } => (rows, Some(band)),
+    };
+    // The stages: a banded input's bands, the prepass and the passes (no prepass when
+    // there is no pass). The prepass reads the input a row either side of its band.
+    let first_filter_stage = usize::from(producer.is_some());
+    let mut reach = vec![0; first_filter_stage];
+    if settings.iterations > 0 {
+        reach.push(1);
+        reach.extend((0..settings.iterations).map(|i| (1usize << i).div_ceil(BAND_ROWS)));
+    }
+    let stage_seconds = {
         let output_runs = outputs.each_mut().map(|output| output.shared_runs());
         let slope_runs = SharedRuns::new(depth_slope);
         let blurred_runs = SharedRuns::new(blurred_variance);
@@ -233,7 +267,7 @@ pub fn filter_with<'a>(
                 guides,
                 depth_slope: rows(&slope_runs),
                 input: match iteration {
-                    0 => PlaneRows::of(input),
+                    0 => input,
                     // SAFETY: as above.
                     i => unsafe {
                         output_runs[output_of(i - 1)].rows::<SIGNAL_PLANES>(width, height)
@@ -252,6 +286,12 @@ pub fn filter_with<'a>(
             &reach,
             || RowScratch::new(width),
             |scratch, stage, band| {
+                let Some(stage) = stage.checked_sub(first_filter_stage) else {
+                    if let Some(produce) = producer {
+                        produce(band);
+                    }
+                    return;
+                };
                 let rows = band_rows(band);
                 let band_pixels = rows.start * width..rows.end * width;
                 // SAFETY: the band's own rows of each buffer it writes, which no other band
@@ -268,7 +308,7 @@ pub fn filter_with<'a>(
                         let at = row * width..(row + 1) * width;
                         prepass_row(
                             portable_only,
-                            input,
+                            &input,
                             guides,
                             y,
                             past_edge,
@@ -303,14 +343,28 @@ pub fn filter_with<'a>(
                     });
                 }
             },
-        );
-    }
+        )
+    };
     if settings.iterations == 0 {
-        outputs[0].clone_from(input);
+        // No pass: both outputs are the input as it stands.
+        let output = &mut outputs[0];
+        output.resize(width, height);
+        for y in 0..height {
+            for plane in 0..SIGNAL_PLANES {
+                output
+                    .row_mut(y, plane)
+                    .copy_from_slice(input.row(y, plane));
+            }
+        }
     }
+    let (input_seconds, filter_seconds) = match stage_seconds.split_at(first_filter_stage) {
+        (produced, filtered) => (produced.iter().sum(), filtered.iter().sum()),
+    };
     FilteredPlanes {
         illumination: &outputs[output_of(settings.iterations.max(1) - 1)],
         first_iteration: &outputs[0],
+        input_seconds,
+        filter_seconds,
     }
 }
 
@@ -399,7 +453,7 @@ fn depth_slope_row(guides: &Guides, y: usize, out: &mut [f32]) {
 /// AVX2 (the two loops are plain float code: the same results either way).
 fn prepass_row(
     portable_only: bool,
-    input: &SignalPlanes,
+    input: &PlaneRows<'_, SIGNAL_PLANES>,
     guides: &Guides,
     y: usize,
     past_edge: (&[f32], &[u32]),
@@ -409,7 +463,7 @@ fn prepass_row(
     if !portable_only && std::arch::is_x86_feature_detected!("avx2") {
         #[target_feature(enable = "avx2")]
         fn prepass_row_avx2(
-            input: &SignalPlanes,
+            input: &PlaneRows<'_, SIGNAL_PLANES>,
             guides: &Guides,
             y: usize,
             past_edge: (&[f32], &[u32]),
@@ -823,7 +877,7 @@ fn fast_exp(x: f32) -> f32 {
 /// instructions: 131.8 M against 130.5 M over 7 frames of first-light at 320 x 180.)
 #[inline(always)]
 fn blur_variance_row(
-    input: &SignalPlanes,
+    input: &PlaneRows<'_, SIGNAL_PLANES>,
     guides: &Guides,
     y: usize,
     past_edge: (&[f32], &[u32]),
@@ -973,7 +1027,7 @@ mod tests {
             for y in 0..height as usize {
                 let mut one_pass = vec![f32::NAN; width as usize];
                 let edge = (&past_edge.0[..], &past_edge.1[..]);
-                blur_variance_row(&input, &guides, y, edge, &mut one_pass);
+                blur_variance_row(&PlaneRows::of(&input), &guides, y, edge, &mut one_pass);
                 let expected = tap_by_tap(&input, &guides, y);
                 assert_eq!(
                     one_pass.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
@@ -1124,10 +1178,16 @@ mod tests {
             let handed = std::sync::Mutex::new(Vec::new());
             let mut workspace = Workspace::default();
             let (filtered, first) = pool.install(|| {
-                let output = filter_with(&mut workspace, &input, &guides, &settings, |row| {
-                    let rows = row.illumination.map(<[f32]>::to_vec);
-                    (handed.lock().expect("no panics")).push((row.iteration, row.y, rows));
-                });
+                let output = filter_with(
+                    &mut workspace,
+                    Input::Whole(&input),
+                    &guides,
+                    &settings,
+                    |row| {
+                        let rows = row.illumination.map(<[f32]>::to_vec);
+                        (handed.lock().expect("no panics")).push((row.iteration, row.y, rows));
+                    },
+                );
                 (
                     output.illumination.colours(),
                     output.first_iteration.colours(),
@@ -1180,7 +1240,13 @@ mod tests {
                 ..Workspace::default()
             };
             let input = SignalPlanes::from_pixels(&illumination, &variance, width as usize);
-            let a = filter_with(&mut portable, &input, &guides, &settings, |_| {});
+            let a = filter_with(
+                &mut portable,
+                Input::Whole(&input),
+                &guides,
+                &settings,
+                |_| {},
+            );
             let (a_illumination, a_first) = (a.illumination.colours(), a.first_iteration.colours());
             let b = filter(&illumination, &variance, &guides, &settings);
             assert!(a_illumination.iter().all(|c| c.is_finite()));

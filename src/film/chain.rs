@@ -24,22 +24,24 @@
 //! does not depend on the thread count.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
 
 /// Runs `task(state, pass, band)` once for every pass `0..reach.len()` and band
 /// `0..bands`, on the current rayon pool's threads (each with its own `init()` state),
 /// band (pass, b) only after bands (pass - 1, b - reach[pass] ..= b + reach[pass]) have
 /// finished (`reach[0]` is not read). Whatever a band writes, the bands after it that
-/// wait for it see.
+/// wait for it see. Returns each pass's CPU seconds, its bands' times summed.
 pub(crate) fn run_chain<S>(
     bands: usize,
     reach: &[usize],
     init: impl Fn() -> S + Sync,
     task: impl Fn(&mut S, usize, usize) + Sync,
-) {
+) -> Vec<f64> {
     let passes = reach.len();
     if bands == 0 || passes == 0 {
-        return;
+        return vec![0.0; passes];
     }
+    let nanoseconds: Vec<AtomicU64> = (0..passes).map(|_| AtomicU64::new(0)).collect();
     let workers = rayon::current_num_threads().clamp(1, bands);
     let done: Vec<AtomicBool> = (0..bands * passes)
         .map(|_| AtomicBool::new(false))
@@ -66,7 +68,10 @@ pub(crate) fn run_chain<S>(
                     let read = band.saturating_sub(reach)..=(band + reach).min(bands - 1);
                     before[read].iter().for_each(wait_for);
                 }
+                let start = Instant::now();
                 task(state.get_or_insert_with(&init), pass, band);
+                let spent = start.elapsed().as_nanos().try_into().unwrap_or(u64::MAX);
+                nanoseconds[pass].fetch_add(spent, Ordering::Relaxed);
                 // Release: the band's writes happen before any wait that sees it done.
                 done[pass * bands + band].store(true, Ordering::Release);
             }
@@ -78,6 +83,9 @@ pub(crate) fn run_chain<S>(
         }
         work(0);
     });
+    (nanoseconds.iter())
+        .map(|spent| spent.load(Ordering::Relaxed) as f64 * 1e-9)
+        .collect()
 }
 
 /// A run of bands taken from either end: the next band at the front (low 32 bits) and

@@ -12,6 +12,9 @@
 //!
 //! Every step reads and writes images as rows of planes (`planes`, `Guides`), so each reads
 //! only the channels it needs and one step's output is the next one's input as it stands.
+//! Under the full chain, steps 1 to 3 run as one chain of bands of rows (film/chain.rs): a
+//! band of the a-trous prepass starts as soon as the temporal bands it reads are done,
+//! and so on down the passes, rather than every thread waiting at the end of each step.
 //!
 //! Reads a frame rendered with `render_guided`; knows nothing of the ECS.
 
@@ -20,7 +23,7 @@ use std::time::Instant;
 use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
-use super::atrous::{self, AtrousSettings, PassRow};
+use super::atrous::{self, AtrousSettings, Input};
 use super::temporal::{TemporalFilter, TemporalSettings, feed_back_row};
 use crate::render::camera::Camera;
 use crate::render::film::Film;
@@ -64,7 +67,9 @@ pub struct FilmPhaseTimes {
     /// Step 1: demodulation, reprojection, validation, clamping, blending.
     pub temporal: f64,
     /// Step 2: the a-trous passes (with the depth slopes and prefiltered variance they
-    /// read), and with them step 3 and the feedback, done in their rows.
+    /// read), and with them step 3 and the feedback, done in their rows. Under the full
+    /// chain steps 1 and 2 run as one chain of bands, and their wall time is shared out
+    /// between the two as their bands' CPU time was.
     pub spatial: f64,
     /// Step 3 on its own: remodulation where no a-trous pass runs (0 where one does).
     pub remodulate: f64,
@@ -163,13 +168,6 @@ impl FrameFilter {
             return;
         }
         let milliseconds_since = |start: Instant| start.elapsed().as_secs_f64() * 1e3;
-        // 1. Temporal accumulation.
-        let start = Instant::now();
-        {
-            profiling::scope!("film.temporal");
-            temporal.accumulate(radiance, guides, camera, instances);
-        }
-        last_times.temporal = milliseconds_since(start);
         image.width = guides.width;
         image.height = guides.height;
         image
@@ -180,35 +178,59 @@ impl FrameFilter {
             ..settings.clone()
         };
         if *mode == FilterMode::Full && settings.iterations > 0 {
-            // 2 and 3. The a-trous passes; the first pass's rows go back into the history
-            // and the last pass's are remodulated as each is written, while they are in
-            // the cache. (A pass of their own over first-light's 320 x 180 frame took
-            // 0.169 ms on two threads; done in the a-trous rows they add 0.142.)
+            // 1, 2 and 3 as one chain of bands (film/chain.rs): the temporal filter's bands,
+            // the a-trous prepass and passes, each band starting once the bands it reads
+            // are done. The first pass's rows go back into the history and the last pass's
+            // are remodulated as each is written, while they are in the cache. (A pass of
+            // their own over first-light's 320 x 180 frame took 0.169 ms on two threads;
+            // done in the a-trous rows they add 0.142.)
             let start = Instant::now();
-            profiling::scope!("film.spatial");
+            profiling::scope!("film.temporal+spatial");
             let width = guides.width as usize;
-            let (accumulated, history) = temporal.accumulated_and_history(width);
-            let history = history.filter(|_| *feed_back);
             let image = SharedRuns::new(&mut image.pixels);
-            atrous::filter_with(
-                atrous_workspace,
-                &accumulated.signal,
-                guides,
-                settings,
-                |row: PassRow| {
-                    if let (0, Some(history)) = (row.iteration, &history) {
-                        // SAFETY: each pass hands over each row once.
-                        unsafe { feed_back_row(row.illumination, row.y, history) };
-                    }
-                    if row.last {
-                        // SAFETY: as above; only the last pass writes the image.
-                        let pixels = unsafe { image.run(row.y * width, width) };
-                        guides.modulate_row(row.y, row.illumination, pixels);
-                    }
-                },
-            );
-            last_times.spatial = milliseconds_since(start);
+            let (temporal_seconds, spatial_seconds) =
+                temporal.accumulate_then(radiance, guides, camera, instances, |bands| {
+                    let history = feed_back.then(|| bands.history());
+                    // SAFETY: the chain runs each band once, and reads its rows only once
+                    // it has run, while no band writes them.
+                    let (signal, band) =
+                        (unsafe { bands.signal() }, |band| unsafe { bands.run(band) });
+                    let input = Input::Banded {
+                        rows: signal,
+                        band: &band,
+                    };
+                    let filtered =
+                        atrous::filter_with(atrous_workspace, input, guides, settings, |row| {
+                            if let (0, Some(history)) = (row.iteration, &history) {
+                                // SAFETY: each pass hands over each row once, after the
+                                // temporal band that wrote it.
+                                unsafe { feed_back_row(row.illumination, row.y, history) };
+                            }
+                            if row.last {
+                                // SAFETY: as above; only the last pass writes the image.
+                                let pixels = unsafe { image.run(row.y * width, width) };
+                                guides.modulate_row(row.y, row.illumination, pixels);
+                            }
+                        });
+                    (filtered.input_seconds, filtered.filter_seconds)
+                });
+            // One wall time for both steps, shared out as their bands' CPU time was.
+            let both = milliseconds_since(start);
+            let busy = temporal_seconds + spatial_seconds;
+            last_times.temporal = if busy > 0.0 {
+                both * temporal_seconds / busy
+            } else {
+                both / 2.0
+            };
+            last_times.spatial = both - last_times.temporal;
         } else {
+            // 1. Temporal accumulation.
+            let start = Instant::now();
+            {
+                profiling::scope!("film.temporal");
+                temporal.accumulate(radiance, guides, camera, instances);
+            }
+            last_times.temporal = milliseconds_since(start);
             // 3. Remodulate.
             let start = Instant::now();
             profiling::scope!("film.remodulate");

@@ -32,7 +32,7 @@ use crate::render::guides::{
     UNFILTERED_R,
 };
 use crate::render::planes::{
-    BAND_ROWS, BLUE, GREEN, RED, SIGNAL_PLANES, SharedRuns, SignalPlanes, VARIANCE,
+    BAND_ROWS, BLUE, GREEN, PlaneRows, RED, SIGNAL_PLANES, SharedRuns, SignalPlanes, VARIANCE,
 };
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
@@ -139,6 +139,26 @@ impl TemporalFilter {
         camera: &Camera,
         instance_transforms: &[Affine3A],
     ) -> &Accumulated {
+        self.accumulate_then(radiance, guides, camera, instance_transforms, |bands| {
+            (0..bands.count()).into_par_iter().for_each(|band| {
+                // SAFETY: each band once.
+                unsafe { bands.run(band) }
+            })
+        });
+        &self.accumulated
+    }
+
+    /// `accumulate` as bands of `BAND_ROWS` rows, which `then` runs, each once, from any
+    /// threads (and may read as they are done: `AccumulationBands`); then the history
+    /// moves on a frame. The spatial filter chains its passes after them (film/chain.rs).
+    pub(super) fn accumulate_then<R>(
+        &mut self,
+        radiance: &Film,
+        guides: &Guides,
+        camera: &Camera,
+        instance_transforms: &[Affine3A],
+        then: impl FnOnce(&AccumulationBands) -> R,
+    ) -> R {
         let (width, height) = (radiance.width, radiance.height);
         debug_assert_eq!((guides.width, guides.height), (width, height));
         if (width, height) != (self.width, self.height) {
@@ -147,7 +167,6 @@ impl TemporalFilter {
             self.height = height;
         }
         let count = (width * height) as usize;
-        let band_pixels = width as usize * BAND_ROWS;
         self.next.resize(count, LastPixel::default());
         self.next_instances.resize(count, NO_INSTANCE);
         // 1-5 a band of rows at a time (`Band::accumulate`). (Demodulated in a pass of its
@@ -165,39 +184,28 @@ impl TemporalFilter {
         });
         let accumulated = &mut self.accumulated;
         accumulated.signal.resize(width as usize, height as usize);
-        let band = Band {
-            radiance,
-            guides,
-            reprojection: reprojection.as_ref(),
-            settings: &self.settings,
-            record_lanes: RecordLanes::detect(),
-        };
-        #[cfg(target_arch = "x86_64")]
-        let avx2 = std::arch::is_x86_feature_detected!("avx2");
-        let workspaces = &self.workspaces;
-        self.next_instances
-            .par_chunks_mut(band_pixels)
-            .zip(self.next.par_chunks_mut(band_pixels))
-            .zip(accumulated.signal.bands_mut())
-            .for_each_init(
-                || workspaces.take(width as usize),
-                |workspace, (next, (first_row, signal))| {
-                    let workspace = &mut workspace.workspace;
-                    #[cfg(target_arch = "x86_64")]
-                    if avx2 {
-                        // SAFETY: the CPU has AVX2, the only feature `accumulate_avx2`
-                        // enables.
-                        unsafe { band.accumulate_avx2(workspace, first_row, next, signal) };
-                        return;
-                    }
-                    band.accumulate(workspace, first_row, next, signal);
-                },
-            );
+        let result = then(&AccumulationBands {
+            band: Band {
+                radiance,
+                guides,
+                reprojection: reprojection.as_ref(),
+                settings: &self.settings,
+                record_lanes: RecordLanes::detect(),
+            },
+            width: width as usize,
+            height: height as usize,
+            #[cfg(target_arch = "x86_64")]
+            avx2: std::arch::is_x86_feature_detected!("avx2"),
+            workspaces: &self.workspaces,
+            next_instances: SharedRuns::new(&mut self.next_instances),
+            next: SharedRuns::new(&mut self.next),
+            signal: accumulated.signal.shared_runs(),
+        });
         std::mem::swap(&mut self.last, &mut self.next);
         std::mem::swap(&mut self.last_instances, &mut self.next_instances);
         self.camera = Some(camera.clone());
         self.instances.record(instance_transforms);
-        &self.accumulated
+        result
     }
 
     /// The instances were numbered anew (things spawned or despawned): `new_index[old]` is
@@ -230,41 +238,104 @@ impl TemporalFilter {
         }
         self.last[index].history.length
     }
+}
 
-    /// What the last `accumulate` gave, and the history, for `feed_back_row` to replace
-    /// its illumination row by row (SVGF keeps the first a-trous iteration's output as
-    /// history: less noise carried forward); no history unless it is `width` pixels wide.
-    pub(super) fn accumulated_and_history(
-        &mut self,
-        width: usize,
-    ) -> (&Accumulated, Option<HistoryRecords<'_>>) {
-        let history = (width > 0 && width * self.accumulated.signal.height() == self.last.len())
-            .then(|| HistoryRecords {
-                width,
-                instances: &self.last_instances,
-                records: SharedRuns::new(&mut self.last),
-            });
-        (&self.accumulated, history)
+/// A frame's accumulation as bands of `BAND_ROWS` rows (`TemporalFilter::accumulate_then`),
+/// each writing its rows of the signal and of the next frame's history.
+pub(super) struct AccumulationBands<'a> {
+    band: Band<'a>,
+    width: usize,
+    height: usize,
+    #[cfg(target_arch = "x86_64")]
+    avx2: bool,
+    workspaces: &'a WorkspacePool,
+    next_instances: SharedRuns<'a, u32>,
+    next: SharedRuns<'a, LastPixel>,
+    signal: SharedRuns<'a, f32>,
+}
+
+impl AccumulationBands<'_> {
+    /// How many bands.
+    pub(super) fn count(&self) -> usize {
+        self.height.div_ceil(BAND_ROWS)
+    }
+
+    /// Steps 1-5 for band `band`.
+    ///
+    /// # Safety
+    /// No other call for the same band may run at the same time, and no row of it may be
+    /// read (`signal`, `history`) while it runs.
+    pub(super) unsafe fn run(&self, band: usize) {
+        let first_row = band * BAND_ROWS;
+        let rows = first_row..(first_row + BAND_ROWS).min(self.height);
+        let pixels = rows.start * self.width..rows.end * self.width;
+        // SAFETY: the band's own runs, which nothing else holds meanwhile (the caller's
+        // promise).
+        let (next_instances, next, signal) = unsafe {
+            (
+                self.next_instances.run(pixels.start, pixels.len()),
+                self.next.run(pixels.start, pixels.len()),
+                (self.signal).run(pixels.start * SIGNAL_PLANES, pixels.len() * SIGNAL_PLANES),
+            )
+        };
+        let mut workspace = self.workspaces.take(self.width);
+        let workspace = &mut workspace.workspace;
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2, the only feature `accumulate_avx2` enables.
+            unsafe {
+                (self.band).accumulate_avx2(workspace, first_row, (next_instances, next), signal)
+            };
+            return;
+        }
+        (self.band).accumulate(workspace, first_row, (next_instances, next), signal);
+    }
+
+    /// The accumulated signal (the spatial filter's input), row by row.
+    ///
+    /// # Safety
+    /// While the rows live, a row is read only once its band has run, and not while any
+    /// band runs that writes it.
+    pub(super) unsafe fn signal(&self) -> PlaneRows<'_, SIGNAL_PLANES> {
+        // SAFETY: the caller's promise.
+        unsafe { self.signal.rows(self.width, self.height) }
+    }
+
+    /// The next frame's history, for `feed_back_row` to replace its illumination row by
+    /// row (SVGF keeps the first a-trous iteration's output as history: less noise
+    /// carried forward).
+    pub(super) fn history(&self) -> HistoryRecords<'_> {
+        HistoryRecords {
+            width: self.width,
+            instances: &self.next_instances,
+            records: &self.next,
+        }
     }
 }
 
 /// The history's records, whose rows `feed_back_row` replaces from many threads at once.
 pub(super) struct HistoryRecords<'a> {
     width: usize,
-    instances: &'a [u32],
-    records: SharedRuns<'a, LastPixel>,
+    instances: &'a SharedRuns<'a, u32>,
+    records: &'a SharedRuns<'a, LastPixel>,
 }
 
 /// Row `y` of the history given the red, green and blue `illumination` of its pixels (the
 /// sky's records, never read, are left alone).
 ///
 /// # Safety
-/// No other call for the same row may run at the same time.
+/// No other call for the same row may run at the same time, and the row's band of the
+/// accumulation (`AccumulationBands::run`) has run.
 pub(super) unsafe fn feed_back_row(illumination: [&[f32]; 3], y: usize, history: &HistoryRecords) {
     let width = history.width;
-    let instances = &history.instances[y * width..(y + 1) * width];
-    // SAFETY: the row's records are this call's alone (the caller's promise).
-    let records = unsafe { history.records.run(y * width, width) };
+    // SAFETY: the row's records and instances are this call's alone, written already (the
+    // caller's promise).
+    let (instances, records) = unsafe {
+        (
+            history.instances.read(y * width, width),
+            history.records.run(y * width, width),
+        )
+    };
     let [red, green, blue] = illumination.map(|plane| &plane[..width]);
     for (x, last) in records.iter_mut().enumerate() {
         if instances[x] != NO_INSTANCE {

@@ -137,6 +137,21 @@ impl<'a, T> SharedRuns<'a, T> {
         // SAFETY: in bounds (asserted); not aliased (the caller's promise).
         unsafe { std::slice::from_raw_parts_mut(self.start.add(first), len) }
     }
+
+    /// The `len` elements from `first`, to read (panics past the buffer's end).
+    ///
+    /// # Safety
+    /// No run another thread holds may overlap this one while it lives.
+    #[inline(always)]
+    pub(crate) unsafe fn read(&self, first: usize, len: usize) -> &[T] {
+        assert!(
+            first <= self.len && len <= self.len - first,
+            "run {first}+{len} past a buffer of {}",
+            self.len
+        );
+        // SAFETY: in bounds (asserted); not written meanwhile (the caller's promise).
+        unsafe { std::slice::from_raw_parts(self.start.add(first), len) }
+    }
 }
 
 impl<'a> SharedRuns<'a, f32> {
