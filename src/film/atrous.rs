@@ -357,9 +357,8 @@ pub(crate) fn filter_with<'a>(
             }
         }
     }
-    let (input_seconds, filter_seconds) = match stage_seconds.split_at(first_filter_stage) {
-        (produced, filtered) => (produced.iter().sum(), filtered.iter().sum()),
-    };
+    let (produced, filtered) = stage_seconds.split_at(first_filter_stage);
+    let (input_seconds, filter_seconds) = (produced.iter().sum(), filtered.iter().sum());
     FilteredPlanes {
         illumination: &outputs[output_of(settings.iterations.max(1) - 1)],
         first_iteration: &outputs[0],
