@@ -1140,6 +1140,32 @@ mod tests {
         );
     }
 
+    /// Guides with edges of every kind (depth, normal, albedo, instance) and some sky, and
+    /// noisy illumination and variance over them.
+    fn edged_scene(width: u32, height: u32) -> (Guides, Vec<Vec3>, Vec<f32>) {
+        let mut pixels = flat_pixels(width, height);
+        for (p, g) in pixels.iter_mut().enumerate() {
+            let x = p as u32 % width;
+            g.depth = 2.0 + noise(p + 7) + x as f32 * 0.1;
+            g.normal = Vec3A::new(noise(p + 3) - 0.5, 0.3, 1.0).normalize();
+            g.albedo = Vec3::new(noise(p + 11), 0.5, 0.25);
+            g.instance = (x / 9) % 3;
+            if p % 29 == 0 {
+                *g = GuidePixel::SKY;
+            }
+        }
+        let count = (width * height) as usize;
+        let illumination = (0..count)
+            .map(|i| Vec3::new(noise(i), noise(i + 1), noise(i + 2)) * 3.0)
+            .collect();
+        let variance = (0..count).map(|i| noise(i + 5)).collect();
+        (
+            Guides::from_pixels(width, height, &pixels),
+            illumination,
+            variance,
+        )
+    }
+
     /// The passes run as a chain of bands (film/chain.rs) give, on any thread count, the
     /// bits they give on one thread, where the chain runs them a pass at a time: the
     /// outputs, and every row each pass hands on. Five passes, so the widest taps reach
@@ -1148,22 +1174,7 @@ mod tests {
     #[test]
     fn chained_passes_give_the_same_bits_on_any_thread_count() {
         let (width, height) = (67u32, 61u32);
-        let mut pixels = flat_pixels(width, height);
-        for (p, g) in pixels.iter_mut().enumerate() {
-            let x = p as u32 % width;
-            g.depth = 2.0 + noise(p + 7) + x as f32 * 0.1;
-            g.normal = Vec3A::new(noise(p + 3) - 0.5, 0.3, 1.0).normalize();
-            g.instance = (x / 13) % 3;
-            if p % 31 == 0 {
-                *g = GuidePixel::SKY;
-            }
-        }
-        let guides = Guides::from_pixels(width, height, &pixels);
-        let count = (width * height) as usize;
-        let illumination: Vec<Vec3> = (0..count)
-            .map(|i| Vec3::new(noise(i), noise(i + 1), noise(i + 2)) * 3.0)
-            .collect();
-        let variance: Vec<f32> = (0..count).map(|i| noise(i + 5)).collect();
+        let (guides, illumination, variance) = edged_scene(width, height);
         let input = SignalPlanes::from_pixels(&illumination, &variance, width as usize);
         let settings = AtrousSettings {
             iterations: 5,
@@ -1213,23 +1224,7 @@ mod tests {
         // the wider passes' taps leave the row for most pixels, at 101 for few).
         for width in [37u32, 101] {
             let height = 23u32;
-            let mut pixels = flat_pixels(width, height);
-            for (p, g) in pixels.iter_mut().enumerate() {
-                let x = p as u32 % width;
-                g.depth = 2.0 + noise(p + 7) + x as f32 * 0.1;
-                g.normal = Vec3A::new(noise(p + 3) - 0.5, 0.3, 1.0).normalize();
-                g.albedo = Vec3::new(noise(p + 11), 0.5, 0.25);
-                g.instance = (x / 9) % 3;
-                if p % 29 == 0 {
-                    *g = GuidePixel::SKY;
-                }
-            }
-            let guides = Guides::from_pixels(width, height, &pixels);
-            let count = (width * height) as usize;
-            let illumination: Vec<Vec3> = (0..count)
-                .map(|i| Vec3::new(noise(i), noise(i + 1), noise(i + 2)) * 3.0)
-                .collect();
-            let variance: Vec<f32> = (0..count).map(|i| noise(i + 5)).collect();
+            let (guides, illumination, variance) = edged_scene(width, height);
             let settings = AtrousSettings {
                 iterations: 5,
                 ..AtrousSettings::default()
