@@ -1,6 +1,7 @@
-//! Frame step `film`, its scheduling: a chain of whole-image passes (the variance prepass,
-//! then the a-trous passes) run over the thread pool band by band, a band of one pass
-//! starting as soon as the bands of the pass before it that it reads are done.
+//! Frame step `film`, its scheduling: a chain of whole-image passes (the temporal filter's
+//! bands, then the a-trous filter's prepass and passes) run over the thread pool band by
+//! band, a band of one pass starting as soon as the bands of the pass before it that it
+//! reads are done.
 //!
 //! Run one pass at a time, every thread waited at each pass's end for the slowest band
 //! of it, and the next pass's workers were woken again: on first-light at 640 x 360, half
@@ -9,13 +10,16 @@
 //! a thread that finds no band of a pass left goes on to the next: the spatial filter's
 //! p50 fell 1.018 -> 0.912 ms there, 1.155 -> 1.009 on the-gallery and 1.271 -> 1.187 on
 //! the-keep (`gloam bench`, medians of 3 or 4 alternated runs), the same on one thread.
+//! The temporal pass, which idled a core 0.1 ms a frame at its end, joined the chain:
+//! temporal + spatial 1.935 -> 1.755 ms on first-light, 2.246 -> 2.066 on the-gallery and
+//! 2.449 -> 2.174 on the-keep against passes run one at a time (3 alternated runs).
 //!
 //! Each thread has a home segment of the bands, the same rows in every pass, which it
 //! takes from the front in order; with its own segment taken, it takes bands from the back
 //! of the others' (the last a segment's owner would reach), and then goes on to the next
 //! pass. So a band's neighbours, whose rows its taps read, were mostly written by the same
 //! core: bands handed out in turn from one counter alternated between the two cores, and
-//! the passes' own time rose 12% (halo rows fetched from the other core's cache).
+//! the passes' own time rose 11 to 15% (halo rows fetched from the other core's cache).
 //!
 //! A band of pass p waits until the bands of pass p - 1 within `reach[p]` of its own are
 //! done. That cannot deadlock: a thread goes on to pass p + 1 only once every band of pass
