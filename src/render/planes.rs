@@ -9,8 +9,10 @@ use rayon::prelude::*;
 
 /// Rows per parallel job in every filter pass: tall enough to amortise the handoff and
 /// the temporal pass's halo (a row either side of its band), short enough to share out
-/// evenly over the threads. 4 and 16 both measured slower than 8 (first-light at 640 x
-/// 360, half scale, two threads: temporal + spatial 2.04 -> 2.13 and 2.02 -> 2.13 ms).
+/// evenly over the threads. With the passes run one at a time, 4 and 16 both measured
+/// slower than 8 (first-light at 640 x 360, half scale, two threads: temporal + spatial
+/// 2.04 -> 2.13 and 2.02 -> 2.13 ms); chained (film/chain.rs), 16 measured the same as 8
+/// (1.652 against 1.668 ms, 4 alternated pairs).
 pub(crate) const BAND_ROWS: usize = 8;
 
 /// Images stored a row at a time, each row as `PLANES` consecutive runs of `width` floats
