@@ -375,9 +375,9 @@ impl Workspace {
     }
 }
 
-/// Workspaces between jobs: rayon starts a job for each split of a frame's bands (9 or 10
-/// a frame on two threads), and each job's fresh workspace allocated and zeroed 186 KB of
-/// rows at 320 x 180. A job takes one from here instead and puts it back when it ends.
+/// Workspaces between bands: a fresh workspace allocates and zeroes 186 KB of rows at
+/// 320 x 180, so each band (`AccumulationBands::run`, on whichever thread the chain or
+/// rayon gives it) takes one from here and puts it back when it ends.
 #[derive(Default)]
 struct WorkspacePool(Mutex<Vec<Workspace>>);
 
