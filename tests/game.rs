@@ -192,6 +192,33 @@ fn filtered_frames_draw_new_samples_while_the_world_moves_and_keep_a_radiance_ca
     assert!(engine.film.radiance_cache().is_none());
 }
 
+/// The game's filtered frames, the radiance cache learning each frame in the background
+/// (on the pool, while the next frame's simulation runs), are the same bits on one thread
+/// as on two, and the cache ends paths once its cells have learnt.
+#[test]
+fn filtered_frames_with_the_cache_learning_in_the_background_are_the_same_on_any_thread_count() {
+    let frames = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let (_, mut engine) = filtered_first_light();
+                let mut ended = 0;
+                for _ in 0..40 {
+                    engine.advance(1.0 / 60.0);
+                    ended += engine.stage_times().cache_ended;
+                }
+                (engine.film.image().pixels, ended)
+            })
+    };
+    let (one, ended) = frames(1);
+    let (two, ended_on_two) = frames(2);
+    assert!(one == two, "the 40th filtered frame differs on two threads");
+    assert_eq!(ended, ended_on_two);
+    assert!(ended > 0, "the cache ended no path in 40 frames");
+}
+
 #[test]
 fn a_doused_lamp_sends_the_radiance_cache_back_to_learning_the_lights() {
     let (scene, mut engine) = filtered_first_light();
@@ -200,12 +227,12 @@ fn a_doused_lamp_sends_the_radiance_cache_back_to_learning_the_lights() {
         lift(&mut engine, &scene, "pillar 1");
         engine.advance(1.0 / 60.0);
     }
-    let relearning = |engine: &Engine| {
+    let relearning = |engine: &mut Engine| {
         (engine.film.radiance_cache())
             .expect("filtered frames keep a cache")
             .relearning()
     };
-    assert!(!relearning(&engine));
+    assert!(!relearning(&mut engine));
     let lamp = engine
         .world
         .query_filtered::<Entity, (With<PunctualLight>, With<LevelEntity>)>()
@@ -214,7 +241,7 @@ fn a_doused_lamp_sends_the_radiance_cache_back_to_learning_the_lights() {
         .expect("first-light has lamps");
     engine.world.entity_mut(lamp).insert(SwitchedOff);
     engine.advance(1.0 / 60.0);
-    assert!(relearning(&engine));
+    assert!(relearning(&mut engine));
 }
 
 #[test]

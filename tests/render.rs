@@ -372,7 +372,8 @@ fn cached_frames(scene: &RenderScene, frames: u32, from: u32) -> (Film, Vec3, u6
             frame,
             ..settings.clone()
         };
-        let output = render_guided(scene, &camera, &settings, Some(&mut cache));
+        let output = render_guided(scene, &camera, &settings, Some(&cache));
+        cache.learn(&output.cache_samples);
         assert_eq!(output.invalid_samples, 0, "NaN or infinite samples");
         if frame >= from {
             let pixels = &output.film.pixels;
@@ -440,7 +441,8 @@ fn lingering_after_the_lights_go_out(relit: bool) -> Vec<f32> {
     let mean = |film: &Film| film.mean().y;
     let mut cache = RadianceCache::new();
     for frame in 0..48 {
-        render_guided(&scene, &camera, &settings(frame), Some(&mut cache));
+        let output = render_guided(&scene, &camera, &settings(frame), Some(&cache));
+        cache.learn(&output.cache_samples);
     }
     let lit = mean(&render_guided(&scene, &camera, &settings(47), None).film);
     scene.lights = gloam::render::light::LightSet::default();
@@ -449,7 +451,8 @@ fn lingering_after_the_lights_go_out(relit: bool) -> Vec<f32> {
     }
     (48..64)
         .map(|frame| {
-            let cached = render_guided(&scene, &camera, &settings(frame), Some(&mut cache));
+            let cached = render_guided(&scene, &camera, &settings(frame), Some(&cache));
+            cache.learn(&cached.cache_samples);
             let full = mean(&render_guided(&scene, &camera, &settings(frame), None).film);
             (mean(&cached.film) - full) / (lit - full)
         })

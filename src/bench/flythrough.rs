@@ -333,8 +333,9 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         let camera = engine.view_camera(width, height);
         settings.frame = frame;
         let started = Instant::now();
-        let output = render_guided(engine.render_scene(), &camera, &settings, Some(&mut cache));
+        let output = render_guided(engine.render_scene(), &camera, &settings, Some(&cache));
         render_ms.push(started.elapsed().as_secs_f64() * 1e3);
+        cache.learn(&output.cache_samples);
         let guides = output.guides.as_ref().context("guides")?;
         let instances: Vec<Affine3A> = engine
             .render_scene()
@@ -358,9 +359,10 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             engine.render_scene(),
             &player_camera,
             &player_settings,
-            Some(&mut player_cache),
+            Some(&player_cache),
         );
         player_render_ms.push(started.elapsed().as_secs_f64() * 1e3);
+        player_cache.learn(&player_output.cache_samples);
         let player_guides = player_output.guides.as_ref().context("guides")?;
         let started = Instant::now();
         player_filter.apply_into(

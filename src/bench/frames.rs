@@ -332,6 +332,7 @@ fn measure(
             profile.frames.push(sample);
             churn.push((kind, edit_ms));
             if profile.frames.len() % ACCEL_ROUND_FRAMES == 0 {
+                engine.film.finish_learning();
                 accel_round(&mut profile);
             }
         }
@@ -343,6 +344,7 @@ fn measure(
         .map_or(0, |round| round.after_frames)
         < profile.frames.len()
     {
+        engine.film.finish_learning();
         accel_round(&mut profile);
     }
     bar.finish_and_clear();

@@ -12,8 +12,11 @@
 //! Per frame:
 //! 1. the tiles read the cache as the last frame left it (read only, so the frame does not
 //!    depend on the order the threads take the tiles in);
-//! 2. each tile lists its full paths' samples (`CacheSample`);
-//! 3. `learn` folds them in, tile by tile in image order, into each cell's running mean.
+//! 2. each tile lists its full paths' samples (`CacheSample`), which the render hands back
+//!    tile by tile in image order (`RenderOutput::cache_samples`);
+//! 3. before the next frame's render, `learn` folds them in, in that order, into each
+//!    cell's running mean (the game's film step does it on a pool thread while the frame
+//!    goes on: film/mod.rs).
 //!
 //! When the light set is built anew (a lamp doused or lit), `relit` makes each cell's next
 //! sample replace its light and one pixel in 4 teach for a few frames, so the light that

@@ -26,8 +26,10 @@
 //! 3. average each pixel's samples in sample order (so the result does not depend on the
 //!    thread count) and store the mean in the film (and the kept-apart lamp light's mean
 //!    in the guides' `unfiltered` light, which the film's filters leave as it is);
-//! 4. with a radiance cache, fold the teachers' samples into it, tile by tile in image
-//!    order (so the next frame's cache does not depend on the thread count either).
+//! 4. with a radiance cache, hand back the teachers' samples, tile by tile in image order,
+//!    for the caller to fold into the cache before the next frame
+//!    (`RenderOutput::cache_samples`; so the next frame's cache does not depend on the
+//!    thread count either).
 //!
 //! The phases draw each pixel's sample dimensions in the order one path at a time
 //! (`integrator::continue_path` from the camera ray) does, so
@@ -280,6 +282,10 @@ pub struct RenderOutput {
     pub invalid_samples: u64,
     /// Each tile's thread and time, in ms from the render's start (the profiler's tracks).
     pub tiles: Vec<TileSpan>,
+    /// What the frame's full paths teach the radiance cache it read, tile by tile in image
+    /// order: `RadianceCache::learn` takes them before the next frame's render (empty
+    /// without a cache).
+    pub cache_samples: Vec<CacheSample>,
 }
 
 impl RenderOutput {
@@ -300,12 +306,13 @@ pub fn render(
 
 /// `render`, plus each pixel's guides (its first hit) for the film step's filters; with a
 /// radiance `cache`, most paths end at their second vertex with the cache's light there,
-/// and the frame's full paths teach it (the real-time view's frames: render/cache.rs).
+/// and the frame's full paths list what they teach it in `RenderOutput::cache_samples`
+/// (the real-time view's frames: render/cache.rs).
 pub fn render_guided(
     scene: &RenderScene,
     camera: &Camera,
     settings: &RenderSettings,
-    cache: Option<&mut RadianceCache>,
+    cache: Option<&RadianceCache>,
 ) -> RenderOutput {
     render_tiles(scene, camera, settings, &|_| {}, true, None, cache)
 }
@@ -317,7 +324,7 @@ pub fn render_guided_reusing(
     camera: &Camera,
     settings: &RenderSettings,
     earlier: RenderOutput,
-    cache: Option<&mut RadianceCache>,
+    cache: Option<&RadianceCache>,
 ) -> RenderOutput {
     render_tiles(scene, camera, settings, &|_| {}, true, Some(earlier), cache)
 }
@@ -329,7 +336,7 @@ fn render_tiles(
     progress: &(dyn Fn(f32) + Sync),
     want_guides: bool,
     earlier: Option<RenderOutput>,
-    cache: Option<&mut RadianceCache>,
+    cache: Option<&RadianceCache>,
 ) -> RenderOutput {
     let start = Instant::now();
     let (width, height) = (settings.width.max(1), settings.height.max(1));
@@ -343,8 +350,10 @@ fn render_tiles(
 
     // The film and guides: an earlier output's buffers where they fit (every pixel is
     // set by its tile, so nothing needs clearing).
+    let mut cache_samples = Vec::new();
     let (mut film, earlier_guides) = match earlier {
         Some(earlier) if (earlier.film.width, earlier.film.height) == (width, height) => {
+            cache_samples = earlier.cache_samples;
             (earlier.film, earlier.guides)
         }
         _ => (Film::new(width, height), None),
@@ -370,7 +379,7 @@ fn render_tiles(
                 width,
                 height,
                 want_guides,
-                cache: cache.as_deref(),
+                cache,
             };
             let begun = since(start) as f32;
             let mut result = match settings.integrator {
@@ -398,10 +407,8 @@ fn render_tiles(
         })
         .collect();
 
-    if let Some(cache) = cache {
-        profiling::scope!("render.cache");
-        cache.learn(results.iter().flat_map(|tile| &tile.cache_samples));
-    }
+    cache_samples.clear();
+    cache_samples.extend(results.iter().flat_map(|tile| &tile.cache_samples));
     let mut rays = RayCounts::default();
     let mut phases = PhaseTimes::default();
     let mut invalid_samples = 0;
@@ -418,6 +425,7 @@ fn render_tiles(
         guides,
         invalid_samples,
         tiles: results.iter().map(|tile| tile.span).collect(),
+        cache_samples,
     }
 }
 
