@@ -545,6 +545,7 @@ mod tests {
         let loaded = load::<Settings>(&path);
         assert_eq!(loaded.warning, None);
         assert_eq!(loaded.value, settings);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -553,6 +554,7 @@ mod tests {
         let loaded = load::<Settings>(&dir.join(SETTINGS_FILE));
         assert_eq!(loaded.value, Settings::default());
         assert_eq!(loaded.warning, None);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -573,6 +575,7 @@ mod tests {
         assert!(!path.exists(), "the broken file is moved aside");
         let aside = dir.join("settings.ron.broken");
         assert_eq!(std::fs::read_to_string(aside).expect("kept"), text);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -625,5 +628,6 @@ mod tests {
         let path = dir.join(BEST_TIMES_FILE);
         save(&path, &best).expect("save");
         assert_eq!(load::<BestTimes>(&path).value, best);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -24,9 +24,13 @@ pub fn shared(relative: &str) -> Option<PathBuf> {
     }
 }
 
-/// A fresh empty folder for one test.
+/// A fresh empty folder for one test, under `gloam-test-<process>-...` in the temp dir.
+/// Kept after the test (a failing test's files are there to look at); the first call in
+/// each test process removes the folders of test processes that have ended.
 pub fn scratch_dir(name: &str) -> PathBuf {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
+    static SWEPT: std::sync::Once = std::sync::Once::new();
+    SWEPT.call_once(remove_ended_processes_scratch);
     let dir = std::env::temp_dir().join(format!(
         "gloam-test-{}-{}-{name}",
         std::process::id(),
@@ -35,6 +39,32 @@ pub fn scratch_dir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("create scratch dir");
     dir
+}
+
+/// Removes the scratch folders of test processes no longer running (`/proc/<pid>` gone;
+/// where there is no /proc, none are removed).
+fn remove_ended_processes_scratch() {
+    let proc = Path::new("/proc");
+    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
+        return;
+    };
+    if !proc.is_dir() {
+        return;
+    }
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|name| name.strip_prefix("gloam-test-"))
+            .and_then(|rest| rest.split('-').next())
+            .filter(|pid| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
+        else {
+            continue;
+        };
+        if !proc.join(pid).exists() {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
 }
 
 pub fn write(dir: &Path, name: &str, contents: impl AsRef<[u8]>) -> PathBuf {
