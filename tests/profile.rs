@@ -153,6 +153,13 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
     // The radiance cache ends some of the paths, never more than there are.
     let ended = report["cache_ended_share"].as_f64().unwrap();
     assert!(ended > 0.0 && ended < 1.0, "cache_ended_share {ended}");
+    // It learns every frame's samples in the background, and the report times that.
+    let learn = &report["cache_learn_ms"];
+    assert!(
+        learn["p50_ms"].as_f64().unwrap() > 0.0,
+        "cache_learn_ms {learn}"
+    );
+    assert!(learn["p50_ms"].as_f64() <= learn["max_ms"].as_f64());
     // The film's share of the frames' time is its mean over the frame's (both summed over
     // the same frames); rendered at the size shown, none of it is the upscaler's.
     let share = &report["film_share"];

@@ -350,10 +350,8 @@ fn render_tiles(
 
     // The film and guides: an earlier output's buffers where they fit (every pixel is
     // set by its tile, so nothing needs clearing).
-    let mut cache_samples = Vec::new();
     let (mut film, earlier_guides) = match earlier {
         Some(earlier) if (earlier.film.width, earlier.film.height) == (width, height) => {
-            cache_samples = earlier.cache_samples;
             (earlier.film, earlier.guides)
         }
         _ => (Film::new(width, height), None),
@@ -407,8 +405,10 @@ fn render_tiles(
         })
         .collect();
 
-    cache_samples.clear();
-    cache_samples.extend(results.iter().flat_map(|tile| &tile.cache_samples));
+    let cache_samples = (results.iter())
+        .flat_map(|tile| &tile.cache_samples)
+        .copied()
+        .collect();
     let mut rays = RayCounts::default();
     let mut phases = PhaseTimes::default();
     let mut invalid_samples = 0;
