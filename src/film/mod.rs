@@ -6,7 +6,10 @@
 //!   `temporal` reprojection (`reproject` carries last frame's pixels through each
 //!   instance's and the camera's motion), then the `atrous` wavelet filter, then
 //!   remodulation by the surface's albedo, then (rendering below the shown resolution)
-//!   `upscale`'s temporal upscaling to it.
+//!   `upscale`'s temporal upscaling to it;
+//! - between the real-time frames, their radiance cache (render/cache.rs): the render reads
+//!   it, and it learns the frame's samples on a pool thread while the next frame's
+//!   simulation runs (`BackgroundCache`).
 //!
 //! The image itself (`render::Film`), its tone mapper and its file writers and readers
 //! are in `render::film`: render writes that buffer and everything downstream reads it.
