@@ -13,7 +13,7 @@ use glam::{Vec2, Vec3, Vec3A};
 
 use super::bsdf::Bsdf;
 use super::cache::{CacheSample, CellKey, CellSizing};
-use super::light::LightSample;
+use super::light::{LightReach, LightSample};
 use super::sampler::{PixelSampler, VertexDraws};
 use super::sampling::{Frame, power_heuristic};
 use super::scene::{RenderScene, SceneAlpha};
@@ -262,19 +262,30 @@ pub fn path_vertex(
     max_depth: u32,
     counts: &mut RayCounts,
 ) -> VertexOutcome {
-    path_vertex_inlined(scene, state, found, draws, max_depth, counts)
+    path_vertex_inlined(
+        scene,
+        state,
+        found,
+        draws,
+        LightReach::ALL,
+        max_depth,
+        counts,
+    )
 }
 
 /// `path_vertex`, inlined into its caller: the render's first vertices, where the outcome
 /// returned through memory was read back before its stores had landed, a stall a path
 /// (perf); inlined there, the shade phase's p50 fell 2.60 -> 2.30 ms on first-light. The
 /// bounces phase, where it was 2.6% slower inlined (one thread), calls `path_vertex`.
+/// `reach`: the punctual lights that may light the vertex (`LightSet::reach`), which the
+/// first vertex's pick beside the dominant lamp weighs.
 #[inline(always)]
 pub fn path_vertex_inlined(
     scene: &RenderScene,
     state: &mut PathState,
     found: Option<&NextHit>,
     draws: &VertexDraws,
+    reach: LightReach,
     max_depth: u32,
     counts: &mut RayCounts,
 ) -> VertexOutcome {
@@ -328,7 +339,7 @@ pub fn path_vertex_inlined(
             |material: u32, uv| scene.materials[material as usize].emission_at(&scene.textures, uv);
         let position = v.surface.position;
         let (dominant, sampled) = if state.dominant_apart && state.depth == 1 {
-            (scene.lights).sample_beside_dominant(position, u_pick, u_light, emission)
+            (scene.lights).sample_beside_dominant(position, reach, u_pick, u_light, emission)
         } else {
             (
                 None,

@@ -8,7 +8,9 @@
 //! light trees estimate per cluster (Conty Estevez and Kulla 2018, "Importance Sampling of
 //! Many Lights with Adaptive Tree Splitting"), exact here for lights that are points. Inside
 //! a lamp's cone that lamp is then picked for almost every pixel, so at one sample a pixel
-//! its pool is lit whole rather than in scattered pixels. A triangle is picked through an
+//! its pool is lit whole rather than in scattered pixels. A region's `LightReach` names
+//! the lamps whose cones may reach it, so the real-time render's dark tiles skip the
+//! weighing (it gives every other lamp exactly 0 there). A triangle is picked through an
 //! alias table over power (Walker 1977; Vose 1991), then a point on it uniformly by area,
 //! and the area pdf is converted to solid angle: pdf = p_pick * d^2 / (|cos theta_light| A).
 //! The sky is not sampled here: bounce rays that leave the scene pick it up.
@@ -261,6 +263,28 @@ fn spot_ramp(cos: f32, cos_outer: f32, scale: f32) -> f32 {
     ramp * ramp
 }
 
+/// The groups of punctual lights (`PunctualGroup`, a bit each) that may give some point of
+/// a region light: a group left out gives every point there a weight of exactly 0, so
+/// weighing only the others picks the same lights with the same probabilities. The
+/// real-time render asks once per tile, for the box around its first hits: in the dark
+/// (outside every cone, most of a stealth level) the pick skips its weighing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LightReach(u32);
+
+impl LightReach {
+    /// Every group: nothing known of the point.
+    pub const ALL: LightReach = LightReach(u32::MAX);
+
+    fn has(self, group: usize) -> bool {
+        self.0 >> group & 1 != 0
+    }
+}
+
+/// Slack for the reach test's rounding, against the cosine a lamp's weighing computes in
+/// f32 (a few ulps off the exact one): a lamp is left out only when no point of the region
+/// comes within this of its cone.
+const REACH_COS_SLACK: f64 = 1e-4;
+
 /// A punctual light as the pick by irradiance reads it, unpacked from its `Light` once
 /// per light set (the pick weighs every punctual light at every shading point: read
 /// through the `Light` enum this was 7% of a real-time frame's instructions).
@@ -282,6 +306,37 @@ struct PunctualImportance {
 }
 
 impl PunctualImportance {
+    /// False only when the light's weight (`PunctualGroup::irradiance_at`) is exactly 0 at
+    /// every point of the sphere at `centre` of `radius`: a spot whose cone misses it by
+    /// more than the slack, the sphere's widest angle seen from the apex against the
+    /// cone's, in f64.
+    fn may_light(&self, centre: [f64; 3], radius: f64) -> bool {
+        let scale = cone_scale(self.cos_inner, self.cos_outer);
+        if self.directional || !self.luminance.is_finite() || !(scale > 0.0 && scale.is_finite()) {
+            return true;
+        }
+        let axis = [0, 1, 2].map(|i| f64::from(self.direction[i]));
+        let to_centre = [0, 1, 2].map(|i| centre[i] - f64::from(self.position[i]));
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let (axis_length, distance) = (dot(axis, axis).sqrt(), dot(to_centre, to_centre).sqrt());
+        if distance <= radius || axis_length == 0.0 {
+            // The apex inside the sphere, or no axis (the weighing's cosine is 0).
+            return distance <= radius || f64::from(self.cos_outer) - REACH_COS_SLACK <= 0.0;
+        }
+        // The widest cosine between the axis and a direction into the sphere.
+        let cos_off_axis = (dot(axis, to_centre) / (axis_length * distance)).clamp(-1.0, 1.0);
+        let sin_half_width = radius / distance;
+        let cos_half_width = (1.0 - sin_half_width * sin_half_width).sqrt();
+        let widest = if cos_off_axis >= cos_half_width {
+            1.0
+        } else {
+            let sin_off_axis = (1.0 - cos_off_axis * cos_off_axis).sqrt();
+            cos_off_axis * cos_half_width + sin_off_axis * sin_half_width
+        };
+        // The weighing's cosine carries the axis's length (1 up to rounding).
+        axis_length * widest >= f64::from(self.cos_outer) - REACH_COS_SLACK
+    }
+
     fn of(index: u32, light: &Light) -> Option<PunctualImportance> {
         let unlit = PunctualImportance {
             index,
@@ -503,6 +558,29 @@ impl LightSet {
         self.by_triangle.get(&(instance, triangle)).copied()
     }
 
+    /// The punctual groups that may light some point of the box from `low` to `high`.
+    pub fn reach(&self, low: Vec3A, high: Vec3A) -> LightReach {
+        let (low, high) = (
+            low.to_array().map(f64::from),
+            high.to_array().map(f64::from),
+        );
+        let centre = [0, 1, 2].map(|i| 0.5 * (low[i] + high[i]));
+        let half = [0, 1, 2].map(|i| 0.5 * (high[i] - low[i]));
+        let radius = (half[0] * half[0] + half[1] * half[1] + half[2] * half[2]).sqrt();
+        // Widened past the rounding of the centre and the half-extent.
+        let radius = radius * (1.0 + 1e-6) + 1e-6;
+        if !radius.is_finite() {
+            return LightReach::ALL;
+        }
+        let mut reach = 0;
+        for (group, lights) in self.punctual.chunks(GROUP_LANES).enumerate() {
+            if lights.iter().any(|light| light.may_light(centre, radius)) {
+                reach |= 1 << group;
+            }
+        }
+        LightReach(reach)
+    }
+
     /// Samples a light as seen from `point`; `emission(material, uv)` gives an area light's
     /// radiance at a UV. None when there are no lights or the sample carries nothing.
     pub fn sample(
@@ -513,7 +591,7 @@ impl LightSet {
         emission: impl Fn(u32, Vec2) -> Vec3,
     ) -> Option<LightSample> {
         if u_pick < self.punctual_share {
-            let weights = self.punctual_weights(point);
+            let weights = self.punctual_weights(point, LightReach::ALL);
             let weights = &weights[..self.punctual.len()];
             return self.sample_punctual(
                 weights,
@@ -534,14 +612,19 @@ impl LightSet {
     /// estimate of every light's contribution, the dominant one's without the one-in-N
     /// pick's noise. No dominant light when no punctual light reaches the point (or the
     /// set is too large to weigh them per point).
+    /// `reach`: the groups that may light `point` (`LightSet::reach`).
     pub fn sample_beside_dominant(
         &self,
         point: Vec3A,
+        reach: LightReach,
         u_pick: f32,
         u: Vec2,
         emission: impl Fn(u32, Vec2) -> Vec3,
     ) -> (Option<LightSample>, Option<LightSample>) {
-        let mut weights = self.punctual_weights(point);
+        let mut weights = [0.0; SPATIAL_PICK_MAX];
+        if reach.0 != 0 {
+            weights = self.punctual_weights(point, reach);
+        }
         let weights = &mut weights[..self.punctual.len()];
         // Where no punctual light reaches (outside every cone: most of a dark level), there
         // is no dominant lamp and the punctual pick finds nothing: only the table's share
@@ -595,29 +678,36 @@ impl LightSet {
     /// lanes where the CPU has AVX2: the same operations (no fused multiply-adds), so the
     /// same bits, a group in one register instead of two (built for SSE2, perf put 5% of
     /// the-keep's one-thread frame in `sample_beside_dominant`, most of it here).
+    /// The groups outside `reach` are left at 0, which is what they weigh there.
     #[inline]
-    fn punctual_weights(&self, point: Vec3A) -> [f32; SPATIAL_PICK_MAX] {
+    fn punctual_weights(&self, point: Vec3A, reach: LightReach) -> [f32; SPATIAL_PICK_MAX] {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             #[target_feature(enable = "avx2")]
-            fn punctual_weights_avx2(set: &LightSet, point: Vec3A) -> [f32; SPATIAL_PICK_MAX] {
-                set.punctual_weights_lanes(point)
+            fn punctual_weights_avx2(
+                set: &LightSet,
+                point: Vec3A,
+                reach: LightReach,
+            ) -> [f32; SPATIAL_PICK_MAX] {
+                set.punctual_weights_lanes(point, reach)
             }
             // SAFETY: the CPU has AVX2, the only feature `punctual_weights_avx2` enables.
-            return unsafe { punctual_weights_avx2(self, point) };
+            return unsafe { punctual_weights_avx2(self, point, reach) };
         }
-        self.punctual_weights_lanes(point)
+        self.punctual_weights_lanes(point, reach)
     }
 
     /// `punctual_weights` as plain lane arithmetic, for the compiler to vectorise.
     #[inline(always)]
-    fn punctual_weights_lanes(&self, point: Vec3A) -> [f32; SPATIAL_PICK_MAX] {
+    fn punctual_weights_lanes(&self, point: Vec3A, reach: LightReach) -> [f32; SPATIAL_PICK_MAX] {
         let mut weights = [0.0f32; SPATIAL_PICK_MAX];
-        for (weights, group) in weights
-            .chunks_exact_mut(GROUP_LANES)
+        for (index, (weights, group)) in (weights.chunks_exact_mut(GROUP_LANES))
             .zip(&self.punctual_groups)
+            .enumerate()
         {
-            weights.copy_from_slice(&group.irradiance_at(point));
+            if reach.has(index) {
+                weights.copy_from_slice(&group.irradiance_at(point));
+            }
         }
         weights
     }
@@ -801,7 +891,7 @@ mod tests {
         });
         let count = lights.len();
         let set = LightSet::new(lights, &vec![1.0; count], Vec::new());
-        let at = |point: Vec3A| set.punctual_weights(point);
+        let at = |point: Vec3A| set.punctual_weights(point, LightReach::ALL);
         let under_spot = at(Vec3A::ZERO);
         for i in 0..10 {
             let expected = 4.0 / (i as f32 * i as f32 + 4.0);
@@ -825,7 +915,8 @@ mod tests {
             Vec3A::new(9.0, 2.0, 0.0),
         ] {
             let bits = |weights: [f32; SPATIAL_PICK_MAX]| weights.map(f32::to_bits);
-            assert_eq!(bits(at(point)), bits(set.punctual_weights_lanes(point)));
+            let lanes = set.punctual_weights_lanes(point, LightReach::ALL);
+            assert_eq!(bits(at(point)), bits(lanes));
         }
     }
 
@@ -847,6 +938,83 @@ mod tests {
         assert!((lamp_picks as f32 - expected).abs() < 3.0, "{lamp_picks}");
     }
 
+    /// A group `reach` leaves out weighs exactly 0 at every point of the box, and where
+    /// the box is wholly outside a group's cones, the group is left out.
+    #[test]
+    fn a_group_out_of_reach_weighs_nothing_anywhere_in_the_box() {
+        let mut state = 0x9e37_79b9u32;
+        let mut random = || {
+            state = state.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+            (state >> 8) as f32 / (1 << 24) as f32
+        };
+        let mut left_out = 0;
+        for _ in 0..400 {
+            // Spots of every width pointing every way, a point light now and then, in
+            // groups of 8: a group is left out only when all its lights are.
+            let mut lights = Vec::new();
+            for _ in 0..1 + (random() * 12.0) as usize {
+                let position = Vec3A::new(random(), random(), random()) * 8.0 - 4.0;
+                if random() < 0.05 {
+                    lights.push(Light::Point {
+                        position,
+                        intensity: Vec3::ONE,
+                    });
+                    continue;
+                }
+                let direction = (Vec3A::new(random(), random(), random()) - 0.5).normalize();
+                let cos_outer = random() * 1.2 - 0.2;
+                lights.push(Light::Spot {
+                    position,
+                    direction,
+                    intensity: Vec3::ONE,
+                    cos_inner: (cos_outer + random() * 0.1).min(1.0),
+                    cos_outer,
+                });
+            }
+            let count = lights.len();
+            let set = LightSet::new(lights, &vec![1.0; count], Vec::new());
+            let low = Vec3A::new(random(), random(), random()) * 6.0 - 3.0;
+            let high = low + Vec3A::new(random(), random(), random()) * 1.5;
+            let reach = set.reach(low, high);
+            for group in 0..count.div_ceil(GROUP_LANES) {
+                if reach.has(group) {
+                    continue;
+                }
+                left_out += 1;
+                for _ in 0..200 {
+                    let t = Vec3A::new(random(), random(), random());
+                    let point = low + (high - low) * t;
+                    let weights = set.punctual_weights(point, LightReach::ALL);
+                    let group_weights = &weights[group * GROUP_LANES..][..GROUP_LANES];
+                    assert!(
+                        group_weights.iter().all(|&weight| weight == 0.0),
+                        "group {group} weighs {group_weights:?} at {point}"
+                    );
+                }
+            }
+        }
+        assert!(left_out > 50, "only {left_out} groups were left out");
+        // A box behind a narrow spot is out of its reach; one in front of it is not.
+        let set = LightSet::new(
+            vec![Light::Spot {
+                position: Vec3A::ZERO,
+                direction: Vec3A::NEG_Y,
+                intensity: Vec3::ONE,
+                cos_inner: 0.95,
+                cos_outer: 0.9,
+            }],
+            &[1.0],
+            Vec::new(),
+        );
+        let unit = Vec3A::splat(0.5);
+        assert_eq!(set.reach(Vec3A::Y * 3.0 - unit, Vec3A::Y * 3.0 + unit).0, 0);
+        assert_eq!(
+            set.reach(Vec3A::NEG_Y * 3.0 - unit, Vec3A::NEG_Y * 3.0 + unit)
+                .0,
+            1
+        );
+    }
+
     #[test]
     fn the_dominant_light_in_full_and_the_others_sampled_estimate_every_light() {
         let set = lamp_and_far_light();
@@ -865,7 +1033,8 @@ mod tests {
                 let u = Vec2::new((i % 97) as f32 / 97.0, (i % 89) as f32 / 89.0);
                 let sampled = set.sample(point, u_pick, u, |_, _| Vec3::ONE);
                 plain += estimate(sampled);
-                let (full, others) = set.sample_beside_dominant(point, u_pick, u, |_, _| Vec3::ONE);
+                let (full, others) =
+                    set.sample_beside_dominant(point, LightReach::ALL, u_pick, u, |_, _| Vec3::ONE);
                 if dominant == 0 {
                     far_light_samples[0] += sampled.is_some_and(|s| s.light == 1) as usize;
                     far_light_samples[1] += others.is_some_and(|s| s.light == 1) as usize;
