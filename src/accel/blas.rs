@@ -51,9 +51,14 @@ impl MeshGeometry {
         if self.uvs.is_empty() {
             return Vec2::ZERO;
         }
-        let [a, c, d] = self.triangles[triangle].map(|i| self.uvs[i as usize]);
-        a * (1.0 - b.x - b.y) + c * b.x + d * b.y
+        interpolate_uv(self.triangles[triangle].map(|i| self.uvs[i as usize]), b)
     }
+}
+
+/// The UV at barycentrics (b1, b2) between a triangle's corners' `uvs`.
+#[inline]
+pub fn interpolate_uv([a, c, d]: [Vec2; 3], b: Vec2) -> Vec2 {
+    a * (1.0 - b.x - b.y) + c * b.x + d * b.y
 }
 
 /// How a BLAS will be used.

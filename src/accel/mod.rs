@@ -36,7 +36,7 @@ pub use batch::MAX_BATCH_TRIANGLES;
 pub use blas::{Blas, BlasKind, MeshGeometry, REBUILD_RATIO, RefitOutcome, Traversal};
 pub use overlap::Contact;
 pub use packet::{PACKET, RayPacket};
-pub use tlas::{AccelScene, Instance, Mobility};
+pub use tlas::{AccelScene, Instance, Mobility, TriangleSurface};
 pub use wide::{Kernels, WideBvh, WideTlas};
 
 use glam::{Vec2, Vec3A};

@@ -13,7 +13,7 @@ use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 use obvhs::ray::{Ray as ObvhsRay, RayHit};
 
 use super::batch::{StaticBatch, batch_statics};
-use super::blas::{Blas, MeshGeometry, PendingHit, Traversal};
+use super::blas::{Blas, MeshGeometry, PendingHit, Traversal, interpolate_uv};
 use super::packet::{PACKET, RayPacket, first_lanes, lanes_of};
 use super::stream::{Job, occluded_jobs};
 use super::wide::{Kernels, Portable, RayLanes, WideBvh, WideTlas};
@@ -788,34 +788,80 @@ impl AccelScene {
     }
 
     /// The shading data at `hit` (found by `intersect` with `ray`).
+    #[inline]
     pub fn surface(&self, hit: &Hit) -> SurfaceHit {
+        self.triangle_surface(hit).at(hit.barycentrics)
+    }
+
+    /// What `surface` reads and works out once for `hit`'s triangle, wherever on it a hit
+    /// lands.
+    #[inline]
+    pub fn triangle_surface(&self, hit: &Hit) -> TriangleSurface<'_> {
         let instance = &self.instances[hit.instance as usize];
         let geometry = &self.blases[instance.blas as usize].geometry;
         let triangle = hit.primitive as usize;
         let corners = geometry.triangles[triangle];
         let [v0, v1, v2] = geometry.triangle_vertices(triangle);
-        let Vec2 { x: b1, y: b2 } = hit.barycentrics;
-        let b0 = 1.0 - b1 - b2;
-        let object_position = v0 * b0 + v1 * b1 + v2 * b2;
         // Normals go through the inverse transpose: under a mirroring transform this keeps
         // them on the same physical side, although the world-space winding flips.
         let object_normal = (v1 - v0).cross(v2 - v0);
         let geometric_normal = (instance.normal_from_object * object_normal).normalize_or(Vec3A::Y);
-        let shading_normal = if geometry.normals.is_empty() {
-            geometric_normal
-        } else {
-            let [n0, n1, n2] = corners.map(|i| Vec3A::from(geometry.normals[i as usize]));
-            (instance.normal_from_object * (n0 * b0 + n1 * b1 + n2 * b2))
-                .normalize_or(geometric_normal)
+        TriangleSurface {
+            instance,
+            of: (hit.instance, hit.primitive),
+            vertices: [v0, v1, v2],
+            normals: (!geometry.normals.is_empty())
+                .then(|| corners.map(|i| Vec3A::from(geometry.normals[i as usize]))),
+            uvs: (!geometry.uvs.is_empty()).then(|| corners.map(|i| geometry.uvs[i as usize])),
+            geometric_normal,
+            material: geometry.materials.get(triangle).copied().unwrap_or(0),
+        }
+    }
+}
+
+/// A triangle's shading data that does not depend on where on it a hit lands
+/// (`AccelScene::triangle_surface`): kept while hits land on the same triangle, as most of
+/// a tile's camera rays do, each hit then costs only its interpolation.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleSurface<'a> {
+    instance: &'a Instance,
+    /// (instance, primitive).
+    of: (u32, u32),
+    vertices: [Vec3A; 3],
+    normals: Option<[Vec3A; 3]>,
+    uvs: Option<[Vec2; 3]>,
+    geometric_normal: Vec3A,
+    material: u32,
+}
+
+impl TriangleSurface<'_> {
+    /// Whether `hit` is on this triangle.
+    #[inline]
+    pub fn holds(&self, hit: &Hit) -> bool {
+        self.of == (hit.instance, hit.primitive)
+    }
+
+    /// The shading data at barycentrics (b1, b2).
+    #[inline]
+    pub fn at(&self, barycentrics: Vec2) -> SurfaceHit {
+        let Vec2 { x: b1, y: b2 } = barycentrics;
+        let b0 = 1.0 - b1 - b2;
+        let [v0, v1, v2] = self.vertices;
+        let object_position = v0 * b0 + v1 * b1 + v2 * b2;
+        let shading_normal = match self.normals {
+            None => self.geometric_normal,
+            Some([n0, n1, n2]) => (self.instance.normal_from_object
+                * (n0 * b0 + n1 * b1 + n2 * b2))
+                .normalize_or(self.geometric_normal),
         };
         SurfaceHit {
-            position: instance
-                .world_from_object
-                .transform_point3a(object_position),
-            geometric_normal,
+            position: (self.instance.world_from_object).transform_point3a(object_position),
+            geometric_normal: self.geometric_normal,
             shading_normal,
-            uv: geometry.uv_at(triangle, hit.barycentrics),
-            material: geometry.materials.get(triangle).copied().unwrap_or(0),
+            uv: self
+                .uvs
+                .map_or(Vec2::ZERO, |uvs| interpolate_uv(uvs, barycentrics)),
+            material: self.material,
         }
     }
 }

@@ -17,7 +17,7 @@ use super::light::{LightReach, LightSample};
 use super::sampler::{PixelSampler, VertexDraws};
 use super::sampling::{Frame, power_heuristic};
 use super::scene::{RenderScene, SceneAlpha};
-use crate::accel::{Hit, InstanceMask, Ray, SurfaceHit};
+use crate::accel::{Hit, InstanceMask, Ray, SurfaceHit, TriangleSurface};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IntegratorKind {
@@ -99,16 +99,29 @@ pub fn next_hits(
     scene
         .accel
         .intersect_coherent(rays, InstanceMask::CAMERA, alpha, hits);
-    found.extend(
-        rays.iter()
-            .zip(hits.iter())
-            .map(|(ray, hit)| hit.map(|hit| surface_at(scene, ray, hit))),
-    );
+    // A tile's neighbouring camera rays mostly hit the same triangle: what its surface
+    // reads and works out once per triangle is kept from one hit to the next.
+    let mut triangle: Option<TriangleSurface> = None;
+    found.reserve(rays.len());
+    for (ray, hit) in rays.iter().zip(hits.iter()) {
+        found.push(hit.map(|hit| {
+            let on = match triangle {
+                Some(kept) if kept.holds(&hit) => kept,
+                _ => *triangle.insert(scene.accel.triangle_surface(&hit)),
+            };
+            next_hit_at(scene, ray, hit, on.at(hit.barycentrics))
+        }));
+    }
 }
 
 /// What `ray` meets at `hit`: the surface, the way back and the light it emits that way.
 pub fn surface_at(scene: &RenderScene, ray: &Ray, hit: Hit) -> NextHit {
-    let surface = scene.accel.surface(&hit);
+    next_hit_at(scene, ray, hit, scene.accel.surface(&hit))
+}
+
+/// `surface_at` with the surface read.
+#[inline(always)]
+fn next_hit_at(scene: &RenderScene, ray: &Ray, hit: Hit, surface: SurfaceHit) -> NextHit {
     let wo_world = -ray.direction.normalize();
     let material = scene.material(hit.instance, surface.material);
     let front = surface.geometric_normal.dot(wo_world) > 0.0;
