@@ -9,10 +9,12 @@
 //!    phase has its own profiler scope and timer):
 //!    - `primary`: a `PixelSampler` keyed by (seed, frame, pixel, sample), a jittered
 //!      camera ray, and the closest hits of the tile's rays, traced in packets of 16 x 4
-//!      (`AccelScene::intersect_coherent`; the same hits as one ray at a time);
+//!      (`AccelScene::intersect_coherent`; the same hits as one ray at a time), and their
+//!      surfaces (a hit on the last hit's triangle reuses its `TriangleSurface`);
 //!    - `shade`: the first vertex: emission, a light sample and a BSDF sample; rendering
 //!      with guides (the real-time view), also the lamp that lights the vertex most,
-//!      shaded in full and kept apart (`PathState::with_dominant_apart`);
+//!      shaded in full and kept apart (`PathState::with_dominant_apart`), among the lamps
+//!      that may reach the box around the tile's hits (`LightSet::reach`);
 //!    - `shadow`: the first vertex's shadow rays (all towards the lights), traced as
 //!      interleaved streams of single rays (`AccelScene::occluded_stream`; as packets
 //!      they measured slower: see accel/packet.rs and accel/stream.rs);
