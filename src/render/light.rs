@@ -312,16 +312,23 @@ impl PunctualImportance {
     /// cone's, in f64.
     fn may_light(&self, centre: [f64; 3], radius: f64) -> bool {
         let scale = cone_scale(self.cos_inner, self.cos_outer);
-        if self.directional || !self.luminance.is_finite() || !(scale > 0.0 && scale.is_finite()) {
+        // A cone a half-space or wider (a point light has none) is kept whole, and so is a
+        // lamp whose weighing is not plainly finite.
+        if self.directional
+            || f64::from(self.cos_outer) - REACH_COS_SLACK <= 0.0
+            || !self.luminance.is_finite()
+            || !(scale > 0.0 && scale.is_finite())
+        {
             return true;
         }
         let axis = [0, 1, 2].map(|i| f64::from(self.direction[i]));
         let to_centre = [0, 1, 2].map(|i| centre[i] - f64::from(self.position[i]));
         let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
         let (axis_length, distance) = (dot(axis, axis).sqrt(), dot(to_centre, to_centre).sqrt());
+        // The apex inside the sphere; or no axis, where the weighing's cosine is 0, outside
+        // a cone narrower than a half-space.
         if distance <= radius || axis_length == 0.0 {
-            // The apex inside the sphere, or no axis (the weighing's cosine is 0).
-            return distance <= radius || f64::from(self.cos_outer) - REACH_COS_SLACK <= 0.0;
+            return distance <= radius;
         }
         // The widest cosine between the axis and a direction into the sphere.
         let cos_off_axis = (dot(axis, to_centre) / (axis_length * distance)).clamp(-1.0, 1.0);

@@ -777,8 +777,9 @@ impl<'a> Tile<'a> {
 
 /// The punctual lights that may light some first hit of a tile: those of the box around
 /// the hits. Dark tiles (outside every cone) then skip weighing the lamps at every pixel:
-/// the shade phase fell 9% on first-light, 3% on the-gallery (whose 27 lamps in groups of
-/// 8 are left out only a whole group at a time) and 1% on the-keep (one thread).
+/// the shade phase fell 9% on first-light, 3% on the-gallery and 1% on the-keep (one
+/// thread; their 11 lamps each, wardens' included, fill two groups of 8, each left out
+/// only whole).
 fn first_hits_reach(scene: &RenderScene, hits: &[Option<NextHit>]) -> LightReach {
     let mut positions = hits.iter().flatten().map(|hit| hit.surface.position);
     let Some(first) = positions.next() else {
