@@ -571,8 +571,9 @@ enum HashLanes {
     /// Eight lanes whose `reverse_bits` is one GFNI affine step and a byte shuffle in
     /// place of six shifts, masks and shuffles: the bounces phase fell 3.5% and the shade
     /// phase 3.5% on first-light (one thread, 2 alternated pairs). The same function
-    /// built for AVX-512's sixteen lanes made every phase of the render 6-11% slower, the
-    /// draws' own included: the core clocks down after 512-bit work.
+    /// built for AVX-512's sixteen lanes made every phase of the render 6-11% slower (two
+    /// threads, 3 pairs), even those that draw nothing: the core clocks down after 512-bit
+    /// work.
     Avx2Gfni,
 }
 
