@@ -562,7 +562,12 @@ impl<'a> Tile<'a> {
                 profiling::scope!("render.shade");
                 scratch.shadows.clear();
                 scratch.live.clear();
-                let reach = first_hits_reach(scene, &scratch.hits);
+                // Only paths that keep their dominant lamp apart weigh the lamps per tile.
+                let reach = if self.want_guides {
+                    first_hits_reach(scene, &scratch.hits)
+                } else {
+                    LightReach::ALL
+                };
                 let draws = (scratch.draws).draw(&mut scratch.samplers, 0..count);
                 for (index, ((path, hit), draws)) in
                     (scratch.paths.iter_mut().zip(&scratch.hits).zip(draws)).enumerate()

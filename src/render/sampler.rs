@@ -539,7 +539,7 @@ impl VertexDrawBatch {
         }
         let count = self.sequence.len();
         self.planes.resize(count);
-        blue_vertex_planes(
+        HashLanes::best().blue_vertex(
             blue,
             dimension,
             &self.sequence,
@@ -549,17 +549,6 @@ impl VertexDrawBatch {
         self.draws.extend(self.planes.draws(count));
         &self.draws
     }
-}
-
-/// `blue_vertex_lanes` as the best of `HashLanes` the CPU has compiles it.
-fn blue_vertex_planes(
-    blue: &BlueNoise,
-    dimension: u32,
-    sequence: &[u32],
-    salt: &[u32],
-    planes: &mut VertexPlanes,
-) {
-    HashLanes::best().blue_vertex(blue, dimension, sequence, salt, planes);
 }
 
 /// The builds of the blue-noise hashes' lanes: integer lanes, so each gives the same bits.
@@ -578,6 +567,7 @@ enum HashLanes {
 }
 
 impl HashLanes {
+    /// The fastest build this CPU runs.
     fn best() -> HashLanes {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
