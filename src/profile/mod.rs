@@ -580,7 +580,10 @@ impl Profile {
     /// The renderer's rays per second against the harmonic mean of what its accel alone
     /// traces: 1 would be a renderer that costs nothing but its rays. The median over the
     /// rounds of each window's ratio to its own round (a machine whose load changes during
-    /// the run moves both sides of a pair together).
+    /// the run moves both sides of a pair together). It counts rays, not work: work saved
+    /// together with the rays it would have cast (a path the radiance cache ends at its
+    /// second vertex skips its shading and its rays alike) does not raise it, however far
+    /// the render's milliseconds fall.
     pub fn renderer_vs_accel(&self) -> Option<f64> {
         let ratios: Vec<f64> = self
             .accel_windows()
