@@ -308,7 +308,7 @@ pub fn render(
 }
 
 /// `render`, plus each pixel's guides (its first hit) for the film step's filters; with a
-/// radiance `cache`, most paths end at their second vertex with the cache's light there,
+/// radiance `cache`, paths whose second vertex it stands in for end there with its light,
 /// and the frame's full paths list what they teach it in `RenderOutput::cache_samples`
 /// (the real-time view's frames: render/cache.rs).
 pub fn render_guided(
