@@ -26,7 +26,7 @@ use bevy_ecs::prelude::*;
 use crate::extract::step_world::{StepWorld, step_world_schedule};
 use crate::extract::{DeformStats, RenderState, extract_schedule};
 use crate::film::Accumulation;
-use crate::game::replay::StepInput;
+use crate::game::replay::{Recorder, StepInput};
 use crate::game::{
     Animator, Deformer, GlobalTransform, LevelEntity, MeshNode, PreviousGlobalTransform,
     SIMULATION_HZ, SimulationClock, Transform, ViewCamera, WorldGeometry, fixed_step_schedules,
@@ -53,8 +53,9 @@ pub struct Engine {
     owed: f64,
     /// Fixed steps run so far.
     pub steps: u64,
-    /// While recording, each fixed step's input, as the step found it.
-    pub recording: Option<Vec<StepInput>>,
+    /// While recording, each fixed step's input, as the step found it, and the state
+    /// every `game::replay::TRAIL_EVERY` steps.
+    pub recording: Option<Recorder>,
     /// While watching a recording, the inputs still to play, one per fixed step (they
     /// replace what devices give; once they run out the player stands still).
     pub playback: Option<std::collections::VecDeque<StepInput>>,
@@ -232,7 +233,9 @@ impl Engine {
             input.apply(&mut self.world.resource_mut::<crate::game::Input>());
         }
         if let Some(recording) = &mut self.recording {
-            recording.push(StepInput::of(self.world.resource::<crate::game::Input>()));
+            recording
+                .steps
+                .push(StepInput::of(self.world.resource::<crate::game::Input>()));
         }
         // The geometry the step's queries see: the world as the last step left it.
         self.step_world.run(&mut self.world);
@@ -245,6 +248,9 @@ impl Engine {
                 .add(*stage, since(start));
         }
         self.steps += 1;
+        if let Some(recording) = &mut self.recording {
+            recording.after_step(&mut self.world);
+        }
     }
 
     /// Brings the simulation's copy of the level up to date with the world as it stands

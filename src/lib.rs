@@ -17,6 +17,8 @@
 //!   asset generators.
 //! - `profile`: the `Stage` list, per-stage frame statistics and the bench reports (JSON,
 //!   CSV, Chrome trace, PNG chart).
+//! - `headless`: runs with no window, which the command line and the window both call:
+//!   replays of recordings and the player bot (`autoplay`).
 //! - `bench`: the measurement tools behind `bench`, `raybench`, `flythrough` and
 //!   `convergence`.
 //! - `cli`: the `gloam` command line (`main.rs` only calls `cli::main`): it parses flags
@@ -31,6 +33,7 @@ pub mod extract;
 pub mod film;
 pub mod frame;
 pub mod game;
+pub mod headless;
 pub mod profile;
 pub mod render;
 pub mod scene;

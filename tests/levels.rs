@@ -9,10 +9,10 @@ mod common;
 
 use glam::Vec3;
 use gloam::app::menu::find_levels;
-use gloam::app::replay::{read_recording, replay};
 use gloam::frame::Engine;
 use gloam::game::exposure::curve::HIDDEN;
 use gloam::game::{Outcome, Progress, WorldGeometry, spawn_player};
+use gloam::headless::replay::{read_recording, replay};
 use gloam::render::RenderSettings;
 use gloam::scene::Scene;
 use gloam::scene::kit::{GATE_CYCLE, GATE_RISE};
@@ -91,7 +91,7 @@ fn outcome_without(recording_path: &std::path::Path, without: &[&str]) -> Outcom
 
 #[test]
 fn the_gallery_s_mirror_is_what_shows_the_player_to_the_warden() {
-    let caught = recording("the-gallery-caught.json");
+    let caught = recording("the-gallery-mirror.json");
     assert_eq!(outcome_without(&caught, &[]), Outcome::Caught);
     // The same inputs with the glass gone: the corridor is out of the hall's straight sight.
     assert_eq!(

@@ -5,10 +5,10 @@
 
 mod common;
 
-use gloam::app::replay::{read_recording, replay, write_recording};
 use gloam::frame::Engine;
-use gloam::game::replay::{Ended, Recording};
+use gloam::game::replay::{Ended, Recorder, Recording};
 use gloam::game::{Action, Input, Player, Transform, spawn_player};
+use gloam::headless::replay::{read_recording, replay, write_recording};
 use gloam::render::RenderSettings;
 use gloam::scene::Scene;
 
@@ -45,7 +45,7 @@ fn a_recording_replays_to_the_state_the_play_reached() {
     let scene = Scene::load(&level).unwrap();
     let mut engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
     let player = spawn_player(&mut engine.world).unwrap();
-    engine.recording = Some(Vec::new());
+    engine.recording = Some(Recorder::default());
     let script = [
         (vec![Action::MoveForward], 0.3f32),
         (
@@ -72,10 +72,11 @@ fn a_recording_replays_to_the_state_the_play_reached() {
     }
     let played = *engine.world.get::<Transform>(player).unwrap();
     let yaw = engine.world.get::<Player>(player).unwrap().yaw;
-    let steps = engine.recording.take().unwrap();
+    let recorded = engine.recording.take().unwrap();
+    let steps = recorded.steps.clone();
     let dir = common::scratch_dir("record");
     let out = dir.join("recording.json");
-    write_recording(&out, &level, steps.clone(), Ended::Quit).unwrap();
+    write_recording(&out, &level, recorded, Ended::Quit).unwrap();
     let (read, found) = read_recording(&out).unwrap();
     assert_eq!(read.steps, steps);
     assert_eq!(
@@ -112,7 +113,7 @@ fn another_version_of_the_level_or_a_broken_file_is_refused_in_one_line() {
         );
     std::fs::write(&level, &text).unwrap();
     let out = dir.join("replay.json");
-    write_recording(&out, &level, Vec::new(), Ended::Inputs).unwrap();
+    write_recording(&out, &level, Recorder::default(), Ended::Inputs).unwrap();
     let report = replay(&out, 1).unwrap();
     assert_eq!(report["outcome"], "running", "no inputs: still running");
 
@@ -131,11 +132,11 @@ fn another_version_of_the_level_or_a_broken_file_is_refused_in_one_line() {
         "{error}"
     );
     let newer = Recording {
-        version: 2,
+        version: 3,
         ..serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap()
     };
     let future = dir.join("future-replay.json");
     std::fs::write(&future, serde_json::to_string(&newer).unwrap()).unwrap();
     let error = format!("{:#}", replay(&future, 1).unwrap_err());
-    assert!(error.contains("recording version 2"), "{error}");
+    assert!(error.contains("recording version 3"), "{error}");
 }

@@ -1,16 +1,17 @@
 //! Wardens on level 1: the navigation grid built at load finds its way through the doors
-//! and around the furniture; the shipped recordings end as they did (a clean win; a catch
-//! that went patrol -> suspicious -> alert -> caught; a glimpse searched for and given up);
+//! and around the furniture; the shipped recordings end as they did (a win no warden came
+//! halfway to noticing; a catch that went patrol -> suspicious -> caught; a glimpse
+//! searched for and given up);
 //! and no warden ever grew more suspicious while the light gem showed the player hidden
 //! (fair by construction).
 
 mod common;
 
 use glam::Vec3;
-use gloam::app::replay::replay;
 use gloam::frame::Engine;
 use gloam::game::exposure::curve::HIDDEN;
 use gloam::game::{NavGrid, WorldGeometry};
+use gloam::headless::replay::replay;
 use gloam::render::RenderSettings;
 use gloam::scene::Scene;
 use serde_json::Value;
@@ -116,17 +117,21 @@ fn the_clean_run_wins_unseen() {
             assert_eq!(states(step, warden).0, "patrol", "t {}", step["t"]);
         }
     }
-    // A dark route all the way: the gem never lights more than one of the HUD's cells.
-    let brightest = steps
+    // Unseen, not only unnoticed: no warden's suspicion came halfway to noticing.
+    let most = steps
         .iter()
-        .map(|s| s["exposure"].as_f64().unwrap())
+        .flat_map(|s| s["wardens"].as_array().unwrap().iter())
+        .map(|w| w["suspicion"].as_f64().unwrap())
         .fold(0.0, f64::max);
-    assert!(brightest < 0.3, "{brightest}");
+    assert!(
+        most < gloam::game::warden::tuning::NOTICE as f64 * 0.5,
+        "{most}"
+    );
     assert_fair(&report);
 }
 
 #[test]
-fn the_caught_run_is_seen_chased_and_caught_in_order() {
+fn the_caught_run_is_noticed_then_caught_in_order() {
     let report = replay(&recording("first-light-caught.json"), 1).unwrap();
     assert_eq!(report["outcome"], "caught");
     let steps = report["steps"].as_array().unwrap();
@@ -137,8 +142,12 @@ fn the_caught_run_is_seen_chased_and_caught_in_order() {
             order.push(state);
         }
     }
-    assert_eq!(order, ["patrol", "suspicious", "alert", "caught"]);
-    // It was seen standing in the hall lamp's pool: the gem showed it.
+    // Noticed first; alert and caught may fall in one step when the body stands within
+    // reach of the warden (the scripted walk waits in its lamp's pool).
+    assert_eq!(order[..2], ["patrol", "suspicious"]);
+    assert_eq!(order.last().map(String::as_str), Some("caught"));
+    assert!(order.len() <= 4, "{order:?}");
+    // It was seen standing in the warden's lamp: the gem showed it.
     let noticed = steps
         .iter()
         .find(|s| states(s, "warden 1").0 == "suspicious")
@@ -149,8 +158,8 @@ fn the_caught_run_is_seen_chased_and_caught_in_order() {
 
 #[test]
 fn a_glimpse_is_searched_for_where_it_was_then_forgotten() {
-    use gloam::app::replay::read_recording;
     use gloam::game::{Progress, Warden, WardenState, spawn_player};
+    use gloam::headless::replay::read_recording;
     let (glimpse, level) = read_recording(&recording("first-light-glimpsed.json")).unwrap();
     let mut engine = Engine::new(
         &Scene::load(&level).unwrap(),

@@ -70,6 +70,8 @@ pub struct Finish {
     pub new_best: bool,
     /// The time to beat before this attempt.
     pub previous: Option<Best>,
+    /// Noclip was used: the run does not count for best times.
+    pub noclip: bool,
 }
 
 /// What the menus read and change.
@@ -492,6 +494,10 @@ fn won_title(context: &MenuContext) -> Vec<String> {
             best.times_seen
         ),
     ];
+    if finish.noclip {
+        lines.push("Noclip was used: this run does not count for best times.".to_string());
+        return lines;
+    }
     lines.push(match (finish.new_best, finish.previous) {
         (true, Some(previous)) => format!(
             "A new best: {} faster than {}",
@@ -799,6 +805,7 @@ mod tests {
         let mut context = context();
         context.playing = Some("levels/a.ron".into());
         context.finish = Some(Finish {
+            noclip: false,
             level: "levels/a.ron".into(),
             best: Best {
                 seconds: 55.0,

@@ -32,7 +32,6 @@
 pub mod editor;
 mod hud;
 pub mod menu;
-pub mod replay;
 pub mod resolution;
 pub mod screenshot;
 pub mod settings;
@@ -500,7 +499,7 @@ impl App {
         let mut engine = play_engine(&scene, &self.options);
         set_field_of_view(&mut engine, self.context.settings.field_of_view);
         if self.options.record.is_some() {
-            engine.recording = Some(Vec::new());
+            engine.recording = Some(crate::game::replay::Recorder::default());
         }
         if let Some(recording) = &self.options.watch {
             engine.playback = Some(recording.steps.iter().copied().collect());
@@ -682,11 +681,12 @@ impl App {
     /// Writes the recording, if one is being made, ended as `ended`; says where.
     fn finish_recording(&mut self, ended: crate::game::replay::Ended) {
         let Some(game) = &mut self.game else { return };
-        let (Some(out), Some(steps)) = (&self.options.record, game.engine.recording.take()) else {
+        let (Some(out), Some(recorded)) = (&self.options.record, game.engine.recording.take())
+        else {
             return;
         };
-        let count = steps.len();
-        match replay::write_recording(out, &game.level, steps, ended) {
+        let count = recorded.steps.len();
+        match crate::headless::replay::write_recording(out, &game.level, recorded, ended) {
             Ok(()) => println!("wrote {} ({count} steps, ended {ended:?})", out.display()),
             Err(error) => eprintln!("gloam: {error:#}"),
         }
@@ -724,8 +724,11 @@ impl App {
         };
         let level = game.level.clone();
         let previous = self.context.best.get(&level);
-        // A watched recording is someone's run, not the player's.
-        let new_best = self.options.watch.is_none() && self.context.best.offer(&level, finish);
+        // A watched recording is someone's run, not the player's; a run that flew through
+        // walls with noclip is no run at all.
+        let new_best = self.options.watch.is_none()
+            && !progress.noclip_used
+            && self.context.best.offer(&level, finish);
         if new_best
             && let Some(dir) = &self.config
             && let Err(error) =
@@ -734,6 +737,7 @@ impl App {
             self.notify(format!("{error:#}"));
         }
         self.context.finish = Some(Finish {
+            noclip: progress.noclip_used,
             level,
             best: finish,
             new_best,
@@ -1213,6 +1217,15 @@ fn draw_hud(
         if total > 0 {
             let line = format!("shards {}/{total}", progress.shards_taken);
             hud::draw_text(frame, width, height, 2, height.saturating_sub(18), &line);
+        }
+        let exits = engine
+            .world
+            .query_filtered::<(), bevy_ecs::query::With<crate::game::Exit>>()
+            .iter(&engine.world)
+            .count();
+        if exits == 0 {
+            let line = "free walk: this level has no way out";
+            hud::draw_text(frame, width, height, 2, height.saturating_sub(30), line);
         }
         if progress.outcome == crate::game::Outcome::Caught && watching {
             // Only a watched recording shows this: in play the level has restarted.

@@ -140,7 +140,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     }
     let (recording, level) = match &options.replay {
         Some(path) => {
-            let (recording, level) = crate::app::replay::read_recording(path)?;
+            let (recording, level) = crate::headless::replay::read_recording(path)?;
             if let Some(named) = &options.level {
                 let same = std::fs::canonicalize(named).ok() == std::fs::canonicalize(&level).ok();
                 if !same {

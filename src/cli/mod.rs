@@ -138,6 +138,13 @@ pub enum Command {
     /// below --threshold. Writes MAP.png and MAP.json.
     #[command(allow_negative_numbers = true)]
     Exposure(exposure_map::Options),
+    /// A player bot plays the level headless, through the player's own input actions,
+    /// unseen if it can: it plans through space and time from what a player can watch (the
+    /// wardens' beats, the light), collects every shard and leaves. Exit 0 when it won;
+    /// otherwise 1, with a line saying why (no unseen route and where it is watched and
+    /// lit, caught, or out of time).
+    #[command(allow_negative_numbers = true)]
+    Autoplay(crate::headless::autoplay::Options),
     /// Compare two .exr renders of the same size: mean radiance of each, RMSE, and the
     /// ratio of their means over a 4 x 4 grid of regions (a local bias shows there).
     #[command(allow_negative_numbers = true)]
@@ -287,7 +294,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                         "watching a recording (--replay without --headless) takes no --record, --json or --threads"
                     );
                 }
-                let (recording, recorded_level) = crate::app::replay::read_recording(&replay)?;
+                let (recording, recorded_level) = crate::headless::replay::read_recording(&replay)?;
                 if let Some(given) = &level
                     && std::fs::canonicalize(given).ok()
                         != std::fs::canonicalize(&recorded_level).ok()
@@ -374,6 +381,11 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             exposure_map::run(&options)?;
             Ok(ExitCode::SUCCESS)
         }
+        Command::Autoplay(options) => Ok(if crate::headless::autoplay::run(&options)? {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::FAILURE
+        }),
         Command::Compare { image, reference } => {
             compare(&image, &reference)?;
             Ok(ExitCode::SUCCESS)
@@ -410,7 +422,15 @@ fn replay_command(
     if threads == 0 {
         anyhow::bail!("--threads must be at least 1");
     }
-    let report = crate::app::replay::replay(path, threads)?;
+    let report = crate::headless::replay::replay(path, threads)?;
+    if let Some(out) = json {
+        let text = serde_json::to_string_pretty(&report).context("encoding the report")?;
+        crate::scene::files::write_atomically(out, text.as_bytes())?;
+    }
+    if let Some(diverged) = crate::headless::replay::divergence(&report) {
+        eprintln!("{}", diverged.line(path));
+        return Ok(ExitCode::FAILURE);
+    }
     println!(
         "{}: {} after {} steps, state hash {}",
         path.display(),
@@ -419,8 +439,6 @@ fn replay_command(
         report["state_hash"].as_str().unwrap_or("?")
     );
     if let Some(out) = json {
-        let text = serde_json::to_string_pretty(&report).context("encoding the report")?;
-        crate::scene::files::write_atomically(out, text.as_bytes())?;
         println!("wrote {}", out.display());
     }
     Ok(ExitCode::SUCCESS)
@@ -452,6 +470,15 @@ fn check(path: &Path) -> ExitCode {
                     .sum::<usize>(),
                 scene.punctual_lights().len(),
             );
+            let is_level = path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("ron"));
+            if is_level && !scene.level.entities.iter().any(|e| e.exit.is_some()) {
+                println!(
+                    "{}: warning: no exit: the level is a free walk that never ends",
+                    path.display()
+                );
+            }
             ExitCode::SUCCESS
         }
         Err(error) => {

@@ -328,7 +328,7 @@ fn lit_crossings<T: Copy>(path: &[T], cost: impl Fn(T) -> f32, threshold: f32) -
 }
 
 /// Every node a body walks to from `start`.
-fn flood(grid: &NavGrid, start: Node) -> Vec<Node> {
+pub fn flood(grid: &NavGrid, start: Node) -> Vec<Node> {
     let mut seen = vec![false; grid.index_bound()];
     let mut reached = vec![start];
     seen[grid.index(start)] = true;

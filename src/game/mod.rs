@@ -42,6 +42,7 @@ pub mod player;
 pub mod replay;
 pub mod sight;
 pub mod spawn;
+pub mod state;
 pub mod transform;
 pub mod warden;
 pub mod world_query;

@@ -32,6 +32,9 @@ pub const CELL: f32 = 0.25;
 /// The most floors one column holds.
 const MAX_FLOORS: usize = 4;
 
+/// Two floors of one column closer than this are one floor (metres).
+const SAME_FLOOR: f32 = 0.05;
+
 /// Where bodies can walk, built once at load.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct NavGrid {
@@ -104,6 +107,34 @@ impl NavGrid {
         grid
     }
 
+    /// This grid with every floor of `other` (a grid over the same cells, built when moving
+    /// geometry stood elsewhere) added to its columns: where a body can stand at some time.
+    /// Floors within `SAME_FLOOR` of one already there are the same floor. Each column keeps
+    /// its `MAX_FLOORS` highest.
+    pub fn union(&mut self, other: &NavGrid) {
+        if (self.width, self.depth) != (other.width, other.depth) {
+            return;
+        }
+        for (mine, theirs) in self.floors.iter_mut().zip(&other.floors) {
+            for &floor in theirs {
+                if !mine.iter().any(|&f| (f - floor).abs() <= SAME_FLOOR) {
+                    mine.push(floor);
+                }
+            }
+            mine.sort_by(|a, b| b.total_cmp(a));
+            mine.truncate(MAX_FLOORS);
+        }
+    }
+
+    /// Whether this grid has a floor at `position` (its column, within `SAME_FLOOR`).
+    pub fn has_floor_at(&self, position: Vec3) -> bool {
+        self.cell_of(position.x, position.z).is_some_and(|column| {
+            self.floors[column]
+                .iter()
+                .any(|&f| (f - position.y).abs() <= SAME_FLOOR)
+        })
+    }
+
     /// The centre (x, z) of cell (`column`, `row`).
     pub fn centre(&self, column: usize, row: usize) -> (f32, f32) {
         (
@@ -129,6 +160,21 @@ impl NavGrid {
     /// A dense index for `node` (below `index_bound`), for per-node tables.
     pub fn index(&self, node: Node) -> usize {
         node.column * MAX_FLOORS + node.floor
+    }
+
+    /// The node whose `index` is `index` (it may name no floor: check `floor_count`).
+    pub fn node_of_index(&self, index: usize) -> Node {
+        Node {
+            column: index / MAX_FLOORS,
+            floor: index % MAX_FLOORS,
+        }
+    }
+
+    /// Whether `node` names a floor of this grid.
+    pub fn holds(&self, node: Node) -> bool {
+        self.floors
+            .get(node.column)
+            .is_some_and(|floors| node.floor < floors.len())
     }
 
     /// One more than the largest `index`.
@@ -337,7 +383,7 @@ impl NavGrid {
 }
 
 /// Whether a standing body's capsule at `feet` touches nothing but the floor under it.
-fn stands_clear(world: &dyn WorldQuery, feet: Vec3, contacts: &mut Vec<Contact>) -> bool {
+pub fn stands_clear(world: &dyn WorldQuery, feet: Vec3, contacts: &mut Vec<Contact>) -> bool {
     // Spheres of the capsule's radius from a step above the floor to the head: what is
     // lower than a step (a kerb, the next stair) the body steps up onto, as the player's
     // controller does, so it does not block the cell. (Half a step blocked every cell of a

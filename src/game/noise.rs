@@ -1,7 +1,8 @@
 //! Game schedule, fixed step "gameplay": noise, and the wardens who hear it.
 //!
 //! Per step:
-//! 1. `make_noise` (after the player moves): sprinting on the ground makes a footfall every
+//! 1. `make_noise` (after the player moves): sprinting on the ground (`Player::sprinting`:
+//!    the sprint action held, not the body's speed) makes a footfall every
 //!    `STRIDE` seconds, heard out to `SPRINT_RADIUS`; landing faster than `LANDING_SPEED`
 //!    (a drop of about 0.8 m; a jump on the flat lands softer) is heard out to
 //!    `LANDING_RADIUS`. Walking and crouching are quiet. Each noise is kept in `Noises`
@@ -26,7 +27,6 @@ use glam::{Quat, Vec3};
 use super::goal::{Outcome, Progress};
 use super::nav::NavGrid;
 use super::player::Player;
-use super::player::tuning::WALK;
 use super::warden::{Warden, WardenState, plan, tuning::NOTICE};
 use super::world_query::WorldGeometry;
 use super::{SIMULATION_HZ, Transform};
@@ -156,9 +156,7 @@ pub fn make_noise(
                 age: 0.0,
             });
         }
-        let speed = Vec3::new(player.velocity.x, 0.0, player.velocity.z).length();
-        let sprinting = player.grounded && !player.crouched && speed > WALK + 0.1;
-        if sprinting && !player.noclip {
+        if player.sprinting && !player.noclip {
             feet.until_next -= STEP;
             if feet.until_next <= 0.0 {
                 noises.0.push(Noise {

@@ -64,6 +64,10 @@ pub struct Player {
     pub crouched: bool,
     /// Collision off: the body flies.
     pub noclip: bool,
+    /// Running on the ground this step (the sprint action held, standing, moving): what
+    /// makes a sprinting footfall's noise. The body's speed does not say it: a stumble
+    /// down a stair edge turns falling into speed across the ground past a walk's.
+    pub sprinting: bool,
     /// View angles in radians: yaw about +Y (0 looks down -Z), pitch up from the horizon.
     pub yaw: f32,
     pub pitch: f32,
@@ -74,7 +78,8 @@ pub struct Player {
 }
 
 impl Player {
-    /// A player standing (eye at 1.6 m) and moving at `velocity`, for unit tests.
+    /// A player standing (eye at 1.6 m) and moving at `velocity`, for unit tests: running
+    /// (the sprint held) when that is faster than a walk.
     #[cfg(test)]
     pub(crate) fn moving(velocity: Vec3, grounded: bool) -> Player {
         Player {
@@ -82,6 +87,7 @@ impl Player {
             grounded,
             crouched: false,
             noclip: false,
+            sprinting: grounded && Vec3::new(velocity.x, 0.0, velocity.z).length() > WALK + 0.1,
             yaw: 0.0,
             pitch: 0.0,
             eye_height: 1.6,
@@ -144,6 +150,7 @@ pub fn spawn_player(world: &mut World) -> Option<Entity> {
                 grounded: false,
                 crouched: false,
                 noclip: false,
+                sprinting: false,
                 yaw,
                 pitch: 0.0,
                 eye_height: start.eye_height,
@@ -278,13 +285,17 @@ pub fn move_player(
     mut bodies: Query<(&mut Player, &mut Transform, &Children), Without<PlayerEye>>,
     mut eyes: Query<&mut Transform, With<PlayerEye>>,
     mut contacts: Local<Vec<Contact>>,
-    progress: Option<Res<super::Progress>>,
+    progress: Option<ResMut<super::Progress>>,
 ) {
     let dt = 1.0 / SIMULATION_HZ as f32;
     let look = std::mem::take(&mut input.look);
     let pressed = std::mem::take(&mut input.pressed);
     // Once the attempt is over, the body stands still.
-    if progress.is_some_and(|p| p.outcome != super::Outcome::Running) {
+    let mut progress = progress;
+    if progress
+        .as_ref()
+        .is_some_and(|p| p.outcome != super::Outcome::Running)
+    {
         return;
     }
     let empty = super::world_query::EmptyWorld;
@@ -298,6 +309,11 @@ pub fn move_player(
         if pressed.contains(&Action::Noclip) {
             player.noclip = !player.noclip;
             player.velocity = Vec3::ZERO;
+            if player.noclip
+                && let Some(progress) = progress.as_mut()
+            {
+                progress.noclip_used = true;
+            }
         }
         let facing = Quat::from_rotation_y(player.yaw);
         let mut feet = transform.translation;
@@ -314,6 +330,7 @@ pub fn move_player(
             }
         }
         if player.noclip {
+            player.sprinting = false;
             let view = facing * Quat::from_rotation_x(player.pitch);
             let mut motion = view * wish;
             if held(Action::MoveUp) {
@@ -357,6 +374,7 @@ pub fn move_player(
             };
             (feet, player.velocity, player.grounded) =
                 body.step(feet, player.velocity, player.grounded, dt);
+            player.sprinting = speed == SPRINT && wish != Vec3::ZERO && player.grounded;
         }
         transform.set_if_neq(Transform {
             translation: feet,

@@ -22,6 +22,6 @@ fuzz_target!(|data: &[u8]| {
     if std::fs::write(path, data).is_err() {
         return;
     }
-    let _ = gloam::app::replay::replay(path, 1);
+    let _ = gloam::headless::replay::replay(path, 1);
     let _ = std::fs::remove_file(path);
 });

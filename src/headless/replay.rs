@@ -1,0 +1,295 @@
+//! Recordings and headless replays of play-throughs (`gloam play LEVEL --record FILE`,
+//! `gloam play --headless --replay FILE --json OUT`, and the bot's runs).
+//!
+//! Recording: the frame driver keeps each fixed step's input and the trail of states
+//! (`Engine::recording`); when the attempt is won or caught, or the player quits, it is
+//! written (atomically) with the level's path relative to the recording and the level
+//! file's hash (`game::replay::Recording`).
+//!
+//! Replay: the level the recording names is loaded (refused in one line if its file has
+//! changed since), the player spawned, and every recorded step's input fed to one fixed
+//! step of the simulation, with no rendering, until the inputs end or the attempt is won
+//! or caught. After each step the whole state is read (`game::state::StateParts`); at
+//! each mark of the recording's trail it is held to the mark, and the replay stops at the
+//! first mark it departs from. A replay that ends at another step than the recording did
+//! (won or caught sooner, or not at all) has departed too. The report, per 60 Hz step:
+//! the time, the player's feet, the light gem, the shards left and the wardens; then the
+//! outcome, `state_hash` (the states of every step chained, 16 hex digits: the same on
+//! any thread count and with either SIMD kernels), and `diverged`: null, or where the
+//! replay went another way (`{"step", "t", "part"}`).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context as _, anyhow, bail};
+use bevy_ecs::query::With;
+use serde_json::{Value, json};
+
+use crate::frame::Engine;
+use crate::game::replay::{
+    Ended, Fnv64, OLDEST_RECORDING_VERSION, RECORDING_VERSION, Recorder, Recording, level_hash,
+};
+use crate::game::state::StateParts;
+use crate::game::{
+    Exposure, Input, Outcome, Player, Progress, SIMULATION_HZ, Shard, Transform, Warden,
+    spawn_player,
+};
+use crate::render::RenderSettings;
+use crate::scene::files::write_atomically;
+use crate::scene::world::Scene;
+
+/// `to` relative to the folder `from` (both made absolute first), with `/` separators.
+fn relative_path(from: &Path, to: &Path) -> anyhow::Result<String> {
+    let from = std::fs::canonicalize(from)
+        .with_context(|| format!("cannot resolve folder '{}'", from.display()))?;
+    let to = std::fs::canonicalize(to)
+        .with_context(|| format!("cannot resolve file '{}'", to.display()))?;
+    let common = from
+        .components()
+        .zip(to.components())
+        .take_while(|(a, b)| a == b)
+        .count();
+    let mut relative = PathBuf::new();
+    for _ in from.components().skip(common) {
+        relative.push("..");
+    }
+    for component in to.components().skip(common) {
+        relative.push(component);
+    }
+    Ok(relative.to_string_lossy().replace('\\', "/"))
+}
+
+/// Writes the steps recorded while playing `level` to `out`.
+pub fn write_recording(
+    out: &Path,
+    level: &Path,
+    recorded: Recorder,
+    ended: Ended,
+) -> anyhow::Result<()> {
+    let folder = match out.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent.to_owned(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&folder)
+        .with_context(|| format!("cannot create folder '{}'", folder.display()))?;
+    let bytes =
+        std::fs::read(level).with_context(|| format!("cannot read '{}'", level.display()))?;
+    let recording = Recording {
+        version: RECORDING_VERSION,
+        level: relative_path(&folder, level)?,
+        level_hash: level_hash(&bytes),
+        ended,
+        steps: recorded.steps,
+        trail: recorded.trail,
+    };
+    let text = serde_json::to_string(&recording).context("encoding the recording")?;
+    write_atomically(out, text.as_bytes())
+}
+
+/// Reads a recording and finds its level: (recording, level file).
+pub fn read_recording(path: &Path) -> anyhow::Result<(Recording, PathBuf)> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read recording '{}'", path.display()))?;
+    let recording: Recording = serde_json::from_str(&text).map_err(|error| {
+        anyhow!(
+            "{}:{}:{}: not a Gloam recording: {error}",
+            path.display(),
+            error.line(),
+            error.column()
+        )
+    })?;
+    if !(OLDEST_RECORDING_VERSION..=RECORDING_VERSION).contains(&recording.version) {
+        bail!(
+            "{}: recording version {} (this gloam reads versions {OLDEST_RECORDING_VERSION} to {RECORDING_VERSION})",
+            path.display(),
+            recording.version
+        );
+    }
+    let folder = path.parent().unwrap_or(Path::new("."));
+    let level = folder.join(&recording.level);
+    let bytes = std::fs::read(&level).with_context(|| {
+        format!(
+            "{}: its level '{}' cannot be read",
+            path.display(),
+            level.display()
+        )
+    })?;
+    let hash = level_hash(&bytes);
+    if hash != recording.level_hash {
+        bail!(
+            "{}: recorded on another version of '{}' (level hash {}, the file now hashes {hash}); record it again",
+            path.display(),
+            level.display(),
+            recording.level_hash
+        );
+    }
+    Ok((recording, level))
+}
+
+/// Where a replay went another way than its recording.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Divergence {
+    /// The step after which it was found (1 is the first step).
+    pub step: usize,
+    /// What differs: the first part of the state, or how the ending differs.
+    pub part: String,
+}
+
+impl Divergence {
+    /// The one line a replay that diverged ends with, naming the recording.
+    pub fn line(&self, recording: &Path) -> String {
+        format!(
+            "{}: diverged at step {} (t = {:.2} s): {}",
+            recording.display(),
+            self.step,
+            self.step as f64 / SIMULATION_HZ,
+            self.part
+        )
+    }
+}
+
+/// Replays `path` headless on `threads` threads: the report (see the module doc).
+pub fn replay(path: &Path, threads: usize) -> anyhow::Result<Value> {
+    let (recording, level) = read_recording(path)?;
+    let scene = Scene::load(&level)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("starting the worker threads")?;
+    pool.install(|| {
+        let mut engine = Engine::new(&scene, RenderSettings::real_time(1, 1));
+        spawn_player(&mut engine.world)
+            .with_context(|| format!("{}: the level has no player start", level.display()))?;
+        Ok(simulate(&mut engine, &recording))
+    })
+}
+
+/// The divergence a replay report holds, if any.
+pub fn divergence(report: &Value) -> Option<Divergence> {
+    let diverged = report.get("diverged")?;
+    Some(Divergence {
+        step: diverged.get("step")?.as_u64()? as usize,
+        part: diverged.get("part")?.as_str()?.to_owned(),
+    })
+}
+
+/// Feeds the recording's steps to the simulation and reports each.
+fn simulate(engine: &mut Engine, recording: &Recording) -> Value {
+    let mut hash = Fnv64::default();
+    let mut steps = Vec::with_capacity(recording.steps.len());
+    let mut marks = recording.trail.iter().peekable();
+    let mut diverged: Option<Divergence> = None;
+    for (index, input) in recording.steps.iter().enumerate() {
+        input.apply(&mut engine.world.resource_mut::<Input>());
+        engine.step();
+        let state = StateParts::of(&mut engine.world);
+        hash.write(&state.hash().to_le_bytes());
+        steps.push(step_report(engine, index + 1));
+        while marks.next_if(|mark| mark.step < index + 1).is_some() {}
+        if let Some(mark) = marks.next_if(|mark| mark.step == index + 1)
+            && let Some(part) = state.first_difference(&mark.state())
+        {
+            diverged = Some(Divergence {
+                step: index + 1,
+                part,
+            });
+            break;
+        }
+        if engine.world.resource::<Progress>().outcome != Outcome::Running {
+            break;
+        }
+    }
+    let ran = steps.len();
+    let outcome = engine.world.resource::<Progress>().outcome;
+    if diverged.is_none() {
+        diverged = ending_difference(recording, outcome, ran);
+    }
+    let outcome = match outcome {
+        Outcome::Running if recording.ended == Ended::Quit => Outcome::Quit,
+        outcome => outcome,
+    };
+    json!({
+        "outcome": outcome.name(),
+        "state_hash": hash.hex(),
+        "steps": steps,
+        "diverged": diverged.map(|d| json!({
+            "step": d.step,
+            "t": d.step as f64 / SIMULATION_HZ,
+            "part": d.part,
+        })),
+    })
+}
+
+/// How the replay's end differs from the recording's: won or caught at another step, or
+/// at all.
+fn ending_difference(recording: &Recording, outcome: Outcome, ran: usize) -> Option<Divergence> {
+    let recorded = recording.steps.len();
+    let expected = match recording.ended {
+        Ended::Won => Outcome::Won,
+        Ended::Caught => Outcome::Caught,
+        Ended::Quit | Ended::Inputs => Outcome::Running,
+    };
+    if outcome == expected && (ran == recorded || outcome == Outcome::Running) {
+        return None;
+    }
+    let part = match (outcome, expected) {
+        (Outcome::Running, _) => format!(
+            "still running after the last step; the recording ended {}",
+            expected.name()
+        ),
+        (_, Outcome::Running) => format!(
+            "{} at step {ran}; the recording goes on to step {recorded}",
+            outcome.name()
+        ),
+        _ if outcome == expected => format!(
+            "{} at step {ran}; the recording ended at step {recorded}",
+            outcome.name()
+        ),
+        _ => format!(
+            "{} at step {ran}; the recording ended {} at step {recorded}",
+            outcome.name(),
+            expected.name()
+        ),
+    };
+    Some(Divergence { step: ran, part })
+}
+
+/// One step's line of the report.
+fn step_report(engine: &mut Engine, step: usize) -> Value {
+    let mut players = engine
+        .world
+        .query_filtered::<(&Transform, &Exposure), With<Player>>();
+    let (feet, gem) = players
+        .iter(&engine.world)
+        .next()
+        .map_or((glam::Vec3::ZERO, 0.0), |(t, e)| (t.translation, e.gem));
+    let shards_left = engine
+        .world
+        .query_filtered::<(), With<Shard>>()
+        .iter(&engine.world)
+        .count() as u32;
+    let mut wardens: Vec<(String, &'static str, f32)> = engine
+        .world
+        .query::<(&bevy_ecs::name::Name, &Warden)>()
+        .iter(&engine.world)
+        .map(|(name, warden)| {
+            (
+                name.as_str().to_owned(),
+                warden.state.name(),
+                warden.suspicion,
+            )
+        })
+        .collect();
+    wardens.sort_by(|a, b| a.0.cmp(&b.0));
+    json!({
+        "t": step as f64 / SIMULATION_HZ,
+        "player": [feet.x, feet.y, feet.z],
+        "exposure": gem,
+        "shards_left": shards_left,
+        "wardens": wardens
+            .iter()
+            .map(|(name, state, suspicion)| {
+                json!({"name": name, "state": state, "suspicion": suspicion})
+            })
+            .collect::<Vec<_>>(),
+    })
+}
