@@ -7,32 +7,35 @@
 //! While the bot stays unseen and silent the real wardens walk exactly those steps: the
 //! simulation is deterministic and their beats never read a player they have not noticed.
 //!
-//! The search (`plan_leg`) is over (floor cell, moment): the moments are slices of
-//! `SLICE_STEPS` fixed steps, the cells the nodes of a navigation grid over every place a
-//! body can stand at some time (`Map`: the wardens' grid, joined with grids built while
-//! moving geometry such as a gate stood elsewhere). From a cell the bot may wait a slice,
-//! crouched, or move to a neighbouring cell crouched (0.9 m/s) or walking (1.4 m/s; not
-//! near anything it would knock over), taking the slices that move needs. It never
-//! sprints or jumps: both make noise. A move is allowed while, at every slice it spans,
-//! neither end is one a warden would see the bot at:
+//! The search (`sweep`) is over (floor cell, shards taken, moment): the moments are
+//! slices of `SLICE_STEPS` fixed steps, the cells the nodes of a navigation grid over every
+//! place a body can stand at some time (`Map`: the wardens' grid, joined with grids built
+//! while moving geometry such as a gate stood elsewhere). From a cell the bot may wait a
+//! slice, move to a neighbouring cell crouched (0.9 m/s) or walking (1.4 m/s; not near
+//! anything it would knock over; on stairs only walking), or nudge towards a shard on a
+//! table and back, taking the slices that move needs. It never sprints or jumps: both make
+//! noise. At every slice a move spans, the most any warden could see of it is
 //!
-//!   max(view(a), view(b)) x lit(max(gem(a), gem(b))) <= `SAFE_VISIBILITY`,
+//!   vis = max(view(a), view(b)) x lit(max(gem(a), gem(b))),
 //!
 //! with `view` the share of the body's points in a warden's cones and in its line of sight
 //! times the distance falloff (`sight::look`, the wardens' own function, mirrors included),
 //! `gem` the light gem the body settles at there (`exposure::settled_gem`: the game's own
 //! body points, lights and shadow rays) and `lit` the wardens' reading of it. Taking the
 //! brighter end's gem stands for the gem's smoothing, which carries light from one cell
-//! into the next. `SAFE_VISIBILITY` is under a third of what a warden needs to grow
-//! suspicious at all (`DRAIN / FILL_RATE` = 0.1); and no cell within `KEEP_AWAY` of a
-//! warden is ever taken. The slices advance in order, as the foresight engine runs, so the
-//! search is a breadth-first sweep through time: the first slice at which a goal cell is
-//! reached is the earliest unseen arrival, and waiting in the dark for a lamp to pass is
+//! into the next. The wardens' suspicion then moves by `FILL_RATE` x vis - `DRAIN` a
+//! second, as theirs does; the search carries an upper bound on the most suspicious
+//! warden's (a move keeps it as a function of the suspicion it left with, so one move
+//! serves every set of shards) and drops every move that would take it past
+//! `SUSPICION_LIMIT`, half of noticing. No cell within `KEEP_AWAY` of a warden is taken.
+//! The slices advance in order, as the foresight engine runs, so the search is a
+//! breadth-first sweep through time: the first slice at which the way out is reached with
+//! every shard is the earliest unseen finish, and waiting in the dark for a lamp to pass is
 //! simply the move that gets there first.
 //!
-//! A leg that cannot reach its goal in `LEG_SECONDS` has no unseen route: the cells along
-//! the shortest walkable way that the sweep never reached, and found watched and lit, are
-//! its chokepoints.
+//! A sweep that takes no new shard in `LEG_SECONDS` has no unseen route: the cells along
+//! the shortest walkable way to what it still lacks that it never reached, and found
+//! watched and lit, are its chokepoints.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -52,16 +55,17 @@ use crate::game::{Knockable, SIMULATION_HZ, Transform, Warden};
 /// warden's suspicion to noticing (0.067 s x (2 - 0.2) a second = 0.12, under 0.25).
 pub const SLICE_STEPS: u64 = 6;
 
-/// The most a warden may see of the bot in any slice (visibility 0..1; suspicion grows
-/// only above 0.1).
+/// A view this dim needs no light gem to judge: counted as fully lit it still drains
+/// suspicion (which grows only above a visibility of 0.1).
 pub const SAFE_VISIBILITY: f32 = 0.095;
 
 /// No cell nearer a warden than this (metres across the ground) is taken: within touch a
 /// warden senses the body from behind, and its lamp is there.
 pub const KEEP_AWAY: f32 = 1.6;
 
-/// How long one leg (to the next shard, or to the way out) may take before the level is
-/// judged to have no unseen route for it (seconds): longer than any beat's round.
+/// How long the sweep may go without taking another shard (or, with all taken, reaching
+/// the way out) before the level is judged to have no unseen route (seconds): longer than
+/// any beat's round.
 pub const LEG_SECONDS: f64 = 150.0;
 
 /// How far apart in time the grids of moving geometry are built, and for how long.
