@@ -1218,12 +1218,19 @@ fn draw_hud(
             let line = format!("shards {}/{total}", progress.shards_taken);
             hud::draw_text(frame, width, height, 2, height.saturating_sub(18), &line);
         }
+        // A level with a player and no way out is a free walk (a scene without a player
+        // is only a view).
         let exits = engine
             .world
             .query_filtered::<(), bevy_ecs::query::With<crate::game::Exit>>()
             .iter(&engine.world)
             .count();
-        if exits == 0 {
+        let players = engine
+            .world
+            .query_filtered::<(), bevy_ecs::query::With<crate::game::Player>>()
+            .iter(&engine.world)
+            .count();
+        if exits == 0 && players > 0 {
             let line = "free walk: this level has no way out";
             hud::draw_text(frame, width, height, 2, height.saturating_sub(30), line);
         }

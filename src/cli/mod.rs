@@ -473,7 +473,10 @@ fn check(path: &Path) -> ExitCode {
             let is_level = path
                 .extension()
                 .is_some_and(|e| e.eq_ignore_ascii_case("ron"));
-            if is_level && !scene.level.entities.iter().any(|e| e.exit.is_some()) {
+            if is_level
+                && scene.player_spawn().is_some()
+                && !scene.level.entities.iter().any(|e| e.exit.is_some())
+            {
                 println!(
                     "{}: warning: no exit: the level is a free walk that never ends",
                     path.display()

@@ -454,7 +454,7 @@ pub fn animate_wardens(
 }
 
 /// `angle` in (-pi, pi].
-fn wrap_angle(angle: f32) -> f32 {
+pub fn wrap_angle(angle: f32) -> f32 {
     let tau = std::f32::consts::TAU;
     let wrapped = (angle + std::f32::consts::PI).rem_euclid(tau) - std::f32::consts::PI;
     if wrapped <= -std::f32::consts::PI {

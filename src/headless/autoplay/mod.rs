@@ -30,6 +30,7 @@ use serde_json::{Value, json};
 
 use crate::frame::Engine;
 use crate::game::replay::{Ended, Recorder, StepInput};
+use crate::game::warden::wrap_angle;
 use crate::game::{
     Action, Exit, Exposure, Input, Outcome, Player, Progress, SIMULATION_HZ, Shard, Transform,
     Warden, WardenState, spawn_player,
@@ -357,20 +358,10 @@ fn steer(plan: &Plan, step: u64, player: &Player, feet: Vec3) -> StepInput {
     }
     // The view looks down -Z at yaw 0: face the cell, then walk forward.
     let wanted = (-across.x).atan2(-across.y);
-    let turn = wrap(player.yaw - wanted);
+    let turn = wrap_angle(player.yaw - wanted);
     StepInput(held | Action::MoveForward.bit(), 0, turn, -player.pitch)
 }
 
-/// `angle` in (-pi, pi].
-fn wrap(angle: f32) -> f32 {
-    let tau = std::f32::consts::TAU;
-    let wrapped = (angle + std::f32::consts::PI).rem_euclid(tau) - std::f32::consts::PI;
-    if wrapped <= -std::f32::consts::PI {
-        wrapped + tau
-    } else {
-        wrapped
-    }
-}
 
 /// Why the world calls for a new plan at `step`, if it does.
 fn replan_reason(engine: &mut Engine, plan: &Plan, step: u64, feet: Vec3) -> Option<String> {
@@ -644,7 +635,7 @@ pub fn get_caught(scene: &Scene, max_seconds: f64) -> anyhow::Result<Run> {
                 StepInput(
                     Action::MoveForward.bit(),
                     0,
-                    wrap(body.yaw - wanted),
+                    wrap_angle(body.yaw - wanted),
                     -body.pitch,
                 )
             }
