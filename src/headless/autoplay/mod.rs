@@ -362,7 +362,6 @@ fn steer(plan: &Plan, step: u64, player: &Player, feet: Vec3) -> StepInput {
     StepInput(held | Action::MoveForward.bit(), 0, turn, -player.pitch)
 }
 
-
 /// Why the world calls for a new plan at `step`, if it does.
 fn replan_reason(engine: &mut Engine, plan: &Plan, step: u64, feet: Vec3) -> Option<String> {
     let mut wardens = engine.world.query::<(&Name, &Warden)>();
