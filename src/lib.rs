@@ -17,6 +17,8 @@
 //!   asset generators.
 //! - `profile`: the `Stage` list, per-stage frame statistics and the bench reports (JSON,
 //!   CSV, Chrome trace, PNG chart).
+//! - `simd`: which vector kernels run (the CPU's best or the portable ones), for the whole
+//!   process; accel, render and film ask it before every AVX2 build.
 //! - `headless`: runs with no window, which the command line and the window both call:
 //!   replays of recordings and the player bot (`autoplay`).
 //! - `bench`: the measurement tools behind `bench`, `raybench`, `flythrough` and
@@ -37,3 +39,4 @@ pub mod headless;
 pub mod profile;
 pub mod render;
 pub mod scene;
+pub mod simd;

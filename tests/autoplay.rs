@@ -2,7 +2,7 @@
 //! every shard, and the run it makes is the shipped `<level>-won.json` step for step (a
 //! rule change fails here until the recordings are made again, with the README's one
 //! command); every shipped recording replays to its pinned state hash on one and two
-//! threads; an edited recording is replayed and says at which step and in which part of
+//! threads, and with the portable kernels a CPU without AVX2 runs; an edited recording is replayed and says at which step and in which part of
 //! the state it went another way; a level whose way out cannot be walked to has no route.
 
 mod common;
@@ -101,6 +101,33 @@ fn every_shipped_recording_replays_to_its_pinned_hash_on_one_and_two_threads() {
         assert_eq!(divergence(&one), None, "{name}");
         assert_eq!(one["state_hash"], two["state_hash"], "{name}");
         assert_eq!(one["state_hash"], hash, "{name}");
+    }
+}
+
+/// The portable kernels are a process-wide switch, so each portable replay is its own
+/// `gloam` process: the other tests in this binary keep the native kernels.
+#[test]
+fn every_shipped_recording_replays_to_its_pinned_hash_with_the_portable_kernels() {
+    for (name, hash) in PINNED {
+        for threads in ["1", "2"] {
+            let path = recording(name);
+            let output = std::process::Command::new(env!("CARGO_BIN_EXE_gloam"))
+                .args(["play", "--headless", "--replay"])
+                .arg(&path)
+                .args(["--threads", threads, "--simd", "portable"])
+                .output()
+                .unwrap();
+            let stdout = String::from_utf8_lossy(&output.stdout);
+            assert!(
+                output.status.success(),
+                "{name}: {}",
+                String::from_utf8_lossy(&output.stderr)
+            );
+            assert!(
+                stdout.trim_end().ends_with(&format!("state hash {hash}")),
+                "{name} on {threads} threads, portable: {stdout}"
+            );
+        }
     }
 }
 

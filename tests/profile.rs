@@ -327,6 +327,14 @@ fn the_same_bench_does_the_same_work_every_run() {
         first["cache_ended_share"], second["cache_ended_share"],
         "the radiance cache learns the same on any thread count"
     );
+    // The portable kernels give the same bits, so the same paths and the same rays.
+    let (portable, _) = bench(&dir, "portable", &["--threads", "2", "--simd", "portable"]);
+    assert_eq!(
+        (&first["simd"], &portable["simd"]),
+        (&"native".into(), &"portable".into())
+    );
+    assert_eq!(rays(&first), rays(&portable), "portable kernels, same rays");
+    assert_eq!(first["cache_ended_share"], portable["cache_ended_share"]);
 }
 
 #[test]

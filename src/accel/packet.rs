@@ -151,7 +151,7 @@ impl RayPacket {
     /// instructions (callgrind).
     fn settle_lanes(&mut self, count: usize) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::simd::avx2() {
             #[target_feature(enable = "avx2")]
             fn settle_lanes_avx2(packet: &mut RayPacket, count: usize) {
                 packet.settle_lanes_portable(count);
@@ -235,7 +235,7 @@ impl RayPacket {
     /// of first-light's render instructions (callgrind).
     fn coherent(&self, rays: u64) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::simd::avx2() {
             #[target_feature(enable = "avx2")]
             fn coherent_avx2(packet: &RayPacket, rays: u64) -> bool {
                 packet.coherent_lanes(rays)

@@ -142,7 +142,7 @@ impl TriangleBlock {
 /// Which kernels a traversal runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kernels {
-    /// AVX2 where the CPU has it, else portable.
+    /// AVX2 where the CPU has it and `simd::kernels` allows it, else portable.
     Best,
     /// Plain Rust (what a CPU without AVX2, or aarch64, runs).
     Portable,
@@ -150,14 +150,7 @@ pub enum Kernels {
 
 impl Kernels {
     pub(super) fn avx2(self) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        {
-            self == Kernels::Best && std::arch::is_x86_feature_detected!("avx2")
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            false
-        }
+        self == Kernels::Best && crate::simd::avx2()
     }
 }
 

@@ -45,6 +45,10 @@ pub struct Options {
     /// Worker threads (default: all cores), for scaling studies.
     #[arg(long, value_parser = crate::cli::values::size())]
     pub threads: Option<usize>,
+    /// Which vector kernels run: the CPU's best, or the portable ones a CPU without AVX2
+    /// runs (the same bits, timed).
+    #[arg(long, value_enum, default_value_t = crate::simd::Simd::Native)]
+    pub simd: crate::simd::Simd,
     /// Write the JSON report here (its fields: README, `gloam bench`).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -138,6 +142,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     if threads == 0 {
         anyhow::bail!("--threads must be at least 1");
     }
+    crate::simd::use_kernels(options.simd);
     let (recording, level) = match &options.replay {
         Some(path) => {
             let (recording, level) = crate::headless::replay::read_recording(path)?;

@@ -83,6 +83,10 @@ pub enum Command {
         /// With --replay: worker threads (the result is the same on any count).
         #[arg(long, value_parser = crate::cli::values::size())]
         threads: Option<usize>,
+        /// Which vector kernels run: the CPU's best, or the portable ones a CPU without
+        /// AVX2 runs (the same bits, so a replay ends at the same state hash).
+        #[arg(long, value_enum, default_value_t = crate::simd::Simd::Native)]
+        simd: crate::simd::Simd,
     },
     /// Edit a level in a window: the path-traced view with an outline, a palette of assets
     /// and prefabs, an inspector and a gizmo. Keys: click selects, Shift+click adds, right
@@ -282,7 +286,9 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             replay,
             json,
             threads,
+            simd,
         } => {
+            crate::simd::use_kernels(simd);
             let mut watch = None;
             let mut level = level;
             if let Some(replay) = replay {

@@ -459,7 +459,7 @@ fn prepass_row(
     (slopes, blurred): (&mut [f32], &mut [f32]),
 ) {
     #[cfg(target_arch = "x86_64")]
-    if !portable_only && std::arch::is_x86_feature_detected!("avx2") {
+    if !portable_only && crate::simd::avx2() {
         #[target_feature(enable = "avx2")]
         fn prepass_row_avx2(
             input: &PlaneRows<'_, SIGNAL_PLANES>,
@@ -524,7 +524,7 @@ impl Pass<'_> {
     /// Filters row `y` into `out` (the row's four signal planes).
     fn row(&self, y: usize, scratch: &mut RowScratch, out: &mut [f32]) {
         #[cfg(target_arch = "x86_64")]
-        if !self.portable_only && std::arch::is_x86_feature_detected!("avx2") {
+        if !self.portable_only && crate::simd::avx2() {
             // SAFETY: the CPU has AVX2, the only feature `row_avx2` enables.
             unsafe {
                 if self.carry_variance {

@@ -75,7 +75,7 @@ pub(super) struct RecordLanes(());
 impl RecordLanes {
     pub fn detect() -> Option<RecordLanes> {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::simd::avx2() {
             return Some(RecordLanes(()));
         }
         None
@@ -329,7 +329,7 @@ impl Reprojection<'_> {
             lane.resize(self.width, 0.0);
         }
         #[cfg(target_arch = "x86_64")]
-        if !self.portable_only && std::arch::is_x86_feature_detected!("avx2") {
+        if !self.portable_only && crate::simd::avx2() {
             // SAFETY: the CPU has AVX2, the only feature `project_row_avx2` enables.
             unsafe { self.project_row_avx2(guides, y, out) };
             return;

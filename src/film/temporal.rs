@@ -195,7 +195,7 @@ impl TemporalFilter {
             width: width as usize,
             height: height as usize,
             #[cfg(target_arch = "x86_64")]
-            avx2: std::arch::is_x86_feature_detected!("avx2"),
+            avx2: crate::simd::avx2(),
             workspaces: &self.workspaces,
             next_instances: SharedRuns::new(&mut self.next_instances),
             next: SharedRuns::new(&mut self.next),

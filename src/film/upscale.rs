@@ -317,7 +317,7 @@ impl Upscaler {
         );
         let projection = shown.projection();
         let last = self.camera.as_ref().map(Camera::projection);
-        let avx2 = !self.portable_only && has_avx2();
+        let avx2 = !self.portable_only && crate::simd::avx2();
         self.samples
             .resize(render_width * render_height, Sample::default());
         self.samples
@@ -380,7 +380,7 @@ impl Upscaler {
             (render_width, render_height),
         );
         if blend.at_half {
-            let avx2 = !self.portable_only && has_avx2();
+            let avx2 = !self.portable_only && crate::simd::avx2();
             let band = 2 * width * HALF_BAND_ROWS;
             self.next
                 .par_chunks_mut(band)
@@ -990,14 +990,6 @@ fn block_weights(
     falloff * falloff
 }
 
-/// Whether this CPU runs AVX2 code.
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    return std::arch::is_x86_feature_detected!("avx2");
-    #[cfg(not(target_arch = "x86_64"))]
-    false
-}
-
 /// `catmull_rom` at `corner` + 0.5 and the three points one pixel right, down, and both
 /// (top left, top right, bottom left, bottom right), `corner` at least one pixel inside
 /// the film's top-left edge and three inside its bottom-right: the four share weights and
@@ -1254,7 +1246,7 @@ mod tests {
         let mut by_block = by_pixel.clone();
         let mut scattered = Vec::new();
         blend.rows_at_half(
-            has_avx2(),
+            crate::simd::avx2(),
             0,
             &mut by_block.0,
             &mut by_block.1,
@@ -1285,7 +1277,7 @@ mod tests {
                 .zip(in_bands.1.chunks_mut(2 * width * band))
                 .enumerate()
             {
-                blend.rows_at_half(has_avx2(), b * band, next, shown, &mut scattered);
+                blend.rows_at_half(crate::simd::avx2(), b * band, next, shown, &mut scattered);
             }
             assert!(in_bands.0 == by_block.0, "bands of {band} row pairs");
         }
@@ -1312,7 +1304,7 @@ mod tests {
 
     #[test]
     fn the_avx2_build_gives_the_portable_bits() {
-        if !has_avx2() {
+        if !crate::simd::avx2() {
             println!("notice: no AVX2 on this CPU, one build to test");
             return;
         }

@@ -611,6 +611,7 @@ impl Profile {
             "render_width": self.render_size.map_or(self.width, |size| size.0),
             "render_height": self.render_size.map_or(self.height, |size| size.1),
             "threads": self.threads,
+            "simd": crate::simd::kernels().name(),
             "stages": stages,
             "frame": self.frame().json(),
             "mrays_per_s": self.mrays_per_s(),
@@ -703,8 +704,12 @@ impl Profile {
             }
             _ => String::new(),
         };
+        let kernels = match crate::simd::kernels() {
+            crate::simd::Simd::Native => "",
+            crate::simd::Simd::Portable => " (portable kernels)",
+        };
         let mut text = format!(
-            "{} frames of {} at {}x{}{rendered} on {} threads; {:.2} Mrays/s\n{:<12}{:>10}{:>10}{:>10}{:>10}{:>10}\n",
+            "{} frames of {} at {}x{}{rendered} on {} threads{kernels}; {:.2} Mrays/s\n{:<12}{:>10}{:>10}{:>10}{:>10}{:>10}\n",
             self.frames.len(),
             self.scene,
             self.width,

@@ -145,7 +145,7 @@ impl Camera {
     /// has it.
     fn pinhole_directions(&self, films: &mut FilmPoints) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::simd::avx2() {
             #[target_feature(enable = "avx2")]
             fn pinhole_directions_avx2(camera: &Camera, films: &mut FilmPoints) {
                 camera.pinhole_directions_lanes(films);

@@ -689,7 +689,7 @@ impl LightSet {
     #[inline]
     fn punctual_weights(&self, point: Vec3A, reach: LightReach) -> [f32; SPATIAL_PICK_MAX] {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::simd::avx2() {
             #[target_feature(enable = "avx2")]
             fn punctual_weights_avx2(
                 set: &LightSet,

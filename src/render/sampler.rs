@@ -569,15 +569,13 @@ enum HashLanes {
 impl HashLanes {
     /// The fastest build this CPU runs.
     fn best() -> HashLanes {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return if std::arch::is_x86_feature_detected!("gfni") {
-                HashLanes::Avx2Gfni
-            } else {
-                HashLanes::Avx2
-            };
+        if crate::simd::avx2_gfni() {
+            HashLanes::Avx2Gfni
+        } else if crate::simd::avx2() {
+            HashLanes::Avx2
+        } else {
+            HashLanes::Portable
         }
-        HashLanes::Portable
     }
 
     fn blue_vertex(

@@ -57,6 +57,10 @@ pub struct Options {
     /// Worker threads (the run is the same on any count).
     #[arg(long, value_parser = crate::cli::values::size())]
     pub threads: Option<usize>,
+    /// Which vector kernels run: the CPU's best, or the portable ones a CPU without AVX2
+    /// runs (the same bits, so the same run).
+    #[arg(long, value_enum, default_value_t = crate::simd::Simd::Native)]
+    pub simd: crate::simd::Simd,
     /// Instead of playing to win, walk standing into the nearest warden's lamp and stay
     /// there until caught (how the `-caught` recordings are made); exit 0 when caught.
     #[arg(long)]
@@ -146,6 +150,7 @@ pub fn run(options: &Options) -> anyhow::Result<bool> {
     if !(options.max_seconds.is_finite() && options.max_seconds > 0.0) {
         anyhow::bail!("--max-seconds must be a positive number of seconds");
     }
+    crate::simd::use_kernels(options.simd);
     let scene = Scene::load(&options.level)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
