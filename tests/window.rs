@@ -673,6 +673,76 @@ fn the_main_menu_names_a_broken_settings_file_saves_a_change_and_quits_from_its_
     assert!(exited.is_some_and(|s| s.success()), "{exited:?}");
 }
 
+/// Losing the focus pauses an attempt: while another window has the keys the level waits
+/// under the pause menu (the recording gains no steps), and the menu is there when the
+/// player comes back (its fifth row quits).
+#[test]
+fn losing_the_focus_pauses_the_attempt() {
+    let Some((_xvfb, display, dir)) = x_display("focus") else {
+        return;
+    };
+    let record = dir.join("attempt.json");
+    let started = std::time::Instant::now();
+    let mut game = Reaped(
+        windowed(&display, &dir)
+            .args([
+                "play",
+                "levels/first-light.ron",
+                "--width",
+                "160",
+                "--height",
+                "90",
+            ])
+            .arg("--record")
+            .arg(&record)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start gloam play"),
+    );
+    let id = gloam_window(&display, &mut game.0);
+    let xdotool = |args: &[&str]| {
+        let output = Command::new("xdotool")
+            .args(args)
+            .env("DISPLAY", &display)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "xdotool {args:?}");
+        String::from_utf8_lossy(&output.stdout).trim().to_owned()
+    };
+    focus_window(&display, &id);
+    std::thread::sleep(Duration::from_secs(2));
+    // The keys go to the root window: no window manager here, so nothing else to give them.
+    let root = xdotool(&["search", "--maxdepth", "0", ""]);
+    let playing = started.elapsed().as_secs_f64();
+    xdotool(&["windowfocus", "--sync", &root]);
+    std::thread::sleep(Duration::from_secs(6));
+    // Back in the window: Resume, Restart, Settings, Main menu, Quit.
+    for key in ["Down", "Down", "Down", "Down", "Return"] {
+        focus_window(&display, &id);
+        xdotool(&["key", key]);
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    let mut exited = None;
+    for _ in 0..100 {
+        if let Ok(Some(status)) = game.0.try_wait() {
+            exited = Some(status);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(
+        exited.is_some_and(|s| s.success()),
+        "the pause menu's Quit did not end the game: {exited:?}"
+    );
+    let (recording, _) = gloam::headless::replay::read_recording(&record).unwrap();
+    let seconds = recording.steps.len() as f64 / 60.0;
+    assert!(
+        seconds < playing + 1.0,
+        "{seconds:.1} s of play recorded, {playing:.1} s before the focus left and 6 s after"
+    );
+}
+
 trait WaitOutput {
     fn wait_with_output_or_stderr(&mut self) -> String;
 }

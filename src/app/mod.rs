@@ -271,6 +271,7 @@ impl App {
             log,
             switch: None,
             play_test: false,
+            focused: false,
         };
         app.apply_target();
         app
@@ -477,6 +478,8 @@ pub(crate) struct App {
     /// editor instead of the menus, and the level file is not watched (the editor holds
     /// the level being played).
     play_test: bool,
+    /// Whether the window has the keyboard focus (losing it pauses an attempt).
+    focused: bool,
 }
 
 /// How long a notice stays on screen.
@@ -819,14 +822,35 @@ impl App {
             return self.switch_to(event_loop, switch);
         }
         if binding == Binding::Pause {
-            if let Some(game) = &mut self.game {
-                game.engine.world.resource_mut::<Input>().held.clear();
-            }
-            self.menu = Some(Menu::new(Page::Paused));
-            self.set_capture(false);
-            return;
+            return self.pause();
         }
         self.window_key(binding);
+    }
+
+    /// The pause menu over the level, which holds the simulation while it is open.
+    fn pause(&mut self) {
+        if let Some(game) = &mut self.game {
+            game.engine.world.resource_mut::<Input>().held.clear();
+        }
+        self.menu = Some(Menu::new(Page::Paused));
+        self.set_capture(false);
+    }
+
+    /// Whether an attempt is under way in front of the player: a level with a player, not
+    /// ended, no menu over it.
+    fn attempt_running(&mut self) -> bool {
+        if self.menu.is_some() {
+            return false;
+        }
+        let Some(game) = &mut self.game else {
+            return false;
+        };
+        let world = &mut game.engine.world;
+        let running = world
+            .get_resource::<crate::game::Progress>()
+            .is_none_or(|progress| progress.outcome == crate::game::Outcome::Running);
+        let mut players = world.query_filtered::<(), bevy_ecs::query::With<crate::game::Player>>();
+        running && players.iter(world).next().is_some()
     }
 
     /// F11, F3, F4, F12 and V, in play and in menus alike.
@@ -1338,7 +1362,17 @@ impl ApplicationHandler for App {
                     self.set_capture(true);
                 }
             }
-            WindowEvent::Focused(false) => self.set_capture(false),
+            WindowEvent::Focused(true) => self.focused = true,
+            WindowEvent::Focused(false) => {
+                self.set_capture(false);
+                // Away from the window the player cannot see the wardens, so they must
+                // not walk on: the level waits under the pause menu, as Esc leaves it.
+                // Only a focus the window had is lost: winit says "unfocused" once as a
+                // window opens, before the window manager gives it the focus.
+                if std::mem::take(&mut self.focused) && self.attempt_running() {
+                    self.pause();
+                }
+            }
             WindowEvent::RedrawRequested => self.redraw(event_loop),
             _ => {}
         }
