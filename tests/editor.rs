@@ -436,3 +436,61 @@ fn a_new_material_override_reaches_the_renderer_and_the_file_and_undoes() {
     assert!(!glows(&engine));
     assert_eq!(saved_text(&mut editor, &mut engine, &path), text);
 }
+
+/// The play-check (F6): the bot plays the level as edited on a thread of its own and
+/// answers whether it can be finished unseen; the answer belongs to the level it checked,
+/// so an edit made since marks it out of date; a way out no one can walk to has no route.
+#[test]
+fn the_play_check_plays_the_level_as_edited_and_knows_when_it_is_out_of_date() {
+    use gloam::edit::play_check::PlayCheck;
+    use gloam::headless::autoplay::RunOutcome;
+
+    let (path, _, mut engine) = open_first_light("play-check");
+    let mut level = gloam::game::level_from_world(&mut engine.world);
+    // Without its wardens the bot has nothing to wait for: a quick check.
+    level.entities.retain(|entity| entity.warden.is_none());
+    let mut check = PlayCheck::default();
+    let started = check.start(level.clone(), &path);
+    assert!(started.contains("playing the level as edited"), "{started}");
+    assert!(check.status(&level).0.starts_with("playing..."));
+    let again = check.start(level.clone(), &path);
+    assert!(again.contains("already playing"), "{again}");
+    let line = check.wait().expect("an answer");
+    let checked = check.checked().expect("the bot ran");
+    assert!(checked.proven(), "{line}");
+    assert!(line.starts_with("play-check: won unseen in "), "{line}");
+    assert!(checked.route.len() > 60, "a route walked: {line}");
+    let (status, stale) = check.status(&level);
+    assert!(status.starts_with("won unseen in "), "{status}");
+    assert!(!stale);
+    let mut edited = level.clone();
+    edited.entities[0].transform.translation.x += 1.0;
+    let (status, stale) = check.status(&edited);
+    assert!(stale && status.ends_with("(edited since)"), "{status}");
+
+    // The way out moved where no floor reaches.
+    let exit = edited
+        .entities
+        .iter_mut()
+        .find(|e| e.exit.is_some())
+        .unwrap();
+    exit.transform.translation = Vec3::new(100.0, 0.0, 100.0);
+    check.start(edited.clone(), &path);
+    let line = check.wait().expect("an answer");
+    let checked = check.checked().expect("the bot ran");
+    assert_eq!(checked.outcome, RunOutcome::NoRoute, "{line}");
+    assert!(line.contains("cannot be reached on foot"), "{line}");
+    assert!(check.status(&edited).0.starts_with("no unseen route"));
+
+    // A level that does not load says why, and keeps nothing of the last answer.
+    let mut broken = edited.clone();
+    broken.entities[0].instance = Some(gloam::scene::level::InstanceDef {
+        asset: "../assets/no-such-asset.glb".into(),
+        material_overrides: Default::default(),
+    });
+    check.start(broken.clone(), &path);
+    let line = check.wait().expect("an answer");
+    assert!(line.contains("no-such-asset.glb"), "{line}");
+    assert!(check.checked().is_none());
+    assert!(check.status(&broken).0.starts_with("could not play: "));
+}

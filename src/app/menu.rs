@@ -400,7 +400,7 @@ impl Menu {
                         let entry = &context.levels[index];
                         let best = context.best.get(&entry.path).map_or_else(
                             || "not yet won".to_string(),
-                            |best| format!("best {}", clock(best.seconds)),
+                            |best| format!("best {}", crate::game::play_time(best.seconds)),
                         );
                         (format!("{}  {}", index + 1, entry.name), Some(best))
                     }
@@ -489,7 +489,7 @@ fn won_title(context: &MenuContext) -> Vec<String> {
         "You got out.".to_string(),
         format!(
             "time {}  shards {}  seen {} times",
-            clock(best.seconds),
+            crate::game::play_time(best.seconds),
             best.shards,
             best.times_seen
         ),
@@ -501,20 +501,14 @@ fn won_title(context: &MenuContext) -> Vec<String> {
     lines.push(match (finish.new_best, finish.previous) {
         (true, Some(previous)) => format!(
             "A new best: {} faster than {}",
-            clock(previous.seconds - best.seconds),
-            clock(previous.seconds)
+            crate::game::play_time(previous.seconds - best.seconds),
+            crate::game::play_time(previous.seconds)
         ),
         (true, None) => "Your first escape: the time to beat.".to_string(),
-        (false, Some(previous)) => format!("Best {}", clock(previous.seconds)),
+        (false, Some(previous)) => format!("Best {}", crate::game::play_time(previous.seconds)),
         (false, None) => String::new(),
     });
     lines
-}
-
-/// Minutes and seconds to a tenth: `1:02.5`.
-pub fn clock(seconds: f64) -> String {
-    let seconds = seconds.max(0.0);
-    format!("{}:{:04.1}", (seconds / 60.0) as u32, seconds % 60.0)
 }
 
 /// Steps a setting's row by `step` (wrapping through choices, clamping numbers).

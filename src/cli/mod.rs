@@ -94,7 +94,8 @@ pub enum Command {
     /// Ctrl+D duplicates, Ctrl+Z undoes, Ctrl+Shift+Z or Ctrl+Y redoes, Ctrl+S saves
     /// (the previous file kept as LEVEL.bak), F4 switches between the converging view and
     /// the game's 1-spp filtered view, F5 play-tests the level as edited from the
-    /// editor's camera (Esc comes back), Esc drops the palette's choice or the selection.
+    /// editor's camera (Esc comes back), F6 runs the player bot on the level as edited
+    /// and draws how it went (play-check), Esc drops the palette's choice or the selection.
     /// Unsaved edits are autosaved to .LEVEL.autosave beside it every two minutes.
     #[command(allow_negative_numbers = true)]
     Edit {

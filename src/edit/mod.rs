@@ -23,6 +23,7 @@
 pub mod camera;
 pub mod exposure;
 pub mod palette;
+pub mod play_check;
 
 use std::path::{Path, PathBuf};
 

@@ -64,6 +64,13 @@ impl Progress {
     }
 }
 
+/// A time of play as the end page, the best times and the bot say it: m:ss.s. Rounded to
+/// the tenth before it is split, so 59.96 s reads 1:00.0, never 0:60.0.
+pub fn play_time(seconds: f64) -> String {
+    let tenths = (seconds.max(0.0) * 10.0).round() as u64;
+    format!("{}:{:02}.{}", tenths / 600, tenths / 10 % 60, tenths % 10)
+}
+
 /// Fixed step: the clock, and shards the player's body reaches are taken.
 pub fn collect_shards(
     mut commands: Commands,
@@ -112,5 +119,16 @@ pub fn reach_exit(
     });
     if reached {
         progress.outcome = Outcome::Won;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn play_time_rounds_before_it_splits_minutes_and_seconds() {
+        assert_eq!(super::play_time(0.0), "0:00.0");
+        assert_eq!(super::play_time(69.8), "1:09.8");
+        assert_eq!(super::play_time(59.96), "1:00.0");
+        assert_eq!(super::play_time(-3.0), "0:00.0");
     }
 }

@@ -58,7 +58,7 @@ pub use animation::{
     apply_animations,
 };
 pub use exposure::{Exposure, measure_exposure};
-pub use goal::{Exit, Outcome, Progress, Shard, collect_shards, reach_exit};
+pub use goal::{Exit, Outcome, Progress, Shard, collect_shards, play_time, reach_exit};
 pub use input::{Action, Input, fly_camera};
 pub use lamps::{douse_lamps, relight_lamps};
 pub use level_io::level_from_world;

@@ -4,7 +4,8 @@
 //! Per displayed frame (winit 0.30 `ApplicationHandler`):
 //! 1. window events go to egui first (`gui`); mouse motion while the right button is held
 //!    turns the editor camera;
-//! 2. `RedrawRequested`: the camera flies by the held keys; the interface is built
+//! 2. `RedrawRequested`: a finished exposure map or play-check (`edit::play_check`, F6),
+//!    each computed on a thread of its own, is taken up; the camera flies by the held keys; the interface is built
 //!    (`panels`): the outline, palette, inspector, the view with its gizmo and overlays,
 //!    and the shortcuts, which queue `Command`s rather than act;
 //! 3. the commands run on the `Editor` and the `Engine` (a drag of the gizmo, a waypoint
@@ -45,6 +46,7 @@ use crate::accel::Ray;
 use crate::edit::camera::FlyCamera;
 use crate::edit::exposure::Exposure;
 use crate::edit::palette::{asset_def, assets_folder};
+use crate::edit::play_check::PlayCheck;
 use crate::edit::{Editor, Reloaded, surface_point};
 use crate::film::FilterMode;
 use crate::frame::Engine;
@@ -137,6 +139,8 @@ pub enum Command {
     TakeFile,
     /// Play the level as edited from the editor's camera (F5); Esc comes back.
     PlayTest,
+    /// Run the player bot on the level as edited, in the background (F6).
+    PlayCheck,
 }
 
 /// Where the editor goes when it leaves the level being edited.
@@ -258,6 +262,8 @@ impl EditorApp {
             exposure: None,
             exposure_job: None,
             exposure_for: None,
+            play_check: PlayCheck::default(),
+            play_check_stale: false,
             dialog: None,
         };
         match FileWatch::new([app.path.clone()]) {
@@ -390,6 +396,10 @@ pub struct EditorApp {
     exposure: Option<Exposure>,
     exposure_job: Option<Receiver<Result<Exposure, String>>>,
     exposure_for: Option<(Level, f32)>,
+    /// The player bot on the level (F6): the check under way, and the last answer.
+    play_check: PlayCheck,
+    /// The level has been edited since the last play-check ran.
+    play_check_stale: bool,
     /// The desktop's file dialog, while it is open.
     dialog: Option<PendingDialog>,
 }
@@ -500,6 +510,10 @@ impl EditorApp {
                 Ok(Some(format!("view: {}", view_name(film.filter.mode))))
             }
             Command::PlayTest => self.play_test(event_loop),
+            Command::PlayCheck => {
+                let level = crate::game::level_from_world(&mut self.engine.world);
+                Ok(Some(self.play_check.start(level, &self.path)))
+            }
             Command::KeepEdits => {
                 self.panels.conflict = false;
                 // What is on disk now is the version the next save replaces (and keeps
@@ -564,6 +578,7 @@ impl EditorApp {
         self.exposure = None;
         self.exposure_job = None;
         self.exposure_for = None;
+        self.play_check = PlayCheck::default();
         self.autosaved = Instant::now();
         self.options.level = path.clone();
         self.path = path;
@@ -749,6 +764,19 @@ impl EditorApp {
         self.exposure_for = Some(wanted);
     }
 
+    /// Says a finished play-check's outcome, and keeps its few words beside the button and
+    /// whether the level has changed since it ran.
+    fn update_play_check(&mut self) {
+        if let Some(line) = self.play_check.poll() {
+            self.notify(line);
+        }
+        if self.play_check.last.is_none() && self.play_check.running_for().is_none() {
+            return;
+        }
+        let current = crate::game::level_from_world(&mut self.engine.world);
+        (self.panels.play_check, self.play_check_stale) = self.play_check.status(&current);
+    }
+
     /// Watches the level file and every asset the world has loaded.
     fn watch_files(&mut self) {
         let Some(watch) = &mut self.watch else { return };
@@ -784,6 +812,7 @@ impl EditorApp {
         let seconds = (start - self.last_frame).as_secs_f32().min(0.25);
         self.last_frame = start;
         self.update_exposure();
+        self.update_play_check();
         self.dialog_answered(event_loop);
         let (Some(window), Some(gui)) = (self.window.clone(), self.gui.as_mut()) else {
             return;
@@ -803,10 +832,16 @@ impl EditorApp {
         };
         let frame = panels::FrameInput::gather(&mut self.engine, &self.editor);
         let camera_before = self.camera;
-        let exposure = self.exposure.as_ref();
+        let overlays = panels::Overlays {
+            exposure: self.exposure.as_ref(),
+            play_check: self
+                .play_check
+                .checked()
+                .map(|checked| (checked, self.play_check_stale)),
+        };
         gui.run(&window, |ui| {
             self.panels
-                .ui(ui, &frame, &view, &self.camera, exposure, &mut commands)
+                .ui(ui, &frame, &view, &self.camera, overlays, &mut commands)
         });
         let flying = self.panels.flying;
         if flying {
@@ -1006,7 +1041,13 @@ impl EditorApp {
         }
         let autosave_due = self.editor.is_dirty() && self.autosaved.elapsed() >= AUTOSAVE_EVERY;
         let files = self.watch.as_mut().is_some_and(FileWatch::has_changes);
-        notice_over || autosave_due || files || self.dialog.is_some() || !self.shows_converged
+        let checking = self.play_check.running_for().is_some();
+        notice_over
+            || autosave_due
+            || files
+            || checking
+            || self.dialog.is_some()
+            || !self.shows_converged
     }
 }
 

@@ -19,6 +19,7 @@ use super::{Command, Leave, view_ray};
 use crate::edit::camera::FlyCamera;
 use crate::edit::exposure::Exposure;
 use crate::edit::palette::{Prefab, asset_files, assets_folder};
+use crate::edit::play_check::Checked;
 use crate::edit::{Editor, entity_bounds};
 use crate::film::FilterMode;
 use crate::frame::Engine;
@@ -144,6 +145,14 @@ pub struct ExposureControls {
     pub status: String,
 }
 
+/// What the view draws over the level besides the selection: the exposure map, and the last
+/// play-check with whether the level has been edited since.
+#[derive(Clone, Copy, Default)]
+pub struct Overlays<'a> {
+    pub exposure: Option<&'a Exposure>,
+    pub play_check: Option<(&'a Checked, bool)>,
+}
+
 /// The longest time the exposure slider reaches, seconds.
 const EXPOSURE_TIME_MAX: f32 = 60.0;
 
@@ -170,6 +179,8 @@ pub struct Panels {
     /// until a good version is loaded.
     pub file_error: Option<String>,
     pub exposure: ExposureControls,
+    /// The play-check's state in a few words (playing, or its outcome), beside its button.
+    pub play_check: String,
     tool: Tool,
     snapping: bool,
     /// Grid step for moving, metres.
@@ -207,6 +218,7 @@ impl Panels {
                 threshold: 0.5,
                 status: String::new(),
             },
+            play_check: String::new(),
             tool: Tool::Move,
             snapping: true,
             grid: 0.25,
@@ -245,7 +257,7 @@ impl Panels {
         frame: &FrameInput,
         view: &ViewState,
         camera: &FlyCamera,
-        exposure: Option<&Exposure>,
+        overlays: Overlays,
         out: &mut Vec<Command>,
     ) {
         let ctx = ui.ctx().clone();
@@ -263,7 +275,7 @@ impl Panels {
             .show_inside(ui, |ui| self.inspector(ui, frame, out));
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE.fill(Color32::from_gray(12)))
-            .show_inside(ui, |ui| self.view(ui, frame, view, camera, exposure, out));
+            .show_inside(ui, |ui| self.view(ui, frame, view, camera, overlays, out));
         if self.leaving.is_some() {
             self.leave_prompt(&ctx, out);
         } else if self.conflict {
@@ -303,6 +315,9 @@ impl Panels {
             }
             if input.consume_key(Modifiers::NONE, Key::F5) {
                 out.push(Command::PlayTest);
+            }
+            if input.consume_key(Modifiers::NONE, Key::F6) {
+                out.push(Command::PlayCheck);
             }
             if !self.flying && input.consume_key(Modifiers::NONE, Key::X) {
                 self.exposure.on = !self.exposure.on;
@@ -454,6 +469,12 @@ impl Panels {
             }
             if ui.button("Play-test (F5)").clicked() {
                 out.push(Command::PlayTest);
+            }
+            if ui.button("Play-check (F6)").clicked() {
+                out.push(Command::PlayCheck);
+            }
+            if !self.play_check.is_empty() {
+                ui.label(&self.play_check);
             }
             ui.separator();
             ui.toggle_value(&mut self.exposure.on, "Exposure map (X)");
@@ -645,7 +666,7 @@ impl Panels {
         frame: &FrameInput,
         view: &ViewState,
         camera: &FlyCamera,
-        exposure: Option<&Exposure>,
+        overlays: Overlays,
         out: &mut Vec<Command>,
     ) {
         let available = ui.available_rect_before_wrap();
@@ -679,8 +700,11 @@ impl Panels {
         }
 
         let projection = ViewProjection::new(camera, view, rect);
+        if let Some((checked, stale)) = overlays.play_check {
+            play_check_overlay(&painter, checked, stale, &projection);
+        }
         if self.exposure.on {
-            if let Some(exposure) = exposure {
+            if let Some(exposure) = overlays.exposure {
                 self.exposure_overlay(&painter, exposure, &projection);
             }
             self.exposure_controls(ui, rect);
@@ -773,16 +797,7 @@ impl Panels {
             Stroke::new(2.0, Color32::from_rgb(120, 255, 200)),
         ));
         for &choke in &map.route.chokepoints {
-            if let Some(at) = projection.point(choke + Vec3::Y * 0.05) {
-                painter.circle_stroke(at, 9.0, Stroke::new(2.5, Color32::from_rgb(255, 60, 40)));
-                painter.text(
-                    at + egui::vec2(10.0, -10.0),
-                    egui::Align2::LEFT_BOTTOM,
-                    "lit, no way round",
-                    egui::FontId::proportional(12.0),
-                    Color32::from_rgb(255, 140, 120),
-                );
-            }
+            ring(painter, projection, choke, "lit, no way round", LIT);
         }
         for &(feet, facing) in &exposure.wardens {
             if let (Some(at), Some(ahead)) = (
@@ -1020,6 +1035,76 @@ impl Panels {
             }
         }
         self.waypoint.is_some() || under.is_some()
+    }
+}
+
+/// Red: lit places with no way round, and where the bot was caught.
+const LIT: Color32 = Color32::from_rgb(255, 60, 40);
+
+/// A ring on the floor at `at` with a label beside it.
+fn ring(
+    painter: &egui::Painter,
+    projection: &ViewProjection,
+    at: Vec3,
+    label: &str,
+    colour: Color32,
+) {
+    if let Some(at) = projection.point(at + Vec3::Y * 0.05) {
+        painter.circle_stroke(at, 9.0, Stroke::new(2.5, colour));
+        painter.text(
+            at + egui::vec2(10.0, -10.0),
+            egui::Align2::LEFT_BOTTOM,
+            label,
+            egui::FontId::proportional(12.0),
+            colour,
+        );
+    }
+}
+
+/// The last play-check over the floor: the route the bot walked (green when won unseen,
+/// orange otherwise), where it was caught, and the lit chokepoints that left it no route;
+/// grey, and said so, when the level has been edited since.
+fn play_check_overlay(
+    painter: &egui::Painter,
+    checked: &Checked,
+    stale: bool,
+    projection: &ViewProjection,
+) {
+    let grey = Color32::from_gray(150);
+    let route_colour = match (stale, checked.proven()) {
+        (true, _) => grey,
+        (false, true) => Color32::from_rgb(90, 230, 120),
+        (false, false) => Color32::from_rgb(255, 170, 40),
+    };
+    // A point every tenth of a second: the line looks the same and projects a sixth of
+    // the points.
+    let route: Vec<Pos2> = checked
+        .route
+        .iter()
+        .step_by(6)
+        .chain(checked.route.last())
+        .filter_map(|&p| projection.point(p + Vec3::Y * 0.05))
+        .collect();
+    painter.add(egui::Shape::line(route, Stroke::new(2.0, route_colour)));
+    let marked = if stale { grey } else { LIT };
+    let edited = if stale { " (before the last edit)" } else { "" };
+    if let Some(at) = checked.caught_at() {
+        ring(
+            painter,
+            projection,
+            at,
+            &format!("caught here{edited}"),
+            marked,
+        );
+    }
+    for &choke in &checked.chokepoints {
+        ring(
+            painter,
+            projection,
+            choke,
+            &format!("lit, no way round{edited}"),
+            marked,
+        );
     }
 }
 

@@ -40,6 +40,9 @@ use crate::scene::files::write_atomically;
 use crate::scene::world::Scene;
 use plan::{Chokepoint, Map, PlanMove, SLICE_STEPS, Stance, Sweep, Targets, WardenPose};
 
+/// Seconds of play a run may take before it ends as a timeout, unless told otherwise.
+pub const DEFAULT_MAX_SECONDS: f64 = 600.0;
+
 /// `gloam autoplay`'s flags.
 #[derive(Debug, clap::Args)]
 pub struct Options {
@@ -52,7 +55,7 @@ pub struct Options {
     #[arg(long, value_name = "REPORT.json")]
     pub json: Option<PathBuf>,
     /// Seconds of play after which the run ends as a timeout.
-    #[arg(long, default_value_t = 600.0, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = DEFAULT_MAX_SECONDS, value_parser = crate::cli::values::positive)]
     pub max_seconds: f64,
     /// Worker threads (the run is the same on any count).
     #[arg(long, value_parser = crate::cli::values::size())]
@@ -197,15 +200,6 @@ pub fn run(options: &Options) -> anyhow::Result<bool> {
         RunOutcome::Won
     };
     Ok(run.outcome == wanted)
-}
-
-/// `m:ss.s`.
-pub fn clock(seconds: f64) -> String {
-    format!(
-        "{}:{:04.1}",
-        (seconds / 60.0).floor() as u64,
-        seconds % 60.0
-    )
 }
 
 /// The level's shards (by name) and way out.
@@ -565,23 +559,26 @@ pub fn autoplay(scene: &Scene, max_seconds: f64) -> anyhow::Result<Run> {
                 } else {
                     format!(", seen {} times,", run.times_seen)
                 },
-                clock(run.seconds),
+                crate::game::play_time(run.seconds),
                 run.shards,
                 run.shards_total,
                 run.replans
             );
         }
         RunOutcome::Caught => {
+            let at = run.route.last().copied().unwrap_or_default();
             run.why = format!(
-                "caught at {} after {} replans",
-                clock(run.seconds),
+                "caught at ({:.1}, {:.1}) after {} of play and {} replans",
+                at.x,
+                at.z,
+                crate::game::play_time(run.seconds),
                 run.replans
             );
         }
         RunOutcome::Timeout => {
             run.why = format!(
                 "timeout: not won after {} of play ({} of {} shards)",
-                clock(run.seconds),
+                crate::game::play_time(run.seconds),
                 run.shards,
                 run.shards_total
             );
@@ -676,9 +673,12 @@ pub fn get_caught(scene: &Scene, max_seconds: f64) -> anyhow::Result<Run> {
         recording: None,
         chokepoints: Vec::new(),
         why: if caught {
-            format!("caught, as asked, at {}", clock(seconds))
+            format!("caught, as asked, at {}", crate::game::play_time(seconds))
         } else {
-            format!("timeout: not caught after {}", clock(seconds))
+            format!(
+                "timeout: not caught after {}",
+                crate::game::play_time(seconds)
+            )
         },
         route,
         planning_seconds: 0.0,
