@@ -166,6 +166,17 @@ fn focus_window(display: &str, id: &str) {
     panic!("the window never took the focus");
 }
 
+/// Runs xdotool on `display` (it must succeed); what it printed, trimmed.
+fn xdotool_on(display: &str, args: &[&str]) -> String {
+    let output = Command::new("xdotool")
+        .args(args)
+        .env("DISPLAY", display)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "xdotool {args:?}");
+    String::from_utf8_lossy(&output.stdout).trim().to_owned()
+}
+
 /// The window named Gloam on `display`, shown by `gloam` (which must not have exited).
 fn gloam_window(display: &str, gloam: &mut Child) -> String {
     for _ in 0..600 {
@@ -379,15 +390,7 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
         line
     };
     let id = gloam_window(&display, &mut editor.0);
-    let xdotool = |args: &[&str]| {
-        let output = Command::new("xdotool")
-            .args(args)
-            .env("DISPLAY", &display)
-            .output()
-            .unwrap();
-        assert!(output.status.success(), "xdotool {args:?}");
-        String::from_utf8_lossy(&output.stdout).trim().to_owned()
-    };
+    let xdotool = |args: &[&str]| xdotool_on(&display, args);
     let key = |key: &str| {
         focus_window(&display, &id);
         xdotool(&["key", key]);
@@ -628,12 +631,7 @@ fn the_main_menu_names_a_broken_settings_file_saves_a_change_and_quits_from_its_
     let id = gloam_window(&display, &mut menu.0);
     // Real key presses (XTEST) to the focused window: winit ignores synthetic events.
     let xdotool = |args: &[&str]| {
-        let status = Command::new("xdotool")
-            .args(args)
-            .env("DISPLAY", &display)
-            .status()
-            .unwrap();
-        assert!(status.success(), "xdotool {args:?}");
+        xdotool_on(&display, args);
     };
     let keys = |keys: &[&str]| {
         for key in keys {
@@ -701,15 +699,7 @@ fn losing_the_focus_pauses_the_attempt() {
             .expect("start gloam play"),
     );
     let id = gloam_window(&display, &mut game.0);
-    let xdotool = |args: &[&str]| {
-        let output = Command::new("xdotool")
-            .args(args)
-            .env("DISPLAY", &display)
-            .output()
-            .unwrap();
-        assert!(output.status.success(), "xdotool {args:?}");
-        String::from_utf8_lossy(&output.stdout).trim().to_owned()
-    };
+    let xdotool = |args: &[&str]| xdotool_on(&display, args);
     focus_window(&display, &id);
     std::thread::sleep(Duration::from_secs(2));
     // The keys go to the root window: no window manager here, so nothing else to give them.
