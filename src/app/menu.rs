@@ -717,7 +717,7 @@ mod tests {
         assert_eq!(menu.page(), Page::Levels);
         let view = menu.view(&context);
         assert_eq!(view.rows[0].value.as_deref(), Some("not yet won"));
-        assert_eq!(view.rows[1].value.as_deref(), Some("best 1:02.2"));
+        assert_eq!(view.rows[1].value.as_deref(), Some("best 1:02.3"));
         menu.input(MenuInput::Point(1), &mut context);
         assert_eq!(
             menu.input(MenuInput::Activate, &mut context),
