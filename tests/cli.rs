@@ -466,6 +466,33 @@ fn generate_assets_reproduces_the_committed_assets() {
     }
 }
 
+/// `generate sounds` with no espeak-ng on the PATH still writes every synthesised sound,
+/// keeps the voices already there, and says in one line what it could not do.
+#[test]
+fn generate_sounds_without_espeak_keeps_the_voices_and_says_so() {
+    let dir = common::scratch_dir("cli-generate-sounds");
+    let kept = b"the voice as it was";
+    std::fs::write(dir.join("warden-alarm.wav"), kept).unwrap();
+    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .args(["generate", "sounds", "--out", dir.to_str().unwrap()])
+        .env("PATH", "")
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = text(&output.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("espeak-ng is not installed"), "{stderr}");
+    assert_eq!(std::fs::read(dir.join("warden-alarm.wav")).unwrap(), kept);
+    for name in ["step-stone-walk-1.wav", "lamp-hum.wav", "bottle-break.wav"] {
+        let generated = std::fs::read(dir.join(name)).unwrap();
+        let committed = std::fs::read(common::repo().join("assets/sounds").join(name)).unwrap();
+        assert!(
+            generated == committed,
+            "{name} differs from the committed sound"
+        );
+    }
+}
+
 #[test]
 fn a_replay_runs_headless_and_writes_its_report() {
     let dir = common::scratch_dir("cli-replay");

@@ -186,6 +186,13 @@ pub enum Generate {
         #[arg(long, default_value = "assets")]
         out: PathBuf,
     },
+    /// Regenerate every sound under assets/sounds/ (src/scene/sound_kit.rs); the wardens'
+    /// voices need espeak-ng.
+    Sounds {
+        /// Output folder.
+        #[arg(long, default_value = "assets/sounds")]
+        out: PathBuf,
+    },
     /// Write a wavy-grid mesh with at least N triangles, for import timing (or, with
     /// --skinned, a walking warden of at least N triangles, for skinning timing).
     #[command(allow_negative_numbers = true)]
@@ -363,6 +370,14 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         Command::Generate(Generate::Assets { out }) => {
             let files = crate::scene::kit::generate_assets(&out)
                 .with_context(|| format!("generating assets into {}", out.display()))?;
+            for file in &files {
+                println!("wrote {}", file.display());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Generate(Generate::Sounds { out }) => {
+            let files = crate::scene::sound_kit::generate_sounds(&out)
+                .with_context(|| format!("generating sounds into {}", out.display()))?;
             for file in &files {
                 println!("wrote {}", file.display());
             }

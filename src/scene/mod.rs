@@ -5,7 +5,7 @@
 //! (`level`), loading a level or a bare glTF into one `Scene` (`world`), the cache that imports each
 //! asset file once (`assets`), validation with
 //! `file:line:column` diagnostics (`diagnostic`, `source_map`), and the generators that
-//! write Gloam's own assets (`gltf_export`, `kit`). The editor saves through this module;
+//! write Gloam's own assets (`gltf_export`, `kit`, and the sounds' `sound_kit`). The editor saves through this module;
 //! no other module touches asset or level files.
 
 pub mod animation;
@@ -17,6 +17,7 @@ pub mod gltf_import;
 pub mod kit;
 pub mod level;
 pub mod model;
+pub mod sound_kit;
 pub mod source_map;
 pub mod watch;
 pub mod world;
