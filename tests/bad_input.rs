@@ -679,6 +679,35 @@ fn bad_knock_and_mover_values_are_reported_at_their_place() {
     );
 }
 
+#[test]
+fn bad_sound_values_and_a_missing_sound_file_are_reported_at_their_place() {
+    let (path, text) = broken_level(
+        "sound",
+        "(name: \"start\", player_spawn: (eye_height: 1.6)),",
+        "(name: \"start\", player_spawn: (eye_height: 1.6), sound: (asset: \"hum.png\", gain_db: 99.0)),",
+    );
+    let line = Some(line_of(&text, "sound:"));
+    assert_reported(&path, "level.ron", line, &["sound 'hum.png' is not a .wav"]);
+    assert_reported(
+        &path,
+        "level.ron",
+        line,
+        &["gain must be between -60 and 60 dB"],
+    );
+    let (path, text) = broken_level(
+        "sound-missing",
+        "name: \"fixture\",",
+        "name: \"fixture\", environment: (ambience: (asset: \"wind.ogg\")),",
+    );
+    let line = Some(line_of(&text, "ambience:"));
+    assert_reported(
+        &path,
+        "level.ron",
+        line,
+        &["missing sound", "wind.ogg", "no such file"],
+    );
+}
+
 /// A triangle whose second vertex's x is `x`.
 fn triangle_with_x(x: f32) -> String {
     triangle_gltf(|json| {

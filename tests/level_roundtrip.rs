@@ -136,3 +136,49 @@ fn cornell_level_uses_the_asset_camera() {
             < 1e-5
     );
 }
+
+/// A level's sounds (an entity's `sound`, the environment's `ambience`) load, reach the
+/// world as components, and are written back as they were, defaults left out.
+#[test]
+fn sounds_round_trip_through_the_world() {
+    let dir = common::scratch_dir("sound-roundtrip");
+    let sounds = common::repo().join("assets").join("sounds");
+    let text = format!(
+        r#"(
+    version: 1,
+    name: "sounds",
+    environment: (
+        ambience: (asset: "{wind}", gain_db: -6.0),
+    ),
+    entities: [
+        (name: "start", player_spawn: (eye_height: 1.6)),
+        (
+            name: "lamp",
+            transform: (translation: (1.0, 2.0, 0.0)),
+            sound: (asset: "{hum}"),
+        ),
+        (
+            name: "bell",
+            sound: (asset: "{shard}", gain_db: 3.0, looping: false),
+        ),
+    ],
+)
+"#,
+        wind = sounds.join("wind.wav").display(),
+        hum = sounds.join("lamp-hum.wav").display(),
+        shard = sounds.join("shard.wav").display(),
+    );
+    let path = common::write(&dir, "sounds.ron", &text);
+    let scene = gloam::scene::Scene::load(&path).unwrap();
+    let mut engine =
+        gloam::frame::Engine::new(&scene, gloam::render::RenderSettings::real_time(8, 8));
+    let mut sources = engine.world.query::<&gloam::game::SoundSource>();
+    assert_eq!(sources.iter(&engine.world).count(), 2);
+    let level = gloam::game::level_from_world(&mut engine.world);
+    assert_eq!(level, scene.level);
+    let saved = gloam::scene::level::level_to_string(&level);
+    assert_eq!(saved, gloam::scene::level::level_to_string(&scene.level));
+    assert_eq!(saved.matches("looping: false").count(), 1, "{saved}");
+    assert!(!saved.contains("looping: true") && !saved.contains("gain_db: 0.0"));
+    assert_eq!(parse_level(&path, &saved).unwrap(), level);
+}

@@ -57,6 +57,7 @@ pub fn entity_defs(world: &mut World) -> Vec<(LevelEntity, EntityDef)> {
             Option<&Warden>,
             Option<&super::noise::Knockable>,
             Option<&super::patrol::Patrol>,
+            Option<&super::SoundSource>,
         ),
     )>();
     let mut entities: Vec<(LevelEntity, EntityDef)> = query
@@ -73,7 +74,7 @@ pub fn entity_defs(world: &mut World) -> Vec<(LevelEntity, EntityDef)> {
                 spawn,
                 animation,
                 deformer,
-                (shard, exit, warden, knock, mover),
+                (shard, exit, warden, knock, mover, sound),
             )| {
                 // A mover is saved at its place, not where its swing has taken it.
                 let transform = mover.map_or(*transform, |m| m.origin);
@@ -112,6 +113,7 @@ pub fn entity_defs(world: &mut World) -> Vec<(LevelEntity, EntityDef)> {
                         offset: m.offset,
                         period: m.period as f32,
                     }),
+                    sound: sound.map(|s| s.0.clone()),
                 };
                 (*order, def)
             },

@@ -165,6 +165,11 @@ pub struct AnimationSource(pub AnimationDef);
 #[derive(Component, Clone, Debug, PartialEq)]
 pub struct DeformerSource(pub DeformerDef);
 
+/// A sound a level entity makes where it stands, as the level writes it (its path is
+/// relative to the level file, `LevelInfo::source`).
+#[derive(Component, Clone, Debug, PartialEq)]
+pub struct SoundSource(pub crate::scene::level::SoundDef);
+
 /// A skinned mesh node's joints as entities (glTF skin).
 #[derive(Component, Clone, Debug)]
 pub struct Skin {

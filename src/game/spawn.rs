@@ -3,7 +3,7 @@
 //!
 //! A level entity becomes a root entity (`LevelEntity`, `Name`, `Transform`) carrying its
 //! components (`AssetInstance`, `PunctualLight`, `ViewCamera` + `LevelCamera`,
-//! `PlayerStart`, `AnimationSource` + `Animator`, `DeformerSource`), and its asset's glTF
+//! `PlayerStart`, `AnimationSource` + `Animator`, `DeformerSource`, `SoundSource`), and its asset's glTF
 //! node hierarchy is spawned under it: every node an entity with its `Transform`, mesh
 //! nodes with `MeshNode` (and `Skin`, `MorphWeights`, `Deformer` for meshes that change
 //! shape), light nodes with `AssetLight`. Despawning the root (`World::despawn`) takes the
@@ -220,6 +220,9 @@ pub fn spawn_entity(
     }
     if let Some(animation) = &def.animation {
         root.insert(AnimationSource(animation.clone()));
+    }
+    if let Some(sound) = &def.sound {
+        root.insert(super::SoundSource(sound.clone()));
     }
     if let Some(shard) = &def.shard {
         root.insert(super::Shard {

@@ -54,6 +54,42 @@ pub struct Environment {
     /// Radiance of the sky seen by rays that leave the level, linear RGB in W/(sr m^2).
     #[serde(default)]
     pub sky: Vec3,
+    /// A bed of sound heard everywhere in the level, the same in both ears (wind, a
+    /// distant sea); none by default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ambience: Option<AmbienceDef>,
+}
+
+/// The level's ambience: a looping sound file and its gain.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AmbienceDef {
+    /// Path to a sound file (WAV, FLAC, Ogg Vorbis or MP3), relative to the level file.
+    pub asset: String,
+    /// Gain in decibels (0: as the file is).
+    #[serde(default, skip_serializing_if = "is_zero_db")]
+    pub gain_db: f32,
+}
+
+/// A sound the entity makes where it stands, moving with it (a lamp's hum, a fountain).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SoundDef {
+    /// Path to a sound file (WAV, FLAC, Ogg Vorbis or MP3), relative to the level file.
+    pub asset: String,
+    /// Gain in decibels at 1 m (0: as the file is).
+    #[serde(default, skip_serializing_if = "is_zero_db")]
+    pub gain_db: f32,
+    /// Plays as a loop from the level's start (the default), or once as the level starts.
+    #[serde(default = "default_true", skip_serializing_if = "is_true")]
+    pub looping: bool,
+}
+
+/// The file extensions a sound asset may have.
+pub const SOUND_EXTENSIONS: [&str; 4] = ["wav", "flac", "ogg", "mp3"];
+
+fn is_zero_db(value: &f32) -> bool {
+    *value == 0.0
 }
 
 impl Environment {
@@ -101,6 +137,9 @@ pub struct EntityDef {
     /// Swing back and forth along a line through the entity's place (a lantern on a rail).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mover: Option<MoverDef>,
+    /// A sound the entity makes where it stands.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sound: Option<SoundDef>,
 }
 
 /// Moves the entity up to `offset` (world metres) either side of its place, a sine over
@@ -296,6 +335,7 @@ impl EntityDef {
             warden: None,
             knock: None,
             mover: None,
+            sound: None,
         }
     }
 }
@@ -647,6 +687,14 @@ pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
         "sky radiance",
         None,
     );
+    if let Some(ambience) = &level.environment.ambience {
+        check_sound(
+            &mut report,
+            Pointer::root().key("environment").key("ambience"),
+            &ambience.asset,
+            ambience.gain_db,
+        );
+    }
 
     let mut first_use: BTreeMap<&str, usize> = BTreeMap::new();
     let mut spawns = Vec::new();
@@ -701,6 +749,10 @@ pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
                     change,
                 );
             }
+        }
+
+        if let Some(sound) = &entity.sound {
+            check_sound(&mut report, at.key("sound"), &sound.asset, sound.gain_db);
         }
 
         if let Some(animation) = &entity.animation {
@@ -985,6 +1037,30 @@ fn check_colour(
             None => "finite and not negative".to_owned(),
         };
         report(at, format!("{what} must be {range} (found {value})"));
+    }
+}
+
+/// A sound's file is one of `SOUND_EXTENSIONS` and its gain a finite number of decibels
+/// within +-60.
+fn check_sound(report: &mut impl FnMut(Pointer, String), at: Pointer, asset: &str, gain_db: f32) {
+    let extension = Path::new(asset)
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !extension.is_some_and(|e| SOUND_EXTENSIONS.contains(&e.as_str())) {
+        report(
+            at.key("asset"),
+            format!(
+                "sound '{asset}' is not a {} file",
+                SOUND_EXTENSIONS.map(|e| format!(".{e}")).join(", ")
+            ),
+        );
+    }
+    if !(gain_db.is_finite() && gain_db.abs() <= 60.0) {
+        report(
+            at.key("gain_db"),
+            format!("gain must be between -60 and 60 dB (found {gain_db})"),
+        );
     }
 }
 

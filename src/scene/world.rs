@@ -130,6 +130,7 @@ impl Scene {
                 } else {
                     Vec3::ZERO
                 },
+                ambience: None,
             },
             entities: vec![entity],
         };
@@ -204,6 +205,30 @@ impl Scene {
                         diagnostics.extend(error.diagnostics);
                     }
                 }
+            }
+        }
+        // Sound files are read when they play: here they need only be there.
+        let ambience = level.environment.ambience.as_ref().map(|ambience| {
+            let at = Pointer::root().key("environment").key("ambience");
+            (at, &ambience.asset)
+        });
+        let sounds = level
+            .entities
+            .iter()
+            .enumerate()
+            .filter_map(|(index, entity)| {
+                let at = Pointer::root().key("entities").index(index).key("sound");
+                Some((at, &entity.sound.as_ref()?.asset))
+            });
+        for (at, asset) in ambience.into_iter().chain(sounds) {
+            let file = base.join(asset);
+            if !file.is_file() {
+                diagnostics.push(Diagnostic::at_pointer(
+                    path,
+                    &text(),
+                    &at.key("asset"),
+                    format!("missing sound '{}' (no such file)", file.display()),
+                ));
             }
         }
         if !diagnostics.is_empty() {
