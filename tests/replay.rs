@@ -140,3 +140,53 @@ fn another_version_of_the_level_or_a_broken_file_is_refused_in_one_line() {
     let error = format!("{:#}", replay(&future, 1).unwrap_err());
     assert!(error.contains("recording version 3"), "{error}");
 }
+
+/// The sounds a replay's steps made (`SoundEvents`), every one a file of the sound kit.
+fn sounds_of(recording: &str) -> Vec<String> {
+    let path = common::repo().join("tests/recordings").join(recording);
+    let report = replay(&path, 2).unwrap();
+    let kit: Vec<String> = gloam::scene::sound_kit::sounds()
+        .into_iter()
+        .map(|s| s.name)
+        .collect();
+    let mut heard = Vec::new();
+    for step in report["steps"].as_array().unwrap() {
+        for sound in step["sounds"].as_array().unwrap() {
+            let sound = sound.as_str().unwrap().to_owned();
+            assert!(
+                kit.contains(&sound),
+                "{recording}: {sound} is no file of the kit"
+            );
+            heard.push(sound);
+        }
+    }
+    heard
+}
+
+/// Game events sound: the won play-through walks with quiet steps on the level's surfaces,
+/// takes three shards and never hears an alarm; the caught one hears a warden's voice
+/// raise the alarm; the glimpse is heard turn curious and, after the search, give up.
+#[test]
+fn the_shipped_play_throughs_make_the_sounds_of_their_events() {
+    let won = sounds_of("first-light-won.json");
+    let count = |sounds: &[String], name: &str| sounds.iter().filter(|s| *s == name).count();
+    let steps: Vec<&String> = won.iter().filter(|s| s.starts_with("step-")).collect();
+    // 69.8 s of careful play: a footstep every 0.55-0.8 m.
+    assert!(steps.len() > 40, "{} footsteps", steps.len());
+    assert!(
+        steps.iter().all(|s| !s.contains("-sprint-")),
+        "the bot never sprints"
+    );
+    assert!(steps.iter().any(|s| s.contains("-crouch-")));
+    assert_eq!(count(&won, "shard"), 3);
+    assert_eq!(count(&won, "warden-alarm"), 0);
+    assert!(count(&won, "warden-step-1") + count(&won, "warden-step-2") > 20);
+    assert!(count(&won, "warden-armour") > 10);
+
+    let caught = sounds_of("first-light-caught.json");
+    assert!(count(&caught, "warden-alarm") >= 1, "{caught:?}");
+
+    let glimpsed = sounds_of("first-light-glimpsed.json");
+    assert!(count(&glimpsed, "warden-curious") >= 1, "{glimpsed:?}");
+    assert!(count(&glimpsed, "warden-gives-up") >= 1, "{glimpsed:?}");
+}

@@ -26,7 +26,7 @@ use glam::{Affine3A, Vec2, Vec3, Vec3A};
 
 use super::{instance_user_id, is_drawable, mesh_geometry};
 use crate::accel::{AccelScene, Blas, Instance, InstanceMask, Opaque, Ray};
-use crate::game::world_query::{Contact, RayHit, WorldGeometry, WorldQuery};
+use crate::game::world_query::{Contact, RayHit, Surface, WorldGeometry, WorldQuery};
 use crate::game::{
     AssetInstance, AssetLight, GlobalTransform, LevelInfo, MeshNode, PunctualLight, SwitchedOff,
 };
@@ -59,6 +59,8 @@ pub struct StepWorld {
     mirror_triangles: Vec<(u32, Vec<u32>)>,
     /// Those triangles in world space as of this step, front faces by their winding.
     mirrors: Vec<[Vec3; 3]>,
+    /// Per instance, how each of its asset's materials sounds (`Surface::of`).
+    surfaces: Vec<Vec<Surface>>,
 }
 
 /// A material the game treats as a mirror that wardens and the player see each other in:
@@ -83,6 +85,7 @@ impl Default for StepWorld {
             emitters: Vec::new(),
             mirror_triangles: Vec::new(),
             mirrors: Vec::new(),
+            surfaces: Vec::new(),
             sky: Vec3::ZERO,
         }
     }
@@ -116,9 +119,15 @@ impl WorldQuery for StepWorld {
         let mut ray = Ray::new(origin.into(), direction.into());
         ray.t_max = max_distance;
         let hit = self.accel.intersect(&ray, InstanceMask::ALL, &Opaque)?;
+        let surface = self.accel.surface(&hit);
+        let sounds = self
+            .surfaces
+            .get(hit.instance as usize)
+            .and_then(|materials| materials.get(surface.material as usize));
         Some(RayHit {
             distance: hit.t,
-            normal: self.accel.surface(&hit).geometric_normal.into(),
+            normal: surface.geometric_normal.into(),
+            surface: sounds.copied().unwrap_or(Surface::Stone),
         })
     }
 
@@ -396,7 +405,11 @@ fn assemble(
     world.emission.clear();
     world.emission_sides.clear();
     world.mirror_triangles.clear();
+    world.surfaces.clear();
     for (_, entity, node, transform) in entries {
+        world
+            .surfaces
+            .push(node.asset.materials.iter().map(Surface::of).collect());
         let mut mirror = Vec::new();
         let mut triangle = 0u32;
         for primitive in &node.asset.meshes[node.mesh].primitives {

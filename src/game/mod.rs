@@ -18,7 +18,8 @@
 //!    its light gem (`measure_exposure`), the goal (`collect_shards`, `reach_exit`), the
 //!    wardens (`watch_for_player`: sight, suspicion, state; `hear_noises`;
 //!    `relight_lamps`; `walk_wardens`: their feet, on the `nav::NavGrid` built at load),
-//!    then `patrol` movers;
+//!    then `patrol` movers, and last what the step sounded like (`hear_the_step`: the
+//!    sound kit's files, where and by whom, in `SoundEvents`);
 //! 3. `Stage::Animation`: `animate_wardens` (each warden's clip for its state) and
 //!    `animate_player_body` (the player's own body walks or idles), then
 //!    `advance_animations` and `apply_animations` (glTF clips into node transforms and
@@ -41,6 +42,7 @@ pub mod patrol;
 pub mod player;
 pub mod replay;
 pub mod sight;
+pub mod sound_events;
 pub mod spawn;
 pub mod state;
 pub mod transform;
@@ -68,6 +70,7 @@ pub use patrol::{Patrol, patrol};
 pub use player::{
     ActiveCamera, Player, PlayerBody, PlayerEye, animate_player_body, move_player, spawn_player,
 };
+pub use sound_events::{SoundEvent, SoundEvents, SoundMaker, hear_the_step};
 pub use spawn::{Assets, LevelInfo, spawn, spawn_entity, spawn_level};
 pub use transform::{
     GlobalTransform, PreviousGlobalTransform, Transform, interpolate, propagate_transforms,
@@ -215,6 +218,7 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                             relight_lamps,
                             walk_wardens,
                             patrol,
+                            hear_the_step,
                         )
                             .chain(),
                     );

@@ -290,6 +290,7 @@ mod tests {
                 .map(|(t, _)| t)
                 .reduce(f32::min)
                 .map(|distance| crate::game::world_query::RayHit {
+                    surface: crate::game::world_query::Surface::Stone,
                     distance,
                     normal: -direction,
                 })

@@ -63,6 +63,7 @@ pub fn spawn_level(world: &mut World, scene: &Scene) {
         cache.insert(Arc::clone(asset));
     }
     world.insert_resource(Assets(cache));
+    world.insert_resource(super::SoundEvents::default());
     world.insert_resource(LevelInfo {
         source: scene.source.clone(),
         version: scene.level.version,

@@ -27,7 +27,11 @@ pub struct RayHit {
     /// The surface's unit normal, on the side its triangle's winding makes the front
     /// (a floor's points up; the ray may have met its back).
     pub normal: Vec3,
+    /// What it sounds like underfoot or struck (by its material).
+    pub surface: Surface,
 }
+
+pub use crate::scene::sound_kit::Surface;
 
 /// The questions the simulation asks of the level's geometry.
 pub trait WorldQuery: Send + Sync + 'static {
@@ -101,6 +105,7 @@ pub(crate) mod fakes {
 
         fn raycast(&self, _: Vec3, direction: Vec3, max_distance: f32) -> Option<RayHit> {
             Some(RayHit {
+                surface: Surface::Stone,
                 distance: max_distance * 0.5,
                 normal: -direction,
             })

@@ -280,6 +280,11 @@ fn step_report(engine: &mut Engine, step: usize) -> Value {
         })
         .collect();
     wardens.sort_by(|a, b| a.0.cmp(&b.0));
+    let sounds: Vec<&str> = engine
+        .world
+        .get_resource::<crate::game::SoundEvents>()
+        .map(|sounds| sounds.events.iter().map(|e| e.sound.as_str()).collect())
+        .unwrap_or_default();
     json!({
         "t": step as f64 / SIMULATION_HZ,
         "player": [feet.x, feet.y, feet.z],
@@ -291,5 +296,6 @@ fn step_report(engine: &mut Engine, step: usize) -> Value {
                 json!({"name": name, "state": state, "suspicion": suspicion})
             })
             .collect::<Vec<_>>(),
+        "sounds": sounds,
     })
 }

@@ -36,6 +36,23 @@ pub enum Surface {
 }
 
 impl Surface {
+    /// How `material` sounds struck or walked on, by what the kit calls it: wood, cloth
+    /// (banners, cloaks, rugs), iron and the other metals; anything else is stone (plaster,
+    /// tiles, glass).
+    pub fn of(material: &crate::scene::model::Material) -> Surface {
+        let name = material.name.to_ascii_lowercase();
+        let named = |words: &[&str]| words.iter().any(|word| name.contains(word));
+        if named(&["wood", "plank", "crate"]) {
+            Surface::Wood
+        } else if named(&["cloth", "cloak", "rug", "carpet", "banner"]) {
+            Surface::Cloth
+        } else if named(&["iron", "brass", "steel", "metal"]) || material.metallic >= 0.5 {
+            Surface::Iron
+        } else {
+            Surface::Stone
+        }
+    }
+
     pub const ALL: [Surface; 4] = [Surface::Stone, Surface::Wood, Surface::Iron, Surface::Cloth];
 
     pub fn name(self) -> &'static str {
@@ -1147,6 +1164,22 @@ mod tests {
             );
             assert!(crouch.1 < walk.1 && walk.1 < sprint.1, "{name} brightness");
         }
+    }
+
+    #[test]
+    fn the_kit_materials_sound_as_what_they_are() {
+        let sounds_as = |name: &str, metallic: f32| {
+            let mut material = crate::scene::model::Material::default();
+            material.name = name.into();
+            material.metallic = metallic;
+            Surface::of(&material)
+        };
+        assert_eq!(sounds_as("floor tiles", 0.0), Surface::Stone);
+        assert_eq!(sounds_as("plaster", 0.0), Surface::Stone);
+        assert_eq!(sounds_as("dark wood", 0.0), Surface::Wood);
+        assert_eq!(sounds_as("iron", 1.0), Surface::Iron);
+        assert_eq!(sounds_as("mirror", 1.0), Surface::Iron);
+        assert_eq!(sounds_as("banner cloth", 0.0), Surface::Cloth);
     }
 
     #[test]

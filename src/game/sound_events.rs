@@ -1,0 +1,301 @@
+//! Game schedule, fixed step "gameplay", last: what the step sounded like. `hear_the_step`
+//! compares the world with how the last step left it and lists every sound a game event
+//! made in `SoundEvents`: which file of the sound kit (`scene::sound_kit`), where, how loud
+//! at 1 m, who made it and its caption. The audio, the captions and the wardens' hearing
+//! read the list; nothing in the simulation depends on it, so it is not part of the state
+//! hash and a replay makes the same list again.
+//!
+//! The events, per step:
+//! - the player's footsteps: one per stride walked on the ground (0.55 m crouched, 0.8 m
+//!   walking, 1.2 m sprinting), on the surface under the feet (a ray down through the
+//!   level), the kit's two variants in turn; a landing from a fall faster than 2 m/s,
+//!   louder the harder;
+//! - a knocked thing toppling, and crashing as it lies flat;
+//! - a lamp doused or lit;
+//! - a shard taken;
+//! - a warden's boots every 0.9 m walked, its armour every second step, and its voice on
+//!   each change of mind: curious (suspicious), searching, the alarm (or the catch, when
+//!   no alarm came first), giving up.
+
+use std::collections::BTreeMap;
+
+use bevy_ecs::prelude::*;
+use glam::Vec3;
+
+use super::noise::{Knockable, tuning::TOPPLE_SECONDS};
+use super::player::Player;
+use super::warden::{Warden, WardenState};
+use super::world_query::{Surface, WorldGeometry};
+use super::{GlobalTransform, LevelEntity, PunctualLight, Shard, SwitchedOff, Transform};
+use crate::scene::sound_kit::{Gait, STEP_VARIANTS, footstep_name};
+
+/// Who made a sound.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SoundMaker {
+    Player,
+    /// A warden, by name.
+    Warden(String),
+    /// A thing in the level (a lamp, a bottle, a shard), by name.
+    Thing(String),
+}
+
+/// One sound a game event made this step.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SoundEvent {
+    /// The sound kit's file, by name (`assets/sounds/<sound>.wav`).
+    pub sound: String,
+    /// Where it was made.
+    pub at: Vec3,
+    /// Its level at 1 m against the file's own, decibels.
+    pub gain_db: f32,
+    pub by: SoundMaker,
+    /// What a caption says of it.
+    pub caption: &'static str,
+}
+
+/// This step's sounds, and what the last step left, to tell what changed.
+#[derive(Resource, Default, Debug)]
+pub struct SoundEvents {
+    pub events: Vec<SoundEvent>,
+    memory: Memory,
+}
+
+#[derive(Default, Debug)]
+struct Memory {
+    started: bool,
+    player: Option<Feet>,
+    wardens: BTreeMap<Entity, (Feet, WardenState)>,
+    lamps: BTreeMap<Entity, bool>,
+    shards: BTreeMap<Entity, (String, Vec3)>,
+    knocked: BTreeMap<Entity, u8>,
+}
+
+/// A body's feet as the last step left them.
+#[derive(Clone, Copy, Debug, Default)]
+struct Feet {
+    at: Vec3,
+    grounded: bool,
+    falling: f32,
+    /// Metres walked since the last footstep.
+    walked: f32,
+    /// Footsteps so far (the variant and the armour follow it).
+    steps: u32,
+}
+
+/// Footsteps and their captions, in one place (metres, m/s).
+pub mod tuning {
+    /// Metres between the player's footsteps, by gait.
+    pub const STRIDE_CROUCH: f32 = 0.55;
+    pub const STRIDE_WALK: f32 = 0.8;
+    pub const STRIDE_SPRINT: f32 = 1.2;
+    /// Metres between a warden's footsteps.
+    pub const WARDEN_STRIDE: f32 = 0.9;
+    /// The fall speed (m/s) from which a landing is heard; at the noise's `LANDING_SPEED`
+    /// it is at the file's level, 6 dB up for each doubling.
+    pub const LANDING_HEARD: f32 = 2.0;
+}
+
+use tuning::*;
+
+/// A knocked thing's progress: standing, toppling, flat.
+const TOPPLING: u8 = 1;
+const FLAT: u8 = 2;
+
+/// Fixed step, last of "gameplay": this step's sounds (see the module doc).
+#[allow(clippy::type_complexity)]
+pub fn hear_the_step(
+    sounds: Option<ResMut<SoundEvents>>,
+    geometry: Option<Res<WorldGeometry>>,
+    players: Query<(&Player, &Transform)>,
+    wardens: Query<(Entity, &Name, &Warden, &Transform)>,
+    lamps: Query<
+        (Entity, &Name, &GlobalTransform, Has<SwitchedOff>),
+        (With<PunctualLight>, With<LevelEntity>),
+    >,
+    shards: Query<(Entity, &Name, &Transform), With<Shard>>,
+    knockables: Query<(Entity, &Name, &Knockable, &Transform)>,
+) {
+    let Some(mut sounds) = sounds else { return };
+    let SoundEvents { events, memory } = &mut *sounds;
+    events.clear();
+    let first = !std::mem::replace(&mut memory.started, true);
+    let mut event = |sound: String, at: Vec3, gain_db: f32, by: SoundMaker, caption| {
+        if !first {
+            events.push(SoundEvent {
+                sound,
+                at,
+                gain_db,
+                by,
+                caption,
+            });
+        }
+    };
+
+    // The player's feet.
+    if let Some((player, body)) = players.iter().next() {
+        let at = body.translation;
+        let mut feet = memory.player.unwrap_or(Feet {
+            at,
+            grounded: player.grounded,
+            ..Feet::default()
+        });
+        if player.noclip {
+            feet.walked = 0.0;
+        } else if player.grounded {
+            if !feet.grounded && feet.falling > LANDING_HEARD {
+                let gain = 20.0 * (feet.falling / super::noise::tuning::LANDING_SPEED).log10();
+                event(
+                    "landing".into(),
+                    at,
+                    gain.clamp(-12.0, 6.0),
+                    SoundMaker::Player,
+                    "a landing",
+                );
+            }
+            feet.walked += horizontal(at - feet.at);
+            let gait = if player.sprinting {
+                Gait::Sprint
+            } else if player.crouched {
+                Gait::Crouch
+            } else {
+                Gait::Walk
+            };
+            let stride = match gait {
+                Gait::Crouch => STRIDE_CROUCH,
+                Gait::Walk => STRIDE_WALK,
+                Gait::Sprint => STRIDE_SPRINT,
+            };
+            if feet.walked >= stride {
+                feet.walked -= stride;
+                feet.steps += 1;
+                let surface = geometry
+                    .as_ref()
+                    .and_then(|g| g.0.raycast(at + Vec3::Y * 0.2, Vec3::NEG_Y, 0.6))
+                    .map_or(Surface::Stone, |hit| hit.surface);
+                let variant = feet.steps % STEP_VARIANTS + 1;
+                event(
+                    footstep_name(surface, gait, variant),
+                    at,
+                    0.0,
+                    SoundMaker::Player,
+                    "footsteps",
+                );
+            }
+        } else {
+            feet.walked = 0.0;
+        }
+        feet.at = at;
+        feet.grounded = player.grounded;
+        feet.falling = -player.velocity.y;
+        memory.player = Some(feet);
+    }
+
+    // The wardens: boots, armour and voice.
+    for (entity, name, warden, body) in &wardens {
+        let at = body.translation;
+        let (mut feet, before) = memory.wardens.get(&entity).copied().unwrap_or((
+            Feet {
+                at,
+                ..Feet::default()
+            },
+            warden.state,
+        ));
+        let by = || SoundMaker::Warden(name.as_str().to_owned());
+        feet.walked += horizontal(at - feet.at);
+        if feet.walked >= WARDEN_STRIDE {
+            feet.walked -= WARDEN_STRIDE;
+            feet.steps += 1;
+            let variant = feet.steps % 2 + 1;
+            event(
+                format!("warden-step-{variant}"),
+                at,
+                0.0,
+                by(),
+                "a warden's footsteps",
+            );
+            if feet.steps % 2 == 0 {
+                event("warden-armour".into(), at, 0.0, by(), "armour clinks");
+            }
+        }
+        let voice = at + Vec3::Y * super::noise::tuning::EAR_HEIGHT;
+        let cue = match (before, warden.state) {
+            (a, b) if a == b => None,
+            (_, WardenState::Suspicious) => Some(("warden-curious", "a warden: \"Hm?\"")),
+            (_, WardenState::Searching) => Some(("warden-searching", "a warden: \"Who's there?\"")),
+            // A catch with no alarm before it (seen close enough to be caught at once)
+            // is called out as one.
+            (WardenState::Alert, WardenState::Caught) => None,
+            (_, WardenState::Alert | WardenState::Caught) => {
+                Some(("warden-alarm", "a warden: \"Intruder!\""))
+            }
+            (WardenState::Suspicious | WardenState::Searching, WardenState::Patrol) => {
+                Some(("warden-gives-up", "a warden gives up"))
+            }
+            _ => None,
+        };
+        if let Some((sound, caption)) = cue {
+            event(sound.into(), voice, 0.0, by(), caption);
+        }
+        feet.at = at;
+        memory.wardens.insert(entity, (feet, warden.state));
+    }
+
+    // Lamps doused and lit.
+    for (entity, name, placed, off) in &lamps {
+        let was_off = memory.lamps.insert(entity, off);
+        if was_off.is_some_and(|was| was != off) {
+            let (sound, caption) = if off {
+                ("lamp-douse", "a lamp goes out")
+            } else {
+                ("lamp-light", "a lamp is lit")
+            };
+            let at = placed.0.translation.into();
+            event(
+                sound.into(),
+                at,
+                0.0,
+                SoundMaker::Thing(name.as_str().to_owned()),
+                caption,
+            );
+        }
+    }
+
+    // Shards taken: there last step, gone now.
+    let mut left = BTreeMap::new();
+    for (entity, name, placed) in &shards {
+        left.insert(entity, (name.as_str().to_owned(), placed.translation));
+    }
+    for (entity, (name, at)) in std::mem::replace(&mut memory.shards, left) {
+        if !memory.shards.contains_key(&entity) {
+            event(
+                "shard".into(),
+                at,
+                0.0,
+                SoundMaker::Thing(name),
+                "a shard taken",
+            );
+        }
+    }
+
+    // Knocked things: the topple, then the crash as they lie flat.
+    for (entity, name, thing, placed) in &knockables {
+        let now = match thing.fallen {
+            None => 0,
+            Some((seconds, _)) if seconds < TOPPLE_SECONDS => TOPPLING,
+            Some(_) => FLAT,
+        };
+        let before = memory.knocked.insert(entity, now).unwrap_or(now);
+        let by = || SoundMaker::Thing(name.as_str().to_owned());
+        let at = placed.translation;
+        if before == 0 && now >= TOPPLING {
+            event("bottle-topple".into(), at, 0.0, by(), "something topples");
+        }
+        if before < FLAT && now == FLAT {
+            event("bottle-break".into(), at, 0.0, by(), "a bottle breaks");
+        }
+    }
+}
+
+fn horizontal(v: Vec3) -> f32 {
+    Vec3::new(v.x, 0.0, v.z).length()
+}
