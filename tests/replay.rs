@@ -165,7 +165,8 @@ fn sounds_of(recording: &str) -> Vec<String> {
 
 /// Game events sound: the won play-through walks with quiet steps on the level's surfaces,
 /// takes three shards and never hears an alarm; the caught one hears a warden's voice
-/// raise the alarm; the glimpse is heard turn curious and, after the search, give up.
+/// raise the alarm; the gallery's gate runs on its chains; the glimpse is heard turn
+/// curious and, after the search, give up.
 #[test]
 fn the_shipped_play_throughs_make_the_sounds_of_their_events() {
     let won = sounds_of("first-light-won.json");
@@ -185,6 +186,14 @@ fn the_shipped_play_throughs_make_the_sounds_of_their_events() {
 
     let caught = sounds_of("first-light-caught.json");
     assert!(count(&caught, "warden-alarm") >= 1, "{caught:?}");
+
+    // The gallery's gate rises and falls every 11 s on its chains (kit::GATE_CYCLE).
+    let gallery = sounds_of("the-gallery-won.json");
+    let chains = count(&gallery, "gate-chains");
+    assert!(
+        (12..=14).contains(&chains),
+        "{chains} runs of the chains in 75 s"
+    );
 
     let glimpsed = sounds_of("first-light-glimpsed.json");
     assert!(count(&glimpsed, "warden-curious") >= 1, "{glimpsed:?}");

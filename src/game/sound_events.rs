@@ -13,6 +13,8 @@
 //! - a knocked thing toppling, and crashing as it lies flat;
 //! - a lamp doused or lit;
 //! - a shard taken;
+//! - a thing the level animates starting to slide (the kit's gate, rising or falling on
+//!   its chains): its animated nodes still last step and moving now;
 //! - a warden's boots every 0.9 m walked, its armour every second step, and its voice on
 //!   each change of mind: curious (suspicious), searching, the alarm (or the catch, when
 //!   no alarm came first), giving up.
@@ -26,7 +28,10 @@ use super::noise::{Knockable, tuning::TOPPLE_SECONDS};
 use super::player::Player;
 use super::warden::{Warden, WardenState};
 use super::world_query::{Surface, WorldGeometry};
-use super::{GlobalTransform, LevelEntity, PunctualLight, Shard, SwitchedOff, Transform};
+use super::{
+    AnimationSource, Animator, GlobalTransform, LevelEntity, PunctualLight, Shard, SwitchedOff,
+    Transform,
+};
 use crate::scene::sound_kit::{Gait, STEP_VARIANTS, footstep_name};
 
 /// Who made a sound.
@@ -68,6 +73,8 @@ struct Memory {
     lamps: BTreeMap<Entity, bool>,
     shards: BTreeMap<Entity, (String, Vec3)>,
     knocked: BTreeMap<Entity, u8>,
+    /// Per animated entity: where its nodes stood (summed), and whether they were moving.
+    sliding: BTreeMap<Entity, (Vec3, bool)>,
 }
 
 /// A body's feet as the last step left them.
@@ -114,6 +121,8 @@ pub fn hear_the_step(
     >,
     shards: Query<(Entity, &Name, &Transform), With<Shard>>,
     knockables: Query<(Entity, &Name, &Knockable, &Transform)>,
+    animated: Query<(Entity, &Name, &Animator, &Transform), With<AnimationSource>>,
+    nodes: Query<&Transform>,
 ) {
     let Some(mut sounds) = sounds else { return };
     let SoundEvents { events, memory } = &mut *sounds;
@@ -294,7 +303,37 @@ pub fn hear_the_step(
             event("bottle-break".into(), at, 0.0, by(), "a bottle breaks");
         }
     }
+
+    // Animated things that start to slide.
+    for (entity, name, animator, placed) in &animated {
+        let stood: Vec3 = animator
+            .nodes
+            .iter()
+            .filter_map(|&node| nodes.get(node).ok())
+            .map(|node| node.translation)
+            .sum();
+        let (before, was_moving) = memory
+            .sliding
+            .get(&entity)
+            .copied()
+            .unwrap_or((stood, true));
+        let moving = (stood - before).length() > SLIDING;
+        if moving && !was_moving {
+            event(
+                "gate-chains".into(),
+                placed.translation,
+                0.0,
+                SoundMaker::Thing(name.as_str().to_owned()),
+                "chains rattle",
+            );
+        }
+        memory.sliding.insert(entity, (stood, moving));
+    }
 }
+
+/// Metres a node must move in a step to count as moving (a gate's chains run at about
+/// 1.5 m/s, 25 mm a step).
+const SLIDING: f32 = 1e-4;
 
 fn horizontal(v: Vec3) -> f32 {
     Vec3::new(v.x, 0.0, v.z).length()
