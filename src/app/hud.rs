@@ -2,7 +2,7 @@
 //! Noto Sans Mono bitmap font (crate noto-sans-mono-bitmap, SIL Open Font License; no font
 //! file), and the light gem.
 
-pub use crate::profile::chart::draw_text;
+pub use crate::profile::chart::{GLYPH_WIDTH, draw_text};
 
 use crate::game::WardenState;
 use crate::game::exposure::curve::{GEM_STEPS, gem_cells};

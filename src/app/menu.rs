@@ -152,6 +152,7 @@ enum Row {
     FieldOfView,
     Brightness,
     FrameTimeTarget,
+    Captions,
     Keys,
     Bind(Action),
     ResetKeys,
@@ -172,6 +173,7 @@ impl Row {
                 | Row::FieldOfView
                 | Row::Brightness
                 | Row::FrameTimeTarget
+                | Row::Captions
         )
     }
 }
@@ -231,6 +233,7 @@ impl Menu {
                 Row::FieldOfView,
                 Row::Brightness,
                 Row::FrameTimeTarget,
+                Row::Captions,
                 Row::Keys,
                 Row::Back,
             ],
@@ -413,6 +416,10 @@ impl Menu {
                         "Invert mouse Y".to_string(),
                         Some(if settings.invert_y { "on" } else { "off" }.to_string()),
                     ),
+                    Row::Captions => (
+                        "Captions".to_string(),
+                        Some(if settings.captions { "on" } else { "off" }.to_string()),
+                    ),
                     Row::FieldOfView => (
                         "Field of view".to_string(),
                         Some(format!("{:.0} deg", settings.field_of_view)),
@@ -523,6 +530,7 @@ fn adjust(row: Row, step: i32, settings: &mut Settings) -> Option<MenuCommand> {
                 stepped(settings.mouse_sensitivity, ranges::MOUSE_SENSITIVITY)
         }
         Row::InvertY => settings.invert_y = !settings.invert_y,
+        Row::Captions => settings.captions = !settings.captions,
         Row::FieldOfView => {
             settings.field_of_view = stepped(settings.field_of_view, ranges::FIELD_OF_VIEW)
         }

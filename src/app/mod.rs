@@ -29,6 +29,7 @@
 //! opens the level's file in the editor (`shell`), F12 writes a screenshot (`screenshot`: the frame as PNG and the linear film as EXR). No
 //! single key quits. A level without a player start is flown through with the same keys.
 
+mod captions;
 pub mod editor;
 mod hud;
 pub mod menu;
@@ -256,6 +257,7 @@ impl App {
             file_error: None,
             pointer: None,
             caught: None,
+            captions: captions::Captions::default(),
             options,
             window: None,
             pixels: None,
@@ -452,6 +454,8 @@ pub(crate) struct App {
     pointer: Option<(u32, u32)>,
     /// When the player was last caught, and by whom (shown over the new attempt).
     caught: Option<(Instant, String)>,
+    /// Captions of the sounds heard lately (`captions`).
+    captions: captions::Captions,
     /// Adaptive internal resolution (None: fixed).
     resolution: Option<ResolutionController>,
     options: PlayOptions,
@@ -525,6 +529,7 @@ impl App {
         self.backdrop = None;
         self.menu = None;
         self.caught = None;
+        self.captions.clear();
         self.apply_target();
     }
 
@@ -827,6 +832,35 @@ impl App {
         self.window_key(binding);
     }
 
+    /// Takes the sounds the steps since the last frame made and captions those that
+    /// matter, as the player stands and faces (nothing when captions are off).
+    fn hear_captions(&mut self) {
+        let Some(game) = &mut self.game else { return };
+        let world = &mut game.engine.world;
+        let Some(events) = world
+            .get_resource_mut::<crate::game::SoundEvents>()
+            .map(|mut sounds| sounds.take())
+        else {
+            return;
+        };
+        if !self.context.settings.captions {
+            return self.captions.clear();
+        }
+        let now = world
+            .get_resource::<crate::game::Progress>()
+            .map_or(0.0, |progress| progress.seconds());
+        let mut eyes = world.query_filtered::<
+            &crate::game::GlobalTransform,
+            bevy_ecs::query::With<crate::game::PlayerEye>,
+        >();
+        let Some(ear) = eyes.iter(world).next().map(|eye| eye.0.translation.into()) else {
+            return;
+        };
+        let mut players = world.query::<&crate::game::Player>();
+        let yaw = players.iter(world).next().map_or(0.0, |player| player.yaw);
+        self.captions.hear(&events, ear, yaw, now);
+    }
+
     /// The pause menu over the level, which holds the simulation while it is open.
     fn pause(&mut self) {
         if let Some(game) = &mut self.game {
@@ -953,6 +987,7 @@ impl App {
             };
             adapt_resolution(resolution, engine, options, elapsed.as_secs_f64() * 1e3);
             engine.advance(elapsed.as_secs_f64());
+            self.hear_captions();
             if let Some(game) = &self.game {
                 // A recording holds one attempt: it ends when the attempt does.
                 let outcome = game
@@ -1024,6 +1059,14 @@ impl App {
                 &self.caught,
                 self.options.watch.is_some(),
             );
+            // Captions centred above the bottom line, the newest lowest.
+            let lines: Vec<&str> = self.captions.lines().collect();
+            for (row, line) in lines.iter().rev().enumerate() {
+                let wide = line.chars().count() as u32 * hud::GLYPH_WIDTH;
+                let x = width.saturating_sub(wide) / 2;
+                let y = height.saturating_sub(40 + 18 * row as u32);
+                hud::draw_text(frame, width, height, x, y, line);
+            }
         }
         let internal = self.engine_mut().map(|engine| {
             (

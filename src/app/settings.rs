@@ -1,5 +1,5 @@
 //! The player's own files, read when the window opens and written when they change: the
-//! settings (mouse, view, brightness, frame-time target, keys) and the best time of each
+//! settings (mouse, view, brightness, frame-time target, keys, captions) and the best time of each
 //! level, both RON in the user's config folder (`$GLOAM_CONFIG_DIR`, else
 //! `$XDG_CONFIG_HOME/gloam`, `~/.config/gloam`, `%APPDATA%\gloam` or
 //! `~/Library/Application Support/gloam`).
@@ -39,6 +39,8 @@ pub struct Settings {
     /// resolution fixed.
     pub frame_time_target_ms: Option<f64>,
     pub keys: KeyBindings,
+    /// Captions for the sounds that matter to play, with where they come from.
+    pub captions: bool,
 }
 
 impl Default for Settings {
@@ -50,6 +52,7 @@ impl Default for Settings {
             brightness: 1.0,
             frame_time_target_ms: Some(DEFAULT_TARGET_MS),
             keys: KeyBindings::default(),
+            captions: true,
         }
     }
 }

@@ -54,15 +54,57 @@ pub struct SoundEvent {
     /// Its level at 1 m against the file's own, decibels.
     pub gain_db: f32,
     pub by: SoundMaker,
-    /// What a caption says of it.
-    pub caption: &'static str,
+    /// What a caption says of it, and how far away.
+    pub caption: Caption,
 }
+
+/// A sound's caption: its words, and how far away a caption shows it, metres (0: never,
+/// for the player's own footsteps and pickups, which go without saying). A distance in the
+/// open, until the sound's propagation through the level says what is heard.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Caption {
+    pub text: &'static str,
+    pub within: f32,
+}
+
+const fn caption(text: &'static str, within: f32) -> Caption {
+    Caption { text, within }
+}
+
+const FOOTSTEPS: Caption = caption("footsteps", 0.0);
+const LANDING: Caption = caption("a landing", 0.0);
+const SHARD: Caption = caption("a shard taken", 0.0);
+const WARDEN_STEPS: Caption = caption("a warden's footsteps", 12.0);
+/// Heard with the footsteps, so captioned by them.
+const ARMOUR: Caption = caption("armour clinks", 0.0);
+const CURIOUS: Caption = caption("a warden: \"Hm?\"", 25.0);
+const SEARCHING: Caption = caption("a warden: \"Who's there?\"", 25.0);
+const ALARM: Caption = caption("a warden: \"Intruder!\"", 25.0);
+const GIVES_UP: Caption = caption("a warden gives up", 25.0);
+const LAMP_OUT: Caption = caption("a lamp goes out", 12.0);
+const LAMP_LIT: Caption = caption("a lamp is lit", 12.0);
+const TOPPLES: Caption = caption("something topples", 20.0);
+const BREAKS: Caption = caption("a bottle breaks", 20.0);
+const CHAINS: Caption = caption("chains rattle", 30.0);
 
 /// This step's sounds, and what the last step left, to tell what changed.
 #[derive(Resource, Default, Debug)]
 pub struct SoundEvents {
     pub events: Vec<SoundEvent>,
+    /// Every step's events since a frame last took them (`take`): a frame may run several
+    /// steps. Only the newest `PENDING_MAX` are kept for a reader that never comes.
+    pending: std::collections::VecDeque<SoundEvent>,
     memory: Memory,
+}
+
+/// The most events kept for a frame to take.
+const PENDING_MAX: usize = 256;
+
+impl SoundEvents {
+    /// The events of every step since the last call, oldest first.
+    pub fn take(&mut self) -> Vec<SoundEvent> {
+        self.pending.drain(..).collect()
+    }
 }
 
 #[derive(Default, Debug)]
@@ -125,7 +167,11 @@ pub fn hear_the_step(
     nodes: Query<&Transform>,
 ) {
     let Some(mut sounds) = sounds else { return };
-    let SoundEvents { events, memory } = &mut *sounds;
+    let SoundEvents {
+        events,
+        pending,
+        memory,
+    } = &mut *sounds;
     events.clear();
     let first = !std::mem::replace(&mut memory.started, true);
     let mut event = |sound: String, at: Vec3, gain_db: f32, by: SoundMaker, caption| {
@@ -158,7 +204,7 @@ pub fn hear_the_step(
                     at,
                     gain.clamp(-12.0, 6.0),
                     SoundMaker::Player,
-                    "a landing",
+                    LANDING,
                 );
             }
             feet.walked += horizontal(at - feet.at);
@@ -187,7 +233,7 @@ pub fn hear_the_step(
                     at,
                     0.0,
                     SoundMaker::Player,
-                    "footsteps",
+                    FOOTSTEPS,
                 );
             }
         } else {
@@ -220,25 +266,23 @@ pub fn hear_the_step(
                 at,
                 0.0,
                 by(),
-                "a warden's footsteps",
+                WARDEN_STEPS,
             );
             if feet.steps % 2 == 0 {
-                event("warden-armour".into(), at, 0.0, by(), "armour clinks");
+                event("warden-armour".into(), at, 0.0, by(), ARMOUR);
             }
         }
         let voice = at + Vec3::Y * super::noise::tuning::EAR_HEIGHT;
         let cue = match (before, warden.state) {
             (a, b) if a == b => None,
-            (_, WardenState::Suspicious) => Some(("warden-curious", "a warden: \"Hm?\"")),
-            (_, WardenState::Searching) => Some(("warden-searching", "a warden: \"Who's there?\"")),
+            (_, WardenState::Suspicious) => Some(("warden-curious", CURIOUS)),
+            (_, WardenState::Searching) => Some(("warden-searching", SEARCHING)),
             // A catch with no alarm before it (seen close enough to be caught at once)
             // is called out as one.
             (WardenState::Alert, WardenState::Caught) => None,
-            (_, WardenState::Alert | WardenState::Caught) => {
-                Some(("warden-alarm", "a warden: \"Intruder!\""))
-            }
+            (_, WardenState::Alert | WardenState::Caught) => Some(("warden-alarm", ALARM)),
             (WardenState::Suspicious | WardenState::Searching, WardenState::Patrol) => {
-                Some(("warden-gives-up", "a warden gives up"))
+                Some(("warden-gives-up", GIVES_UP))
             }
             _ => None,
         };
@@ -254,9 +298,9 @@ pub fn hear_the_step(
         let was_off = memory.lamps.insert(entity, off);
         if was_off.is_some_and(|was| was != off) {
             let (sound, caption) = if off {
-                ("lamp-douse", "a lamp goes out")
+                ("lamp-douse", LAMP_OUT)
             } else {
-                ("lamp-light", "a lamp is lit")
+                ("lamp-light", LAMP_LIT)
             };
             let at = placed.0.translation.into();
             event(
@@ -276,13 +320,7 @@ pub fn hear_the_step(
     }
     for (entity, (name, at)) in std::mem::replace(&mut memory.shards, left) {
         if !memory.shards.contains_key(&entity) {
-            event(
-                "shard".into(),
-                at,
-                0.0,
-                SoundMaker::Thing(name),
-                "a shard taken",
-            );
+            event("shard".into(), at, 0.0, SoundMaker::Thing(name), SHARD);
         }
     }
 
@@ -297,10 +335,10 @@ pub fn hear_the_step(
         let by = || SoundMaker::Thing(name.as_str().to_owned());
         let at = placed.translation;
         if before == 0 && now >= TOPPLING {
-            event("bottle-topple".into(), at, 0.0, by(), "something topples");
+            event("bottle-topple".into(), at, 0.0, by(), TOPPLES);
         }
         if before < FLAT && now == FLAT {
-            event("bottle-break".into(), at, 0.0, by(), "a bottle breaks");
+            event("bottle-break".into(), at, 0.0, by(), BREAKS);
         }
     }
 
@@ -324,10 +362,15 @@ pub fn hear_the_step(
                 placed.translation,
                 0.0,
                 SoundMaker::Thing(name.as_str().to_owned()),
-                "chains rattle",
+                CHAINS,
             );
         }
         memory.sliding.insert(entity, (stood, moving));
+    }
+
+    pending.extend(events.iter().cloned());
+    while pending.len() > PENDING_MAX {
+        pending.pop_front();
     }
 }
 

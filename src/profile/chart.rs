@@ -17,7 +17,7 @@ const HEIGHT: u32 = 720;
 const PLOT: (u32, u32, u32, u32) = (80, 36, 1250, 390);
 const HISTOGRAM: (u32, u32, u32, u32) = (80, 530, 1250, 664);
 /// The bitmap font's cell width (Noto Sans Mono, 16 px).
-const GLYPH_WIDTH: u32 = get_raster_width(FontWeight::Regular, RasterHeight::Size16) as u32;
+pub const GLYPH_WIDTH: u32 = get_raster_width(FontWeight::Regular, RasterHeight::Size16) as u32;
 const GRID: [u8; 3] = [52, 52, 60];
 const AXIS: [u8; 3] = [110, 110, 120];
 const BUDGET: [u8; 3] = [255, 70, 70];
