@@ -1,5 +1,6 @@
 //! Present, over the frame: captions for the sounds that matter to play, with where each
-//! comes from as the player stands and faces ("a warden's footsteps, behind you"). Each
+//! comes from as the player stands and faces ("a warden's footsteps, behind you"), for
+//! the sounds the player hears through the level (`game::acoustics`). Each
 //! frame takes the simulation's sound events (`game::SoundEvents::take`, every step since
 //! the last frame); a caption shows for `SHOWN_SECONDS`, the same words again refresh it
 //! rather than stack, and the newest `MAX_LINES` are drawn. On by default; Settings turns
@@ -22,11 +23,24 @@ pub struct Captions {
 
 impl Captions {
     /// Takes in `events` heard at `now` (seconds of play) by a listener at `ear` facing
-    /// `yaw` (radians about +Y, 0 looking down -Z).
-    pub fn hear(&mut self, events: &[SoundEvent], ear: Vec3, yaw: f32, now: f64) {
+    /// `yaw` (radians about +Y, 0 looking down -Z). `heard_db` says how loud a sound made
+    /// at a point is at the ears against its level at 1 m (`game::acoustics::hear`: walls
+    /// muffle, doorways let through); a caption shows a sound heard at least as loud as it
+    /// would be `caption.within` metres away in the open.
+    pub fn hear(
+        &mut self,
+        events: &[SoundEvent],
+        (ear, yaw): (Vec3, f32),
+        now: f64,
+        heard_db: impl Fn(Vec3) -> f32,
+    ) {
         for event in events {
             let within = event.caption.within;
-            if within <= 0.0 || event.at.distance(ear) > within {
+            if within <= 0.0 || event.at.distance(ear) > 4.0 * within {
+                continue;
+            }
+            let quietest = -20.0 * within.max(1.0).log10();
+            if heard_db(event.at) + event.gain_db < quietest {
                 continue;
             }
             let line = format!("{}, {}", event.caption.text, direction(ear, yaw, event.at));
@@ -109,17 +123,18 @@ mod tests {
         let steps = event(Vec3::new(0.0, 0.0, 6.0), "a warden's footsteps", 12.0);
         let far = event(Vec3::new(0.0, 0.0, -40.0), "a warden's footsteps", 12.0);
         let own = event(Vec3::new(0.0, 0.0, 1.0), "footsteps", 0.0);
-        captions.hear(&[steps.clone(), far, own], ear, 0.0, 10.0);
+        let open = |at: Vec3| -20.0 * at.distance(ear).max(1.0).log10();
+        captions.hear(&[steps.clone(), far, own], (ear, 0.0), 10.0, open);
         assert_eq!(
             captions.lines().collect::<Vec<_>>(),
             ["a warden's footsteps, behind you"]
         );
         // The same words again refresh the line instead of stacking it.
-        captions.hear(&[steps.clone()], ear, 0.0, 12.0);
+        captions.hear(&[steps.clone()], (ear, 0.0), 12.0, open);
         assert_eq!(captions.lines().count(), 1);
-        captions.hear(&[], ear, 0.0, 14.5);
+        captions.hear(&[], (ear, 0.0), 14.5, open);
         assert_eq!(captions.lines().count(), 1, "heard again at 12 s");
-        captions.hear(&[], ear, 0.0, 15.1);
+        captions.hear(&[], (ear, 0.0), 15.1, open);
         assert_eq!(captions.lines().count(), 0, "gone 3 s after");
         // Only the newest lines are drawn.
         let around = [(6.0, 0.0), (-6.0, 0.0), (0.0, -6.0), (0.0, 6.0)];
@@ -127,7 +142,7 @@ mod tests {
             .iter()
             .map(|&(x, z)| event(Vec3::new(x, 0.0, z), "a lamp goes out", 12.0))
             .collect();
-        captions.hear(&many, ear, 0.0, 20.0);
+        captions.hear(&many, (ear, 0.0), 20.0, open);
         assert_eq!(
             captions.lines().collect::<Vec<_>>(),
             [
@@ -136,5 +151,10 @@ mod tests {
                 "a lamp goes out, behind you"
             ]
         );
+        // Behind a wall that takes 45 dB, the same footsteps are not heard.
+        captions.clear();
+        let walled = |at: Vec3| open(at) - 45.0;
+        captions.hear(&[steps], (ear, 0.0), 30.0, walled);
+        assert_eq!(captions.lines().count(), 0);
     }
 }

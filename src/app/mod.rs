@@ -858,7 +858,16 @@ impl App {
         };
         let mut players = world.query::<&crate::game::Player>();
         let yaw = players.iter(world).next().map_or(0.0, |player| player.yaw);
-        self.captions.hear(&events, ear, yaw, now);
+        let Some(geometry) = world.get_resource::<crate::game::WorldGeometry>() else {
+            return;
+        };
+        let nav = world.get_resource::<crate::game::NavGrid>();
+        // A sound is made a little above where it is placed (feet, a floor).
+        let heard_db = |at: glam::Vec3| {
+            let source = at + glam::Vec3::Y * 0.3;
+            crate::game::acoustics::hear(geometry.0.as_ref(), nav, source, ear).level_db
+        };
+        self.captions.hear(&events, (ear, yaw), now, heard_db);
     }
 
     /// The pause menu over the level, which holds the simulation while it is open.

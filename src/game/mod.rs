@@ -29,6 +29,7 @@
 //! This module imports none of render, accel, the film, winit or pixels: it sees input as a
 //! resource and leaves drawing to the frame driver (`crate::frame`).
 
+pub mod acoustics;
 pub mod animation;
 pub mod exposure;
 pub mod exposure_map;

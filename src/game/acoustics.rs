@@ -1,0 +1,234 @@
+//! Sound through the level, by rays through the simulation's own copy of it
+//! (`WorldQuery`): how loud and how dull a sound made at one place is at a listener's ears,
+//! from where it seems to come, and how the room around the ears rings. One function for
+//! what the player hears and what a warden hears.
+//!
+//! - The direct path (`hear`): rays from the ears to points across the source. Every
+//!   surface a ray passes costs its transmission loss (`Surface::transmission_db`, per
+//!   face: a wall's two faces cost it twice), averaged over the rays as powers, and takes
+//!   the highs with it: the cut-off falls a decade for every 30 dB lost. Distance costs
+//!   6 dB per doubling past 1 m (a point source in the open).
+//! - Around corners: when the direct path is blocked, the shortest walkable way between
+//!   the two (`NavGrid::path`) carries the sound too, diffracted: its length attenuates as
+//!   distance does, the opening it bends through costs `DIFFRACTION_DB`, and it arrives
+//!   from the last point of the way the ears see (a warden behind a doorway is heard
+//!   from the doorway). The louder of the two paths is what is heard.
+//! - The room (`reverb`): `REVERB_RAYS` rays in a fixed spread around the ears give the
+//!   mean free path and the mean absorption of what they meet (open sky absorbs all);
+//!   Eyring's formula then gives the decay time, RT60 = 0.161 V / (-S ln(1 - a)) with
+//!   V / S = l / 4 (Kuttruff, "Room Acoustics", 2009), and the reflected share of the
+//!   energy its wet level.
+//!
+//! The same questions the renderer's shadow rays answer, asked of the same level: after
+//! Steam Audio's occlusion and transmission, and Wwise's diffraction through portals.
+
+use glam::Vec3;
+
+use super::nav::NavGrid;
+use super::world_query::{Surface, WorldQuery};
+
+/// How a sound made at one place is heard at the ears.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Heard {
+    /// Level against the sound's own at 1 m, decibels.
+    pub level_db: f32,
+    /// Every direct ray met a surface.
+    pub occluded: bool,
+    /// The highest frequency that comes through, Hz.
+    pub cutoff_hz: f32,
+    /// Metres the sound travelled (straight, or along the way round).
+    pub path_length: f32,
+    /// Where it seems to come from: the source, or the last opening on the way round.
+    pub arrival: Vec3,
+}
+
+/// How the room around the ears rings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reverb {
+    /// Seconds for the reverberation to fall by 60 dB.
+    pub decay_s: f32,
+    /// The reverberation's level against the direct sound's, decibels.
+    pub wet_db: f32,
+    /// The mean distance the rays flew before meeting a surface, metres.
+    pub mean_free_path: f32,
+}
+
+/// Acoustics in one place (decibels, metres, hertz).
+pub mod tuning {
+    /// The cut-off of an unobstructed sound.
+    pub const OPEN_CUTOFF_HZ: f32 = 20_000.0;
+    /// The lowest cut-off a blocked sound falls to.
+    pub const LOWEST_CUTOFF_HZ: f32 = 250.0;
+    /// Decibels of transmission loss per decade the cut-off falls.
+    pub const LOSS_PER_DECADE_DB: f32 = 30.0;
+    /// What the way round costs for bending through its opening (diffraction over an
+    /// edge).
+    pub const DIFFRACTION_DB: f32 = 6.0;
+    /// How far across the source the direct rays aim, metres.
+    pub const SOURCE_RADIUS: f32 = 0.25;
+    /// Rays cast around the ears for the room, and how far each looks.
+    pub const REVERB_RAYS: usize = 64;
+    pub const REVERB_REACH: f32 = 60.0;
+    /// Surfaces a direct ray may pass before it counts as silent.
+    pub const MAX_FACES: usize = 8;
+}
+
+use tuning::*;
+
+impl Surface {
+    /// Sound lost passing one face of this surface, decibels (a solid's two faces cost it
+    /// twice): masonry about 45 dB through a wall, a wooden door about 25, iron sheet 20,
+    /// cloth a little (after the mass law's figures for such walls, Kuttruff ch. 10).
+    pub fn transmission_db(self) -> f32 {
+        match self {
+            Surface::Stone => 22.5,
+            Surface::Wood => 12.5,
+            Surface::Iron => 10.0,
+            Surface::Cloth => 2.0,
+        }
+    }
+
+    /// The share of sound energy the surface absorbs (the rest it reflects), at mid
+    /// frequencies: bare stone and plaster about 2-3%, wood 10%, iron 5%, cloth 50%.
+    pub fn absorption(self) -> f32 {
+        match self {
+            Surface::Stone => 0.03,
+            Surface::Wood => 0.1,
+            Surface::Iron => 0.05,
+            Surface::Cloth => 0.5,
+        }
+    }
+}
+
+/// How a sound made at `source` is heard at `ears` (see the module doc). `nav`, when
+/// there is one, carries it round corners.
+pub fn hear(world: &dyn WorldQuery, nav: Option<&NavGrid>, source: Vec3, ears: Vec3) -> Heard {
+    let distance = source.distance(ears);
+    let spread = distance_db(distance);
+    // The direct rays: to the source and to five points across it (none below: a source
+    // is lifted off the floor it stands on by its caller, and the floor is no wall).
+    let mut power = 0.0f32;
+    let mut blocked = 0;
+    let targets = std::iter::once(Vec3::ZERO)
+        .chain([Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::Z, Vec3::NEG_Z])
+        .map(|offset| source + offset * SOURCE_RADIUS);
+    let mut rays = 0;
+    for target in targets {
+        rays += 1;
+        let loss = transmission_db(world, ears, target);
+        if loss > 0.0 {
+            blocked += 1;
+        }
+        power += 10f32.powf(-loss / 10.0);
+    }
+    let loss = -10.0 * (power / rays as f32).max(1e-12).log10();
+    let direct = Heard {
+        level_db: spread - loss,
+        occluded: blocked == rays,
+        cutoff_hz: cutoff(loss),
+        path_length: distance,
+        arrival: source,
+    };
+    if !direct.occluded {
+        return direct;
+    }
+    // Round the corners, along the way a body would walk.
+    let Some(way) = nav.and_then(|nav| nav.path(ears, source)) else {
+        return direct;
+    };
+    let mut points = vec![ears];
+    points.extend(way.iter().map(|p| Vec3::new(p.x, source.y.max(p.y), p.z)));
+    points.push(source);
+    let length: f32 = points.windows(2).map(|w| w[0].distance(w[1])).sum();
+    // The last point of the way the ears see: the opening the sound bends through.
+    let seen = (1..points.len())
+        .rev()
+        .find(|&i| transmission_db(world, ears, points[i]) == 0.0)
+        .unwrap_or(0);
+    let round = distance_db(length) - DIFFRACTION_DB;
+    if round <= direct.level_db {
+        return direct;
+    }
+    Heard {
+        level_db: round,
+        occluded: true,
+        // Diffraction bends the lows round an edge better than the highs.
+        cutoff_hz: cutoff(DIFFRACTION_DB),
+        path_length: length,
+        arrival: points[seen.max(1)],
+    }
+}
+
+/// How the room around `ears` rings (see the module doc).
+pub fn reverb(world: &dyn WorldQuery, ears: Vec3) -> Reverb {
+    let (mut flown, mut absorbed) = (0.0f32, 0.0f32);
+    for direction in spread_directions(REVERB_RAYS) {
+        match world.raycast(ears, direction, REVERB_REACH) {
+            Some(hit) => {
+                flown += hit.distance;
+                absorbed += hit.surface.absorption();
+            }
+            // Out into the open: the sound never comes back.
+            None => {
+                flown += REVERB_REACH;
+                absorbed += 1.0;
+            }
+        }
+    }
+    let mean_free_path = flown / REVERB_RAYS as f32;
+    let absorption = (absorbed / REVERB_RAYS as f32).clamp(0.001, 0.999);
+    // Eyring: RT60 = 0.161 V / (-S ln(1 - a)), V / S = l / 4.
+    let decay_s = 0.161 * (mean_free_path / 4.0) / -(1.0 - absorption).ln();
+    Reverb {
+        decay_s,
+        wet_db: 10.0 * (1.0 - absorption).log10(),
+        mean_free_path,
+    }
+}
+
+/// Decibels a point source falls by at `distance` against 1 m.
+fn distance_db(distance: f32) -> f32 {
+    -20.0 * distance.max(1.0).log10()
+}
+
+/// The cut-off after `loss` decibels of transmission.
+fn cutoff(loss: f32) -> f32 {
+    (OPEN_CUTOFF_HZ * 10f32.powf(-loss / LOSS_PER_DECADE_DB)).max(LOWEST_CUTOFF_HZ)
+}
+
+/// The transmission loss along the straight line from `from` to `to`: each face met on
+/// the way costs its surface's loss.
+fn transmission_db(world: &dyn WorldQuery, from: Vec3, to: Vec3) -> f32 {
+    let mut at = from;
+    let mut loss = 0.0;
+    for _ in 0..MAX_FACES {
+        let to_go = to - at;
+        let length = to_go.length();
+        if length < 1e-3 {
+            return loss;
+        }
+        let direction = to_go / length;
+        match world.raycast(at, direction, length) {
+            Some(hit) => {
+                loss += hit.surface.transmission_db();
+                // On past the face, by a millimetre.
+                at += direction * (hit.distance + 1e-3);
+            }
+            None => return loss,
+        }
+    }
+    // Past MAX_FACES faces nothing comes through.
+    loss + 120.0
+}
+
+/// `count` unit directions spread evenly over the sphere (a Fibonacci lattice): the same
+/// every call, so a replay's sound is the same on any machine.
+fn spread_directions(count: usize) -> impl Iterator<Item = Vec3> {
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    (0..count).map(move |i| {
+        let y = 1.0 - 2.0 * (i as f32 + 0.5) / count as f32;
+        let ring = (1.0 - y * y).sqrt();
+        let angle = golden * i as f32;
+        Vec3::new(ring * angle.cos(), y, ring * angle.sin())
+    })
+}

@@ -1,0 +1,138 @@
+//! Sound through the level, by rays through the simulation's copy of it
+//! (`game::acoustics`): a source behind a wall is quieter and duller than in the open;
+//! through a doorway it arrives from the doorway; a stone hall rings longer than a small
+//! room.
+
+mod common;
+
+use glam::Vec3;
+use gloam::frame::Engine;
+use gloam::game::WorldGeometry;
+use gloam::game::acoustics::{hear, reverb};
+use gloam::game::nav::{CELL, NavGrid};
+use gloam::render::RenderSettings;
+use gloam::scene::Scene;
+
+/// A kit piece at (x, z), turned `yaw` degrees.
+fn piece(name: &str, asset: &str, (x, y, z): (f32, f32, f32), yaw: f32) -> String {
+    let kit = common::repo().join("assets/kit");
+    format!(
+        "(name: \"{name}\", transform: (translation: ({x:.2}, {y:.2}, {z:.2}), rotation: (0.0, {yaw:.1}, 0.0)), instance: (asset: \"{}\")),\n",
+        kit.join(asset).display()
+    )
+}
+
+/// A level of floor tiles over x, z in [-half, half] (4 m tiles), the given pieces, and a
+/// ceiling of tiles at 3 m when `roofed`; its engine with the geometry extracted.
+fn level(test: &str, half: i32, roofed: bool, pieces: &[String]) -> Engine {
+    let mut entities = String::new();
+    let tiles = (-half..half).step_by(4).map(|c| c as f32 + 2.0);
+    for (i, x) in tiles.clone().enumerate() {
+        for (j, z) in tiles.clone().enumerate() {
+            entities += &piece(&format!("floor {i} {j}"), "floor.glb", (x, 0.0, z), 0.0);
+            if roofed {
+                entities += &piece(&format!("roof {i} {j}"), "floor.glb", (x, 3.1, z), 0.0);
+            }
+        }
+    }
+    for entity in pieces {
+        entities += entity;
+    }
+    let text = format!(
+        "(version: 1, playable: false, entities: [\n{entities}(name: \"light\", light: Point(color: (1, 1, 1), intensity: 1)),\n])\n"
+    );
+    let dir = common::scratch_dir(test);
+    let path = common::write(&dir, "level.ron", text);
+    let scene = Scene::load(&path).unwrap();
+    let mut engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
+    engine.update_step_world();
+    engine
+}
+
+fn nav(engine: &Engine) -> NavGrid {
+    let world = &engine.world.resource::<WorldGeometry>().0;
+    NavGrid::build(world.as_ref(), world.bounds().unwrap(), CELL)
+}
+
+#[test]
+fn a_wall_between_makes_a_sound_quieter_and_duller() {
+    let (source, ears) = (Vec3::new(0.0, 0.5, 3.0), Vec3::new(0.0, 1.6, -3.0));
+    let open = level("acoustics-open", 8, false, &[]);
+    let walled = level(
+        "acoustics-wall",
+        8,
+        false,
+        &[piece("wall", "wall.glb", (0.0, 0.0, 0.0), 0.0)],
+    );
+    fn world(engine: &Engine) -> &WorldGeometry {
+        engine.world.resource::<WorldGeometry>()
+    }
+    let in_the_open = hear(world(&open).0.as_ref(), None, source, ears);
+    assert!(!in_the_open.occluded);
+    let grid = nav(&walled);
+    let behind = hear(world(&walled).0.as_ref(), Some(&grid), source, ears);
+    println!("open {in_the_open:?}\nbehind the wall {behind:?}");
+    assert!(behind.occluded);
+    assert!(behind.level_db <= in_the_open.level_db - 6.0);
+    assert!(behind.cutoff_hz < in_the_open.cutoff_hz);
+    // With no way round, only what comes through the wall: far quieter still.
+    let through = hear(world(&walled).0.as_ref(), None, source, ears);
+    assert!(through.level_db < behind.level_db - 20.0, "{through:?}");
+    assert!(through.cutoff_hz < behind.cutoff_hz);
+}
+
+#[test]
+fn through_a_doorway_a_sound_arrives_from_the_doorway() {
+    let wall = [
+        piece("doorway", "wall-doorway.glb", (0.0, 0.0, 0.0), 0.0),
+        piece("left", "wall.glb", (-4.0, 0.0, 0.0), 0.0),
+        piece("right", "wall.glb", (4.0, 0.0, 0.0), 0.0),
+    ];
+    let engine = level("acoustics-doorway", 8, false, &wall);
+    let world = &engine.world.resource::<WorldGeometry>().0;
+    let grid = nav(&engine);
+    let heard = hear(
+        world.as_ref(),
+        Some(&grid),
+        Vec3::new(3.0, 0.5, 3.0),
+        Vec3::new(3.0, 1.6, -3.0),
+    );
+    println!("{heard:?}");
+    assert!(heard.occluded);
+    let arrival = heard.arrival;
+    assert!(
+        arrival.x.abs() < 1.0 && arrival.z.abs() < 1.5,
+        "arrives from {arrival}"
+    );
+    assert!(
+        heard.path_length > 6.5,
+        "round, not straight: {}",
+        heard.path_length
+    );
+}
+
+#[test]
+fn a_stone_hall_rings_longer_than_a_small_room() {
+    let walls = |half: i32| -> Vec<String> {
+        let mut walls = Vec::new();
+        for (k, c) in (-half..half).step_by(4).map(|c| c as f32 + 2.0).enumerate() {
+            let h = half as f32 + 0.1;
+            walls.push(piece(&format!("n{k}"), "wall.glb", (c, 0.0, -h), 0.0));
+            walls.push(piece(&format!("s{k}"), "wall.glb", (c, 0.0, h), 0.0));
+            walls.push(piece(&format!("w{k}"), "wall.glb", (-h, 0.0, c), 90.0));
+            walls.push(piece(&format!("e{k}"), "wall.glb", (h, 0.0, c), 90.0));
+        }
+        walls
+    };
+    let ears = Vec3::new(0.3, 1.6, 0.2);
+    let small = level("acoustics-room", 2, true, &walls(2));
+    let hall = level("acoustics-hall", 8, true, &walls(8));
+    let ring = |engine: &Engine| reverb(engine.world.resource::<WorldGeometry>().0.as_ref(), ears);
+    let (room, hall) = (ring(&small), ring(&hall));
+    println!("room {room:?}\nhall {hall:?}");
+    assert!(hall.decay_s > 1.5 * room.decay_s);
+    assert!(hall.mean_free_path > room.mean_free_path);
+    // Outdoors the sound never comes back: almost no decay.
+    let open = level("acoustics-outdoors", 8, false, &[]);
+    assert!(ring(&open).decay_s < room.decay_s);
+}
