@@ -12,8 +12,10 @@
 //!    `TOPPLE_SECONDS`, with a crash heard out to its `noise`; crouched, the player steps
 //!    round it.
 //! 2. `hear_noises` (after the wardens look): a warden hears a noise made this step when
-//!    its ears are within the noise's radius, halved when anything stands between (a ray
-//!    from the noise to the ears through the level as of this step). A warden that hears
+//!    the noise's level at its ears is over the hearing threshold: its loudness (set so
+//!    that in the open it carries its radius, `Noise::loudness_db`) less what the level
+//!    takes on the way (`acoustics::hear`, the function the player's own ears use: a
+//!    wall's transmission loss, or the way round through an opening). A warden that hears
 //!    stops and turns to the place (suspicious), then goes to search it; a searching one
 //!    goes there instead; an alert one runs there if it has lost sight of the player.
 //!    Hearing is not seeing: it does not count as a time seen.
@@ -39,8 +41,9 @@ pub mod tuning {
     /// How far a hard landing carries, and the fall speed that makes one.
     pub const LANDING_RADIUS: f32 = 12.0;
     pub const LANDING_SPEED: f32 = 4.0;
-    /// What a noise's reach is multiplied by when anything stands between.
-    pub const MUFFLED: f32 = 0.5;
+    /// The quietest level a warden hears, decibels: a noise's loudness at 1 m is this
+    /// plus 20 log10 of its radius, so in the open it carries exactly its radius.
+    pub const HEARING_THRESHOLD_DB: f32 = 20.0;
     /// Where a warden's ears are above its feet.
     pub const EAR_HEIGHT: f32 = 1.6;
     /// How long the HUD shows a noise's ring.
@@ -175,6 +178,13 @@ pub fn make_noise(
     }
 }
 
+impl Noise {
+    /// Its level at 1 m, decibels over the same scale as `HEARING_THRESHOLD_DB`.
+    pub fn loudness_db(&self) -> f32 {
+        HEARING_THRESHOLD_DB + 20.0 * self.radius.max(1.0).log10()
+    }
+}
+
 /// Fixed step: wardens within earshot of this step's noises go to look (see the module
 /// doc).
 pub fn hear_noises(
@@ -190,16 +200,12 @@ pub fn hear_noises(
         for (mut warden, placed) in &mut wardens {
             let ears = placed.translation + Vec3::Y * EAR_HEIGHT;
             let from = noise.at + Vec3::Y * 0.3;
-            let distance = from.distance(ears);
-            if distance > noise.radius {
+            // Nothing in the level carries a sound further than the open air does.
+            if from.distance(ears) > noise.radius {
                 continue;
             }
-            let blocked = distance > 1e-3
-                && geometry
-                    .0
-                    .raycast(from, (ears - from) / distance, distance)
-                    .is_some();
-            if blocked && distance > noise.radius * MUFFLED {
+            let through = super::acoustics::hear(geometry.0.as_ref(), grid.as_deref(), from, ears);
+            if noise.loudness_db() + through.level_db < HEARING_THRESHOLD_DB {
                 continue;
             }
             heard(&mut warden, placed.translation, noise.at, grid.as_deref());
@@ -323,13 +329,16 @@ mod tests {
     }
 
     #[test]
-    fn a_warden_in_earshot_turns_to_the_noise_and_a_wall_halves_the_reach() {
+    fn a_warden_in_earshot_turns_to_the_noise_and_a_wall_stops_it() {
         let sprint = Vec3::new(0.0, 0.0, -3.5);
+        // A noise behind a wall (and no way round: this world has no floor to walk) is
+        // not heard where the same noise in the open is.
         for (distance, walled, hears) in [
             (6.0, false, true),
+            (7.5, false, true),
             (9.0, false, false),
             (6.0, true, false),
-            (3.0, true, true),
+            (3.0, true, false),
         ] {
             let geometry: Box<dyn WorldQuery> = if walled {
                 Box::new(Walled)
