@@ -16,7 +16,8 @@
 //!    (`move_player`: look, walk, jump, crouch,
 //!    collide with the level through `WorldGeometry`), the noise it makes (`make_noise`, `knock_over`),
 //!    its light gem (`measure_exposure`), the goal (`collect_shards`, `reach_exit`), the
-//!    wardens (`watch_for_player`: sight, suspicion, state; `hear_noises`;
+//!    wardens (`watch_for_player`: sight, suspicion, state; `hear_noises`, through
+//!    `acoustics`, the rays the player's own ears use;
 //!    `relight_lamps`; `walk_wardens`: their feet, on the `nav::NavGrid` built at load),
 //!    then `patrol` movers, and last what the step sounded like (`hear_the_step`: the
 //!    sound kit's files, where and by whom, in `SoundEvents`);
