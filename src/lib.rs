@@ -19,6 +19,7 @@
 //!   CSV, Chrome trace, PNG chart).
 //! - `simd`: which vector kernels run (the CPU's best or the portable ones), for the whole
 //!   process; accel, render and film ask it before every AVX2 build.
+//! - `audio`: what the ears hear, mixed (the offline mixer of `gloam listen`).
 //! - `headless`: runs with no window, which the command line and the window both call:
 //!   replays of recordings and the player bot (`autoplay`).
 //! - `bench`: the measurement tools behind `bench`, `raybench`, `flythrough` and
@@ -28,6 +29,7 @@
 
 pub mod accel;
 pub mod app;
+pub mod audio;
 pub mod bench;
 pub mod cli;
 pub mod edit;

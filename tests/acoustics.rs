@@ -25,6 +25,19 @@ fn piece(name: &str, asset: &str, (x, y, z): (f32, f32, f32), yaw: f32) -> Strin
 /// A level of floor tiles over x, z in [-half, half] (4 m tiles), the given pieces, and a
 /// ceiling of tiles at 3 m when `roofed`; its engine with the geometry extracted.
 fn level(test: &str, half: i32, roofed: bool, pieces: &[String]) -> Engine {
+    let (scene, _) = level_file(test, half, roofed, pieces);
+    let mut engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
+    engine.update_step_world();
+    engine
+}
+
+/// `level`'s scene and file.
+fn level_file(
+    test: &str,
+    half: i32,
+    roofed: bool,
+    pieces: &[String],
+) -> (Scene, std::path::PathBuf) {
     let mut entities = String::new();
     let tiles = (-half..half).step_by(4).map(|c| c as f32 + 2.0);
     for (i, x) in tiles.clone().enumerate() {
@@ -43,10 +56,7 @@ fn level(test: &str, half: i32, roofed: bool, pieces: &[String]) -> Engine {
     );
     let dir = common::scratch_dir(test);
     let path = common::write(&dir, "level.ron", text);
-    let scene = Scene::load(&path).unwrap();
-    let mut engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
-    engine.update_step_world();
-    engine
+    (Scene::load(&path).unwrap(), path)
 }
 
 fn nav(engine: &Engine) -> NavGrid {
@@ -135,4 +145,68 @@ fn a_stone_hall_rings_longer_than_a_small_room() {
     // Outdoors the sound never comes back: almost no decay.
     let open = level("acoustics-outdoors", 8, false, &[]);
     assert!(ring(&open).decay_s < room.decay_s);
+}
+
+/// `gloam listen`: the wind behind a kit wall is at least 6 dB quieter and duller (a lower
+/// spectral centroid) than with the wall taken away, in the WAV itself.
+#[test]
+fn listening_behind_a_wall_is_quieter_and_duller_in_the_sound_itself() {
+    use gloam::headless::listen::{Listening, listen};
+    let wind = common::repo().join("assets/sounds/wind.wav");
+    let source = format!(
+        "(name: \"wind\", transform: (translation: (0.0, 1.0, 3.0)), sound: (asset: \"{}\")),\n",
+        wind.display()
+    );
+    let wall = piece("wall", "wall.glb", (0.0, 0.0, 0.0), 0.0);
+    let listening = Listening {
+        at: Vec3::new(0.0, 1.6, -3.0),
+        facing_degrees: 0.0,
+        time: 0.0,
+        seconds: 2.0,
+    };
+    let heard = |test: &str, pieces: &[String]| {
+        let (scene, path) = level_file(test, 8, false, pieces);
+        let (report, sound) = listen(&scene, &path, &listening).unwrap();
+        assert_eq!(report["sources"].as_array().unwrap().len(), 1);
+        let mono: Vec<f64> = sound
+            .left
+            .iter()
+            .zip(&sound.right)
+            .map(|(l, r)| f64::from(l + r) * 0.5)
+            .collect();
+        let power = mono.iter().map(|s| s * s).sum::<f64>() / mono.len() as f64;
+        (report, 10.0 * power.log10(), centroid(&mono))
+    };
+    let (open, open_db, open_centroid) = heard("listen-open", &[source.clone()]);
+    let (walled, walled_db, walled_centroid) = heard("listen-wall", &[source, wall]);
+    println!(
+        "open {open_db:.1} dB, {open_centroid:.0} Hz; walled {walled_db:.1} dB, {walled_centroid:.0} Hz"
+    );
+    assert_eq!(open["sources"][0]["occluded"], false);
+    assert_eq!(walled["sources"][0]["occluded"], true);
+    assert!(walled_db <= open_db - 6.0);
+    assert!(walled_centroid < open_centroid);
+    assert!(walled["reverb"]["decay_s"].as_f64().unwrap() > 0.0);
+}
+
+/// The power-weighted mean frequency of `signal` (48 kHz), from a DFT of its middle 4096
+/// samples under a Hann window.
+fn centroid(signal: &[f64]) -> f64 {
+    let n = 4096;
+    let start = (signal.len() - n) / 2;
+    let window = &signal[start..start + n];
+    let (mut weighted, mut total) = (0.0, 0.0);
+    for bin in 1..n / 2 {
+        let (mut re, mut im) = (0.0, 0.0);
+        for (i, x) in window.iter().enumerate() {
+            let hann = 0.5 - 0.5 * (std::f64::consts::TAU * i as f64 / n as f64).cos();
+            let phase = std::f64::consts::TAU * (bin * i) as f64 / n as f64;
+            re += x * hann * phase.cos();
+            im -= x * hann * phase.sin();
+        }
+        let power = re * re + im * im;
+        weighted += power * bin as f64 * 48_000.0 / n as f64;
+        total += power;
+    }
+    weighted / total
 }

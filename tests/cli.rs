@@ -466,6 +466,51 @@ fn generate_assets_reproduces_the_committed_assets() {
     }
 }
 
+/// `listen` writes a 48 kHz stereo WAV of the asked length and the documented report; a
+/// place that is not X,Y,Z is one line naming the flag.
+#[test]
+fn listen_writes_a_stereo_wav_and_its_report() {
+    let dir = common::scratch_dir("cli-listen");
+    let (wav, json) = (dir.join("ears.wav"), dir.join("ears.json"));
+    let output = gloam(&[
+        "listen",
+        "levels/first-light.ron",
+        "--at",
+        "0,1.6,0",
+        "--seconds",
+        "0.5",
+        "--out",
+        wav.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{}", text(&output.stderr));
+    let bytes = std::fs::read(&wav).unwrap();
+    assert_eq!(&bytes[22..24], &2u16.to_le_bytes(), "stereo");
+    assert_eq!(&bytes[24..28], &48_000u32.to_le_bytes());
+    assert_eq!(bytes.len(), 44 + 24_000 * 4);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(report["sources"].is_array());
+    assert!(report["reverb"]["decay_s"].as_f64().unwrap() > 0.0);
+    assert!(report["reverb"]["wet_db"].is_f64());
+    let bad = gloam(&[
+        "listen",
+        "levels/first-light.ron",
+        "--at",
+        "0,1.6",
+        "--out",
+        "x.wav",
+    ]);
+    assert_eq!(bad.status.code(), Some(1));
+    let stderr = text(&bad.stderr);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("--at") && stderr.contains("X,Y,Z"),
+        "{stderr}"
+    );
+}
+
 /// `generate sounds` with no espeak-ng on the PATH still writes every synthesised sound,
 /// keeps the voices already there, and says in one line what it could not do.
 #[test]

@@ -150,6 +150,32 @@ pub enum Command {
     /// lit, caught, or out of time).
     #[command(allow_negative_numbers = true)]
     Autoplay(crate::headless::autoplay::Options),
+    /// What ears at a place in a level hear of its looping sound sources, by the level's
+    /// own acoustics: a 48 kHz stereo 16-bit WAV (no ambience, no normalisation, so levels
+    /// compare between runs) and, with --json, each source's level, whether the way is
+    /// blocked, the path's length and where it arrives from, and the room's reverb.
+    #[command(allow_negative_numbers = true)]
+    Listen {
+        level: PathBuf,
+        /// Where the ears are, world metres.
+        #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::values::point)]
+        at: glam::Vec3,
+        /// Which way the ears face, degrees about +Y (0 looks down -Z).
+        #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::finite)]
+        facing: f32,
+        /// Seconds into the level (wardens walk, gates lift).
+        #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::non_negative)]
+        time: f64,
+        /// Seconds of sound.
+        #[arg(long, default_value_t = 4.0, value_parser = crate::cli::values::positive)]
+        seconds: f64,
+        /// The WAV file to write.
+        #[arg(long, value_name = "OUT.wav")]
+        out: PathBuf,
+        /// Write the report here.
+        #[arg(long, value_name = "OUT.json")]
+        json: Option<PathBuf>,
+    },
     /// Compare two .exr renders of the same size: mean radiance of each, RMSE, and the
     /// ratio of their means over a 4 x 4 grid of regions (a local bias shows there).
     #[command(allow_negative_numbers = true)]
@@ -401,6 +427,37 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         }
         Command::Exposure(options) => {
             exposure_map::run(&options)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Listen {
+            level,
+            at,
+            facing,
+            time,
+            seconds,
+            out,
+            json,
+        } => {
+            let scene = Scene::load(&level)?;
+            let listening = crate::headless::listen::Listening {
+                at,
+                facing_degrees: facing,
+                time,
+                seconds,
+            };
+            let (report, sound) = crate::headless::listen::listen(&scene, &level, &listening)?;
+            let (left, right) = sound.to_pcm();
+            let bytes = crate::scene::sound_kit::stereo_wav_bytes(&left, &right);
+            crate::scene::files::write_atomically(&out, &bytes)?;
+            if let Some(json) = json {
+                let text = serde_json::to_string_pretty(&report).context("encoding the report")?;
+                crate::scene::files::write_atomically(&json, text.as_bytes())?;
+            }
+            println!(
+                "wrote {} ({seconds} s, {} sources)",
+                out.display(),
+                report["sources"].as_array().map_or(0, Vec::len)
+            );
             Ok(ExitCode::SUCCESS)
         }
         Command::Autoplay(options) => Ok(if crate::headless::autoplay::run(&options)? {

@@ -49,6 +49,30 @@ pub fn positive_f32(text: &str) -> Result<f32, String> {
     number(text, |v| v.is_finite() && v > 0.0, "a number above 0")
 }
 
+/// A place, `X,Y,Z` in metres (three finite numbers).
+pub fn point(text: &str) -> Result<glam::Vec3, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [x, y, z] = parts[..] else {
+        return Err(format!(
+            "'{text}' is not X,Y,Z (three numbers separated by commas)"
+        ));
+    };
+    let coordinate = |part: &str| match part.parse::<f32>() {
+        Ok(value) if value.is_finite() => Ok(value),
+        _ => Err(format!("'{part}' in '{text}' is not a finite number")),
+    };
+    Ok(glam::Vec3::new(
+        coordinate(x)?,
+        coordinate(y)?,
+        coordinate(z)?,
+    ))
+}
+
+/// Any finite number (an angle).
+pub fn finite(text: &str) -> Result<f32, String> {
+    number(text, f64::is_finite, "a finite number")
+}
+
 /// Zero or more (a time, a wait).
 pub fn non_negative(text: &str) -> Result<f64, String> {
     number(text, |v| v.is_finite() && v >= 0.0, "a number of 0 or more")

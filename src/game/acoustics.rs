@@ -14,7 +14,8 @@
 //!   from the last point of the way the ears see (a warden behind a doorway is heard
 //!   from the doorway). The louder of the two paths is what is heard.
 //! - The room (`reverb`): `REVERB_RAYS` rays in a fixed spread around the ears give the
-//!   mean free path and the mean absorption of what they meet (open sky absorbs all);
+//!   mean free path between the surfaces they meet and the mean absorption (a ray out to
+//!   the open sky absorbs all);
 //!   Eyring's formula then gives the decay time, RT60 = 0.161 V / (-S ln(1 - a)) with
 //!   V / S = l / 4 (Kuttruff, "Room Acoustics", 2009), and the reflected share of the
 //!   energy its wet level.
@@ -161,21 +162,27 @@ pub fn hear(world: &dyn WorldQuery, nav: Option<&NavGrid>, source: Vec3, ears: V
 
 /// How the room around `ears` rings (see the module doc).
 pub fn reverb(world: &dyn WorldQuery, ears: Vec3) -> Reverb {
-    let (mut flown, mut absorbed) = (0.0f32, 0.0f32);
+    let (mut flown, mut hits, mut absorbed) = (0.0f32, 0, 0.0f32);
     for direction in spread_directions(REVERB_RAYS) {
         match world.raycast(ears, direction, REVERB_REACH) {
             Some(hit) => {
                 flown += hit.distance;
+                hits += 1;
                 absorbed += hit.surface.absorption();
             }
-            // Out into the open: the sound never comes back.
-            None => {
-                flown += REVERB_REACH;
-                absorbed += 1.0;
-            }
+            // Out into the open: the sound never comes back (it absorbs all, and adds no
+            // length to the paths between reflections).
+            None => absorbed += 1.0,
         }
     }
-    let mean_free_path = flown / REVERB_RAYS as f32;
+    if hits == 0 {
+        return Reverb {
+            decay_s: 0.0,
+            wet_db: -120.0,
+            mean_free_path: REVERB_REACH,
+        };
+    }
+    let mean_free_path = flown / hits as f32;
     let absorption = (absorbed / REVERB_RAYS as f32).clamp(0.001, 0.999);
     // Eyring: RT60 = 0.161 V / (-S ln(1 - a)), V / S = l / 4.
     let decay_s = 0.161 * (mean_free_path / 4.0) / -(1.0 - absorption).ln();

@@ -839,7 +839,7 @@ fn looped(length: f64, crossfade: f64, make: impl FnOnce(usize) -> Vec<f64>) -> 
 
 /// A second-order section (Bristow-Johnson's "Audio EQ Cookbook" coefficients), in
 /// transposed direct form II.
-struct Biquad {
+pub(crate) struct Biquad {
     b: [f64; 3],
     a: [f64; 2],
     z: [f64; 2],
@@ -871,7 +871,7 @@ impl Biquad {
         self.z = z;
     }
 
-    fn lowpass(frequency: f64, q: f64) -> Biquad {
+    pub(crate) fn lowpass(frequency: f64, q: f64) -> Biquad {
         let (cos, alpha) = Biquad::terms(frequency, q);
         Biquad::from_cookbook(
             [(1.0 - cos) / 2.0, 1.0 - cos, (1.0 - cos) / 2.0],
@@ -887,7 +887,7 @@ impl Biquad {
         )
     }
 
-    fn process(&mut self, x: f64) -> f64 {
+    pub(crate) fn process(&mut self, x: f64) -> f64 {
         let y = self.b[0] * x + self.z[0];
         self.z[0] = self.b[1] * x - self.a[0] * y + self.z[1];
         self.z[1] = self.b[2] * x - self.a[1] * y;
@@ -897,7 +897,7 @@ impl Biquad {
 
 /// Linear interpolation from `from` Hz to `to` Hz (speech holds little above the helmet's
 /// band, so no more is needed).
-fn resample(samples: &[f64], from: u32, to: u32) -> Vec<f64> {
+pub(crate) fn resample(samples: &[f64], from: u32, to: u32) -> Vec<f64> {
     if samples.is_empty() {
         return Vec::new();
     }
@@ -933,17 +933,29 @@ fn to_pcm(signal: &[f64], peak_db: f64) -> Vec<i16> {
 
 /// A 48 kHz mono 16-bit PCM WAV file of `samples`.
 pub fn wav_bytes(samples: &[i16]) -> Vec<u8> {
+    wav_file(1, samples)
+}
+
+/// A 48 kHz stereo 16-bit PCM WAV file of the two channels.
+pub fn stereo_wav_bytes(left: &[i16], right: &[i16]) -> Vec<u8> {
+    let interleaved: Vec<i16> = left.iter().zip(right).flat_map(|(&l, &r)| [l, r]).collect();
+    wav_file(2, &interleaved)
+}
+
+/// A 48 kHz 16-bit PCM WAV file of `channels` interleaved channels.
+fn wav_file(channels: u16, samples: &[i16]) -> Vec<u8> {
     let data = samples.len() as u32 * 2;
+    let frame = 2 * channels;
     let mut bytes = Vec::with_capacity(44 + data as usize);
     bytes.extend_from_slice(b"RIFF");
     bytes.extend_from_slice(&(36 + data).to_le_bytes());
     bytes.extend_from_slice(b"WAVEfmt ");
     bytes.extend_from_slice(&16u32.to_le_bytes());
     bytes.extend_from_slice(&1u16.to_le_bytes()); // PCM
-    bytes.extend_from_slice(&1u16.to_le_bytes()); // mono
+    bytes.extend_from_slice(&channels.to_le_bytes());
     bytes.extend_from_slice(&RATE.to_le_bytes());
-    bytes.extend_from_slice(&(RATE * 2).to_le_bytes());
-    bytes.extend_from_slice(&2u16.to_le_bytes());
+    bytes.extend_from_slice(&(RATE * frame as u32).to_le_bytes());
+    bytes.extend_from_slice(&frame.to_le_bytes());
     bytes.extend_from_slice(&16u16.to_le_bytes());
     bytes.extend_from_slice(b"data");
     bytes.extend_from_slice(&data.to_le_bytes());
