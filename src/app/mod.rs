@@ -862,9 +862,8 @@ impl App {
             return;
         };
         let nav = world.get_resource::<crate::game::NavGrid>();
-        // A sound is made a little above where it is placed (feet, a floor).
         let heard_db = |at: glam::Vec3| {
-            let source = at + glam::Vec3::Y * 0.3;
+            let source = at + glam::Vec3::Y * crate::game::acoustics::tuning::SOURCE_LIFT;
             crate::game::acoustics::hear(geometry.0.as_ref(), nav, source, ear).level_db
         };
         self.captions.hear(&events, (ear, yaw), now, heard_db);

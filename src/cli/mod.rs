@@ -396,18 +396,12 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         Command::Generate(Generate::Assets { out }) => {
             let files = crate::scene::kit::generate_assets(&out)
                 .with_context(|| format!("generating assets into {}", out.display()))?;
-            for file in &files {
-                println!("wrote {}", file.display());
-            }
-            Ok(ExitCode::SUCCESS)
+            Ok(said_written(&files))
         }
         Command::Generate(Generate::Sounds { out }) => {
             let files = crate::scene::sound_kit::generate_sounds(&out)
                 .with_context(|| format!("generating sounds into {}", out.display()))?;
-            for file in &files {
-                println!("wrote {}", file.display());
-            }
-            Ok(ExitCode::SUCCESS)
+            Ok(said_written(&files))
         }
         Command::Render(command) => {
             render_command(command)?;
@@ -488,6 +482,14 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
     }
+}
+
+/// A line for each file a generator wrote.
+fn said_written(files: &[PathBuf]) -> ExitCode {
+    for file in files {
+        println!("wrote {}", file.display());
+    }
+    ExitCode::SUCCESS
 }
 
 /// `gloam play --headless --replay FILE [--json OUT] [--threads N]`: the outcome and state

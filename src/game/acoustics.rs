@@ -65,6 +65,9 @@ pub mod tuning {
     /// What the way round costs for bending through its opening (diffraction over an
     /// edge).
     pub const DIFFRACTION_DB: f32 = 6.0;
+    /// How far above the place it is made a sound starts (feet, a floor, a fallen
+    /// bottle), metres: the floor under a sound is no wall between it and the ears.
+    pub const SOURCE_LIFT: f32 = 0.3;
     /// How far across the source the direct rays aim, metres.
     pub const SOURCE_RADIUS: f32 = 0.25;
     /// Rays cast around the ears for the room, and how far each looks.

@@ -199,7 +199,7 @@ pub fn hear_noises(
     for noise in noises.0.iter().filter(|noise| noise.age == 0.0) {
         for (mut warden, placed) in &mut wardens {
             let ears = placed.translation + Vec3::Y * EAR_HEIGHT;
-            let from = noise.at + Vec3::Y * 0.3;
+            let from = noise.at + Vec3::Y * super::acoustics::tuning::SOURCE_LIFT;
             // Nothing in the level carries a sound further than the open air does.
             if from.distance(ears) > noise.radius {
                 continue;

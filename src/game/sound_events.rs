@@ -313,15 +313,24 @@ pub fn hear_the_step(
         }
     }
 
-    // Shards taken: there last step, gone now.
-    let mut left = BTreeMap::new();
-    for (entity, name, placed) in &shards {
-        left.insert(entity, (name.as_str().to_owned(), placed.translation));
-    }
-    for (entity, (name, at)) in std::mem::replace(&mut memory.shards, left) {
-        if !memory.shards.contains_key(&entity) {
+    // Shards taken: there last step, gone now. A shard is remembered once, when first
+    // seen, so a quiet step allocates nothing.
+    let taken: Vec<Entity> = memory
+        .shards
+        .keys()
+        .copied()
+        .filter(|&entity| !shards.contains(entity))
+        .collect();
+    for entity in taken {
+        if let Some((name, at)) = memory.shards.remove(&entity) {
             event("shard".into(), at, 0.0, SoundMaker::Thing(name), SHARD);
         }
+    }
+    for (entity, name, placed) in &shards {
+        memory
+            .shards
+            .entry(entity)
+            .or_insert_with(|| (name.as_str().to_owned(), placed.translation));
     }
 
     // Knocked things: the topple, then the crash as they lie flat.

@@ -615,10 +615,7 @@ fn lamp_hum() -> Vec<f64> {
             .enumerate()
             .map(|(i, h)| {
                 let t = i as f64 / RATE as f64;
-                0.6 * (TAU * 100.0 * t).sin()
-                    + 0.25 * (TAU * 200.0 * t).sin()
-                    + 0.1 * (TAU * 300.0 * t).sin()
-                    + h
+                tones(t, &[(100.0, 0.6), (200.0, 0.25), (300.0, 0.1)]) + h
             })
             .collect()
     })
@@ -654,12 +651,8 @@ fn tension_low() -> Vec<f64> {
             .map(|(i, a)| {
                 let t = i as f64 / RATE as f64;
                 let swell = 0.75 + 0.25 * (TAU * t / 6.0).sin();
-                swell
-                    * (0.5 * (TAU * 55.0 * t).sin()
-                        + 0.4 * (TAU * 55.25 * t).sin()
-                        + 0.25 * (TAU * 82.5 * t).sin()
-                        + 0.1 * (TAU * 110.0 * t).sin())
-                    + a
+                let drone = [(55.0, 0.5), (55.25, 0.4), (82.5, 0.25), (110.0, 0.1)];
+                swell * tones(t, &drone) + a
             })
             .collect()
     })
@@ -682,7 +675,7 @@ fn tension_high() -> Vec<f64> {
         for (i, sample) in out.iter_mut().enumerate() {
             let t = i as f64 / RATE as f64;
             let tremolo = 0.5 + 0.5 * (TAU * 6.0 * t).sin();
-            *sample += 0.12 * tremolo * ((TAU * 440.0 * t).sin() + 0.8 * (TAU * 466.25 * t).sin());
+            *sample += 0.12 * tremolo * tones(t, &[(440.0, 1.0), (466.25, 0.8)]);
         }
         out
     })
@@ -690,6 +683,14 @@ fn tension_high() -> Vec<f64> {
 
 // ---------------------------------------------------------------------------------------
 // The DSP.
+
+/// The sum at `t` seconds of sines (frequency Hz, amplitude), added in order.
+fn tones(t: f64, partials: &[(f64, f64)]) -> f64 {
+    partials
+        .iter()
+        .map(|&(frequency, amplitude)| amplitude * (TAU * frequency * t).sin())
+        .sum()
+}
 
 /// splitmix64 (Steele, Lea and Flood 2014): the same numbers on every machine.
 struct Rng(u64);
