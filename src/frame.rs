@@ -6,7 +6,9 @@
 //!    many times as it owes: first the simulation's copy of the level is brought up to
 //!    date (`extract::step_world`, timed under `Gameplay`: the geometry the step's queries
 //!    see), then `Stage::Input`, `Gameplay`, `Animation`, `Transforms`
-//!    (`game::fixed_step_schedules`);
+//!    (`game::fixed_step_schedules`); then, when something listens (`Engine::hearing`),
+//!    what the player's ears hear of the step (`Stage::Audio`, `audio::Hearing`: the
+//!    mixer's commands, which the window sends to the device and headless replays mix);
 //! 2. extract -> accel: `extract::extract_schedule` makes the ECS into the `RenderScene`
 //!    (`Stage::Extract`), deforms and refits what changed shape (`Animation`,
 //!    `BlasRefit`), rebuilds the TLAS (`TlasBuild`);
@@ -59,6 +61,8 @@ pub struct Engine {
     /// While watching a recording, the inputs still to play, one per fixed step (they
     /// replace what devices give; once they run out the player stands still).
     pub playback: Option<std::collections::VecDeque<StepInput>>,
+    /// The player's ears, after each fixed step (none: nothing listens).
+    pub hearing: Option<crate::audio::Hearing>,
 }
 
 impl Engine {
@@ -83,6 +87,7 @@ impl Engine {
             steps: 0,
             recording: None,
             playback: None,
+            hearing: None,
         };
         engine.settle();
         // Where wardens can walk: the level's geometry as the first step will see it (only
@@ -246,6 +251,14 @@ impl Engine {
             self.world
                 .resource_mut::<StageTimes>()
                 .add(*stage, since(start));
+        }
+        if let Some(hearing) = &mut self.hearing {
+            let start = std::time::Instant::now();
+            profiling::scope!(Stage::Audio.name());
+            hearing.step(&mut self.world);
+            self.world
+                .resource_mut::<StageTimes>()
+                .add(Stage::Audio, since(start));
         }
         self.steps += 1;
         if let Some(recording) = &mut self.recording {

@@ -8,10 +8,11 @@ use std::process::Command;
 
 use serde_json::Value;
 
-const STAGES: [&str; 8] = [
+const STAGES: [&str; 9] = [
     "input",
     "gameplay",
     "animation",
+    "audio",
     "blas_refit",
     "tlas_build",
     "render",

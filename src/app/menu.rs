@@ -138,6 +138,35 @@ pub enum MenuCommand {
     SettingsChanged,
 }
 
+/// One of the settings' volumes (`audio::Volumes`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Channel {
+    Master,
+    Effects,
+    Voices,
+    Ambience,
+}
+
+impl Channel {
+    fn name(self) -> &'static str {
+        match self {
+            Channel::Master => "Master",
+            Channel::Effects => "Effects",
+            Channel::Voices => "Voices",
+            Channel::Ambience => "Ambience",
+        }
+    }
+
+    fn of(self, volumes: &mut crate::audio::Volumes) -> &mut f32 {
+        match self {
+            Channel::Master => &mut volumes.master,
+            Channel::Effects => &mut volumes.effects,
+            Channel::Voices => &mut volumes.voices,
+            Channel::Ambience => &mut volumes.ambience,
+        }
+    }
+}
+
 /// What a row does.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Row {
@@ -153,6 +182,8 @@ enum Row {
     Brightness,
     FrameTimeTarget,
     Captions,
+    /// One of the settings' volumes.
+    Volume(Channel),
     Keys,
     Bind(Action),
     ResetKeys,
@@ -174,6 +205,7 @@ impl Row {
                 | Row::Brightness
                 | Row::FrameTimeTarget
                 | Row::Captions
+                | Row::Volume(_)
         )
     }
 }
@@ -234,6 +266,10 @@ impl Menu {
                 Row::Brightness,
                 Row::FrameTimeTarget,
                 Row::Captions,
+                Row::Volume(Channel::Master),
+                Row::Volume(Channel::Effects),
+                Row::Volume(Channel::Voices),
+                Row::Volume(Channel::Ambience),
                 Row::Keys,
                 Row::Back,
             ],
@@ -420,6 +456,13 @@ impl Menu {
                         "Captions".to_string(),
                         Some(if settings.captions { "on" } else { "off" }.to_string()),
                     ),
+                    Row::Volume(channel) => (
+                        format!("{} volume", channel.name()),
+                        Some(format!(
+                            "{:.0}%",
+                            *channel.of(&mut { settings.volume }) * 100.0
+                        )),
+                    ),
                     Row::FieldOfView => (
                         "Field of view".to_string(),
                         Some(format!("{:.0} deg", settings.field_of_view)),
@@ -535,6 +578,10 @@ fn adjust(row: Row, step: i32, settings: &mut Settings) -> Option<MenuCommand> {
             settings.field_of_view = stepped(settings.field_of_view, ranges::FIELD_OF_VIEW)
         }
         Row::Brightness => settings.brightness = stepped(settings.brightness, ranges::BRIGHTNESS),
+        Row::Volume(channel) => {
+            let volume = channel.of(&mut settings.volume);
+            *volume = stepped(*volume, ranges::VOLUME);
+        }
         Row::FrameTimeTarget => {
             let choices = ranges::FRAME_TIME_TARGETS;
             let at = choices

@@ -37,6 +37,7 @@ pub mod resolution;
 pub mod screenshot;
 pub mod settings;
 pub(crate) mod shell;
+mod sound;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -258,6 +259,7 @@ impl App {
             pointer: None,
             caught: None,
             captions: captions::Captions::default(),
+            sound: sound::GameSound::default(),
             options,
             window: None,
             pixels: None,
@@ -456,6 +458,8 @@ pub(crate) struct App {
     caught: Option<(Instant, String)>,
     /// Captions of the sounds heard lately (`captions`).
     captions: captions::Captions,
+    /// The sound out (`sound`).
+    sound: sound::GameSound,
     /// Adaptive internal resolution (None: fixed).
     resolution: Option<ResolutionController>,
     options: PlayOptions,
@@ -503,8 +507,18 @@ impl App {
     /// Starts playing `scene` (loaded from `level`), menus closed.
     fn start(&mut self, scene: Scene, level: PathBuf) {
         self.watch_level(&scene, &level);
+        // The last level's sounds so far go out before its loops stop.
+        self.sound
+            .frame(self.game.as_mut().map(|game| &mut game.engine), false);
         let mut engine = play_engine(&scene, &self.options);
         set_field_of_view(&mut engine, self.context.settings.field_of_view);
+        if let Some(warning) = self
+            .sound
+            .start(&mut engine, &level, self.context.settings.volume)
+        {
+            // Said once, on the terminal: a game without sound is still the game.
+            eprintln!("gloam: warning: {warning}");
+        }
         if self.options.record.is_some() {
             engine.recording = Some(crate::game::replay::Recorder::default());
         }
@@ -601,6 +615,7 @@ impl App {
     fn open_main_menu(&mut self) {
         self.finish_recording(crate::game::replay::Ended::Quit);
         self.game = None;
+        self.sound.stop();
         self.context.playing = None;
         self.menu = Some(Menu::new(Page::Main));
         self.set_capture(false);
@@ -650,6 +665,7 @@ impl App {
         if let Some(game) = &mut self.game {
             set_field_of_view(&mut game.engine, fov);
         }
+        self.sound.set_volumes(self.context.settings.volume);
         self.apply_target();
         if let Some(dir) = &self.config
             && let Err(error) =
@@ -1030,6 +1046,9 @@ impl App {
                 self.frame_ms.remove(0);
             }
         }
+        let paused = self.menu.is_some();
+        self.sound
+            .frame(self.game.as_mut().map(|game| &mut game.engine), paused);
         let present_start = Instant::now();
         profiling::scope!("present");
         let (width, height) = (self.options.width, self.options.height);

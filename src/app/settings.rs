@@ -1,5 +1,5 @@
 //! The player's own files, read when the window opens and written when they change: the
-//! settings (mouse, view, brightness, frame-time target, keys, captions) and the best time of each
+//! settings (mouse, view, brightness, frame-time target, keys, captions, volumes) and the best time of each
 //! level, both RON in the user's config folder (`$GLOAM_CONFIG_DIR`, else
 //! `$XDG_CONFIG_HOME/gloam`, `~/.config/gloam`, `%APPDATA%\gloam` or
 //! `~/Library/Application Support/gloam`).
@@ -41,6 +41,9 @@ pub struct Settings {
     pub keys: KeyBindings,
     /// Captions for the sounds that matter to play, with where they come from.
     pub captions: bool,
+    /// The sound's volumes, 0 to 1 each: `(master: 1.0, effects: 1.0, voices: 1.0,
+    /// ambience: 1.0)`.
+    pub volume: crate::audio::Volumes,
 }
 
 impl Default for Settings {
@@ -53,6 +56,7 @@ impl Default for Settings {
             frame_time_target_ms: Some(DEFAULT_TARGET_MS),
             keys: KeyBindings::default(),
             captions: true,
+            volume: crate::audio::Volumes::default(),
         }
     }
 }
@@ -62,6 +66,8 @@ pub mod ranges {
     pub const MOUSE_SENSITIVITY: (f32, f32, f32) = (0.1, 5.0, 0.1);
     pub const FIELD_OF_VIEW: (f32, f32, f32) = (50.0, 110.0, 5.0);
     pub const BRIGHTNESS: (f32, f32, f32) = (0.25, 4.0, 0.25);
+    /// Each volume, as a share of full.
+    pub const VOLUME: (f32, f32, f32) = (0.0, 1.0, 0.1);
     /// The frame-time targets offered, milliseconds (None: fixed resolution).
     pub const FRAME_TIME_TARGETS: [Option<f64>; 5] = [
         None,
@@ -78,10 +84,11 @@ impl Settings {
         let mut problems = Vec::new();
         let mut within = |field: &str, value: f32, (low, high, _): (f32, f32, f32)| {
             if !(low..=high).contains(&value) {
-                problems.push((
-                    Pointer::root().key(field),
-                    format!("{field} {value} is outside {low}..={high}"),
-                ));
+                // A nested field (`volume.master`) points into its struct.
+                let at = field
+                    .split('.')
+                    .fold(Pointer::root(), |at, key| at.key(key));
+                problems.push((at, format!("{field} {value} is outside {low}..={high}")));
             }
         };
         within(
@@ -91,6 +98,15 @@ impl Settings {
         );
         within("field_of_view", self.field_of_view, ranges::FIELD_OF_VIEW);
         within("brightness", self.brightness, ranges::BRIGHTNESS);
+        let volume = &self.volume;
+        for (field, value) in [
+            ("volume.master", volume.master),
+            ("volume.effects", volume.effects),
+            ("volume.voices", volume.voices),
+            ("volume.ambience", volume.ambience),
+        ] {
+            within(field, value, ranges::VOLUME);
+        }
         if let Some(target) = self.frame_time_target_ms
             && !(target.is_finite() && (1.0..=1000.0).contains(&target))
         {

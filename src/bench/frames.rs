@@ -248,6 +248,10 @@ fn measure(
         RenderSettings::real_time(options.width, options.height),
     );
     engine.film.filter.mode = options.filter.mode();
+    // Ears, as in play (the player's, or the view's on the camera path): their cost is
+    // the `audio` stage. The mixing runs on the device's thread, off the frame, so the
+    // commands are dropped here.
+    engine.hearing = Some(crate::audio::Hearing::for_level(level));
     let (render_width, render_height) = render_size(options);
     engine.film.set_resolution(render_width, render_height);
     // A replay is seen through the player's eyes; otherwise the view takes its path.
@@ -331,6 +335,9 @@ fn measure(
         let started = Instant::now();
         engine.advance(step);
         let frame_ms = started.elapsed().as_secs_f64() * 1e3;
+        if let Some(hearing) = &mut engine.hearing {
+            drop(hearing.take());
+        }
         if frame >= options.warmup {
             let mut sample = engine.stage_times().sample(0.0, frame_ms);
             sample.tiles = engine.film.tile_spans().to_vec();

@@ -83,6 +83,10 @@ pub enum Command {
         /// With --replay: worker threads (the result is the same on any count).
         #[arg(long, value_parser = crate::cli::values::size())]
         threads: Option<usize>,
+        /// With --headless --replay: write the run's sound, as the player heard it, here
+        /// (48 kHz stereo 16-bit WAV; the same bytes on any thread count).
+        #[arg(long, value_name = "OUT.wav", requires = "replay")]
+        audio: Option<PathBuf>,
         /// Which vector kernels run: the CPU's best, or the portable ones a CPU without
         /// AVX2 runs (the same bits, so a replay ends at the same state hash).
         #[arg(long, value_enum, default_value_t = crate::simd::Simd::Native)]
@@ -320,6 +324,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             replay,
             json,
             threads,
+            audio,
             simd,
         } => {
             crate::simd::use_kernels(simd);
@@ -327,11 +332,11 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             let mut level = level;
             if let Some(replay) = replay {
                 if headless {
-                    return replay_command(&replay, json.as_deref(), threads);
+                    return replay_command(&replay, json.as_deref(), audio.as_deref(), threads);
                 }
-                if record.is_some() || json.is_some() || threads.is_some() {
+                if record.is_some() || json.is_some() || threads.is_some() || audio.is_some() {
                     anyhow::bail!(
-                        "watching a recording (--replay without --headless) takes no --record, --json or --threads"
+                        "watching a recording (--replay without --headless) takes no --record, --json, --audio or --threads"
                     );
                 }
                 let (recording, recorded_level) = crate::headless::replay::read_recording(&replay)?;
@@ -349,8 +354,8 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 level = Some(recorded_level);
                 watch = Some(recording);
             }
-            if json.is_some() || threads.is_some() {
-                anyhow::bail!("--json and --threads go with --headless --replay FILE");
+            if json.is_some() || threads.is_some() || audio.is_some() {
+                anyhow::bail!("--json, --audio and --threads go with --headless --replay FILE");
             }
             // Only a bare window opens on the menu: scripted runs play the default level.
             let menu = !headless && frames.is_none() && record.is_none();
@@ -492,18 +497,35 @@ fn said_written(files: &[PathBuf]) -> ExitCode {
     ExitCode::SUCCESS
 }
 
-/// `gloam play --headless --replay FILE [--json OUT] [--threads N]`: the outcome and state
-/// hash on stdout, the per-step report in OUT.
+/// `gloam play --headless --replay FILE [--json OUT] [--audio OUT.wav] [--threads N]`:
+/// the outcome and state hash on stdout, the per-step report in OUT, the run's sound in
+/// OUT.wav.
 fn replay_command(
     path: &Path,
     json: Option<&Path>,
+    audio: Option<&Path>,
     threads: Option<usize>,
 ) -> anyhow::Result<ExitCode> {
     let threads = threads.unwrap_or_else(crate::bench::default_threads);
     if threads == 0 {
         anyhow::bail!("--threads must be at least 1");
     }
-    let report = crate::headless::replay::replay(path, threads)?;
+    let report = match audio {
+        Some(out) => {
+            let (report, sound) = crate::headless::replay::replay_with_sound(path, threads)?;
+            let (left, right) = sound.to_pcm();
+            let bytes = crate::scene::sound_kit::stereo_wav_bytes(&left, &right);
+            crate::scene::files::write_atomically(out, &bytes)?;
+            println!(
+                "wrote {} ({:.1} s, {:.1} dBFS RMS)",
+                out.display(),
+                sound.left.len() as f64 / f64::from(crate::scene::sound_kit::RATE),
+                sound.rms_dbfs()
+            );
+            report
+        }
+        None => crate::headless::replay::replay(path, threads)?,
+    };
     if let Some(out) = json {
         let text = serde_json::to_string_pretty(&report).context("encoding the report")?;
         crate::scene::files::write_atomically(out, text.as_bytes())?;

@@ -9,6 +9,7 @@ use std::path::{Component, Path, PathBuf};
 use glam::Vec3;
 
 use crate::scene::files::absolute;
+pub use crate::scene::files::assets_folder;
 
 use crate::scene::level::{
     EntityDef, ExitDef, InstanceDef, LightDef, PlayerSpawn, ShardDef, WardenDef,
@@ -86,19 +87,6 @@ impl Prefab {
             Prefab::PlayerSpawn => def.player_spawn = Some(PlayerSpawn::default()),
         }
         def
-    }
-}
-
-/// The project's assets folder for the level file `level`: `assets/` beside the level's
-/// folder (levels/ and assets/ are siblings), else the one Gloam was built from.
-pub fn assets_folder(level: &Path) -> PathBuf {
-    let beside = level
-        .parent()
-        .and_then(Path::parent)
-        .map(|root| root.join("assets"));
-    match beside {
-        Some(folder) if folder.is_dir() => folder,
-        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("assets"),
     }
 }
 

@@ -104,11 +104,31 @@ impl Surface {
     }
 }
 
-/// How a sound made at `source` is heard at `ears` (see the module doc). `nav`, when
-/// there is one, carries it round corners.
+/// How a sound made at `source` is heard at `ears` (see the module doc): the direct path,
+/// or the way round when it is louder. `nav`, when there is one, carries it round corners.
 pub fn hear(world: &dyn WorldQuery, nav: Option<&NavGrid>, source: Vec3, ears: Vec3) -> Heard {
+    let direct = hear_direct(world, source, ears);
+    if !direct.occluded {
+        return direct;
+    }
+    louder(
+        direct,
+        nav.and_then(|nav| way_round(world, nav, source, ears)),
+    )
+}
+
+/// The louder of the direct path and the way round (when there is one).
+pub fn louder(direct: Heard, round: Option<Heard>) -> Heard {
+    match round {
+        Some(round) if round.level_db > direct.level_db => round,
+        _ => direct,
+    }
+}
+
+/// The direct path alone: rays from the ears to the source and across it, through
+/// whatever is between.
+pub fn hear_direct(world: &dyn WorldQuery, source: Vec3, ears: Vec3) -> Heard {
     let distance = source.distance(ears);
-    let spread = distance_db(distance);
     // The direct rays: to the source and to five points across it (none below: a source
     // is lifted off the floor it stands on by its caller, and the floor is no wall).
     let mut power = 0.0f32;
@@ -126,20 +146,21 @@ pub fn hear(world: &dyn WorldQuery, nav: Option<&NavGrid>, source: Vec3, ears: V
         power += 10f32.powf(-loss / 10.0);
     }
     let loss = -10.0 * (power / rays as f32).max(1e-12).log10();
-    let direct = Heard {
-        level_db: spread - loss,
+    Heard {
+        level_db: distance_db(distance) - loss,
         occluded: blocked == rays,
         cutoff_hz: cutoff(loss),
         path_length: distance,
         arrival: source,
-    };
-    if !direct.occluded {
-        return direct;
     }
-    // Round the corners, along the way a body would walk.
-    let Some(way) = nav.and_then(|nav| nav.path(ears, source)) else {
-        return direct;
-    };
+}
+
+/// The way round alone: along the shortest walkable way between the two, diffracted
+/// through the last opening the ears see; `None` when no way joins them. The costly part
+/// of hearing (a search over the navigation grid): a listener hearing many sources each
+/// step keeps it while neither end has moved far (`audio::Hearing`).
+pub fn way_round(world: &dyn WorldQuery, nav: &NavGrid, source: Vec3, ears: Vec3) -> Option<Heard> {
+    let way = nav.path(ears, source)?;
     let mut points = vec![ears];
     points.extend(way.iter().map(|p| Vec3::new(p.x, source.y.max(p.y), p.z)));
     points.push(source);
@@ -149,29 +170,40 @@ pub fn hear(world: &dyn WorldQuery, nav: Option<&NavGrid>, source: Vec3, ears: V
         .rev()
         .find(|&i| transmission_db(world, ears, points[i]) == 0.0)
         .unwrap_or(0);
-    let round = distance_db(length) - DIFFRACTION_DB;
-    if round <= direct.level_db {
-        return direct;
-    }
-    Heard {
-        level_db: round,
+    Some(Heard {
+        level_db: distance_db(length) - DIFFRACTION_DB,
         occluded: true,
         // Diffraction bends the lows round an edge better than the highs.
         cutoff_hz: cutoff(DIFFRACTION_DB),
         path_length: length,
         arrival: points[seen.max(1)],
-    }
+    })
 }
 
-/// How the room around `ears` rings (see the module doc).
+/// How the room around `ears` rings (see the module doc): every one of its rays at once.
 pub fn reverb(world: &dyn WorldQuery, ears: Vec3) -> Reverb {
-    let (mut flown, mut hits, mut absorbed) = (0.0f32, 0, 0.0f32);
-    for direction in spread_directions(REVERB_RAYS) {
-        match world.raycast(ears, direction, REVERB_REACH) {
-            Some(hit) => {
-                flown += hit.distance;
+    reverb_of((0..REVERB_RAYS).map(|ray| reverb_ray(world, ears, ray)))
+}
+
+/// The room's ray `ray` (0..`REVERB_RAYS`) from `ears`: how far it flew and how much the
+/// surface it met absorbs, or `None` out into the open. A listener that hears every step
+/// casts a few of them a step and keeps the rest (`reverb_of`).
+pub fn reverb_ray(world: &dyn WorldQuery, ears: Vec3, ray: usize) -> Option<(f32, f32)> {
+    world
+        .raycast(ears, spread_direction(ray, REVERB_RAYS), REVERB_REACH)
+        .map(|hit| (hit.distance, hit.surface.absorption()))
+}
+
+/// The room from its rays (see the module doc).
+pub fn reverb_of(rays: impl Iterator<Item = Option<(f32, f32)>>) -> Reverb {
+    let (mut flown, mut hits, mut absorbed, mut count) = (0.0f32, 0, 0.0f32, 0);
+    for ray in rays {
+        count += 1;
+        match ray {
+            Some((distance, absorption)) => {
+                flown += distance;
                 hits += 1;
-                absorbed += hit.surface.absorption();
+                absorbed += absorption;
             }
             // Out into the open: the sound never comes back (it absorbs all, and adds no
             // length to the paths between reflections).
@@ -186,7 +218,7 @@ pub fn reverb(world: &dyn WorldQuery, ears: Vec3) -> Reverb {
         };
     }
     let mean_free_path = flown / hits as f32;
-    let absorption = (absorbed / REVERB_RAYS as f32).clamp(0.001, 0.999);
+    let absorption = (absorbed / count as f32).clamp(0.001, 0.999);
     // Eyring: RT60 = 0.161 V / (-S ln(1 - a)), V / S = l / 4.
     let decay_s = 0.161 * (mean_free_path / 4.0) / -(1.0 - absorption).ln();
     Reverb {
@@ -231,14 +263,12 @@ fn transmission_db(world: &dyn WorldQuery, from: Vec3, to: Vec3) -> f32 {
     loss + 120.0
 }
 
-/// `count` unit directions spread evenly over the sphere (a Fibonacci lattice): the same
-/// every call, so a replay's sound is the same on any machine.
-fn spread_directions(count: usize) -> impl Iterator<Item = Vec3> {
+/// Direction `index` of `count` spread evenly over the sphere (a Fibonacci lattice): the
+/// same every call, so a replay's sound is the same on any machine.
+fn spread_direction(index: usize, count: usize) -> Vec3 {
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
-    (0..count).map(move |i| {
-        let y = 1.0 - 2.0 * (i as f32 + 0.5) / count as f32;
-        let ring = (1.0 - y * y).sqrt();
-        let angle = golden * i as f32;
-        Vec3::new(ring * angle.cos(), y, ring * angle.sin())
-    })
+    let y = 1.0 - 2.0 * (index as f32 + 0.5) / count as f32;
+    let ring = (1.0 - y * y).sqrt();
+    let angle = golden * index as f32;
+    Vec3::new(ring * angle.cos(), y, ring * angle.sin())
 }

@@ -5,23 +5,23 @@
 //!
 //! The level is loaded into its own `Engine`, its clock run on to `--time` (wardens walk,
 //! gates lift), and the simulation's copy of the level then answers every ray. Sound files
-//! are read as WAV (the sound kit's format); other formats are refused in one line.
+//! are read as the game reads them (`audio::load_clip`: WAV, FLAC, Ogg Vorbis, MP3).
 
 use std::path::Path;
 
-use anyhow::{Context as _, bail};
+use anyhow::Context as _;
 use bevy_ecs::prelude::Name;
 use glam::Vec3;
 use serde_json::{Value, json};
 
-use crate::audio::{Stereo, add_reverb, add_source};
+use crate::audio::{Bus, Command, Mix, Mixer, Stereo, load_clip};
 use crate::frame::Engine;
 use crate::game::acoustics::{hear, reverb};
 use crate::game::nav::{CELL, NavGrid};
 use crate::game::{GlobalTransform, SIMULATION_HZ, SoundSource, WorldGeometry};
 use crate::render::RenderSettings;
 use crate::scene::Scene;
-use crate::scene::sound_kit::{RATE, read_wav, resample};
+use crate::scene::sound_kit::RATE;
 
 /// Where the ears are and what they take in.
 #[derive(Clone, Copy, Debug)]
@@ -68,37 +68,20 @@ pub fn listen(
         .bounds()
         .map(|bounds| NavGrid::build(geometry.as_ref(), bounds, CELL));
     let ears = (listening.at, listening.facing_degrees.to_radians());
-    let frames = (listening.seconds * RATE as f64).round() as usize;
-    let mut out = Stereo::silence(frames);
-    let mut send = vec![0.0f32; frames];
+    let mut mixer = Mixer::new();
     let mut reports = Vec::new();
     let base = level.parent().unwrap_or(Path::new("."));
-    for (name, def, at) in found {
+    for (voice, (name, def, at)) in (1..).zip(found) {
         let file = base.join(&def.asset);
-        let bytes = std::fs::read(&file).with_context(|| {
-            format!(
-                "{}: cannot read sound '{}'",
-                level.display(),
-                file.display()
-            )
-        })?;
-        let Ok((rate, samples)) = read_wav(&bytes) else {
-            bail!(
-                "{}: sound '{}' is not a 16-bit PCM WAV file (listen reads only those yet)",
-                level.display(),
-                file.display()
-            );
-        };
-        let samples = if rate == RATE {
-            samples
-        } else {
-            resample(&samples, rate, RATE)
-        };
+        let clip = load_clip(&file).with_context(|| format!("{}", level.display()))?;
         let heard = hear(geometry.as_ref(), nav.as_ref(), at, listening.at);
-        let dry = add_source(&mut out, &samples, true, &heard, def.gain_db, ears);
-        for (s, d) in send.iter_mut().zip(&dry) {
-            *s += d;
-        }
+        mixer.apply(Command::Play {
+            voice,
+            clip,
+            looping: true,
+            bus: Bus::Effects,
+            mix: Mix::heard(&heard, def.gain_db, ears),
+        });
         reports.push(json!({
             "name": name,
             "level_db": heard.level_db + def.gain_db,
@@ -108,7 +91,12 @@ pub fn listen(
         }));
     }
     let room = reverb(geometry.as_ref(), listening.at);
-    add_reverb(&mut out, &send, &room);
+    mixer.apply(Command::Room(room));
+    let mut out = Stereo::default();
+    out.record(
+        &mut mixer,
+        (listening.seconds * RATE as f64).round() as usize,
+    );
     let report = json!({
         "sources": reports,
         "reverb": {"decay_s": room.decay_s, "wet_db": room.wet_db},

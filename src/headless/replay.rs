@@ -17,6 +17,10 @@
 //! outcome, `state_hash` (the states of every step chained, 16 hex digits: the same on
 //! any thread count and with either SIMD kernels), and `diverged`: null, or where the
 //! replay went another way (`{"step", "t", "part"}`).
+//!
+//! Listening (`--audio OUT.wav`), the player's ears hear every step as they do in the
+//! window (`audio::Hearing`) and the window's mixer mixes it, one step's samples at a
+//! time: the run's sound, 48 kHz stereo, the same bytes on any thread count.
 
 use std::path::{Path, PathBuf};
 
@@ -24,6 +28,7 @@ use anyhow::{Context as _, anyhow, bail};
 use bevy_ecs::query::With;
 use serde_json::{Value, json};
 
+use crate::audio::{Hearing, Mixer, STEP_FRAMES, Stereo};
 use crate::frame::Engine;
 use crate::game::replay::{
     Ended, Fnv64, OLDEST_RECORDING_VERSION, RECORDING_VERSION, Recorder, Recording, level_hash,
@@ -149,6 +154,19 @@ impl Divergence {
 
 /// Replays `path` headless on `threads` threads: the report (see the module doc).
 pub fn replay(path: &Path, threads: usize) -> anyhow::Result<Value> {
+    Ok(run(path, threads, false)?.0)
+}
+
+/// `replay`, listening: the report and the run's sound as the player heard it (the
+/// window's mixer, `audio::Mixer`, fed each step's commands and mixing one step's samples
+/// after each, and a second after the end for the last sounds to ring out), the same
+/// samples on any thread count.
+pub fn replay_with_sound(path: &Path, threads: usize) -> anyhow::Result<(Value, Stereo)> {
+    let (report, sound) = run(path, threads, true)?;
+    Ok((report, sound.unwrap_or_default()))
+}
+
+fn run(path: &Path, threads: usize, listen: bool) -> anyhow::Result<(Value, Option<Stereo>)> {
     let (recording, level) = read_recording(path)?;
     let scene = Scene::load(&level)?;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -159,7 +177,21 @@ pub fn replay(path: &Path, threads: usize) -> anyhow::Result<Value> {
         let mut engine = Engine::new(&scene, RenderSettings::real_time(1, 1));
         spawn_player(&mut engine.world)
             .with_context(|| format!("{}: the level has no player start", level.display()))?;
-        Ok(simulate(&mut engine, &recording))
+        let mut sound = listen.then(|| {
+            engine.hearing = Some(Hearing::for_level(&level));
+            (Mixer::new(), Stereo::default())
+        });
+        let report = simulate(&mut engine, &recording, sound.as_mut());
+        // The last sounds ring out.
+        if let Some((mixer, stereo)) = &mut sound {
+            stereo.record(mixer, crate::scene::sound_kit::RATE as usize);
+        }
+        if let Some(hearing) = &engine.hearing {
+            for warning in &hearing.warnings {
+                eprintln!("warning: {warning}");
+            }
+        }
+        Ok((report, sound.map(|(_, stereo)| stereo)))
     })
 }
 
@@ -172,8 +204,13 @@ pub fn divergence(report: &Value) -> Option<Divergence> {
     })
 }
 
-/// Feeds the recording's steps to the simulation and reports each.
-fn simulate(engine: &mut Engine, recording: &Recording) -> Value {
+/// Feeds the recording's steps to the simulation and reports each (and mixes each
+/// step's sound into `sound`, when listening).
+fn simulate(
+    engine: &mut Engine,
+    recording: &Recording,
+    mut sound: Option<&mut (Mixer, Stereo)>,
+) -> Value {
     let mut hash = Fnv64::default();
     let mut steps = Vec::with_capacity(recording.steps.len());
     let mut marks = recording.trail.iter().peekable();
@@ -181,6 +218,12 @@ fn simulate(engine: &mut Engine, recording: &Recording) -> Value {
     for (index, input) in recording.steps.iter().enumerate() {
         input.apply(&mut engine.world.resource_mut::<Input>());
         engine.step();
+        if let (Some((mixer, stereo)), Some(hearing)) = (&mut sound, &mut engine.hearing) {
+            for command in hearing.take() {
+                mixer.apply(command);
+            }
+            stereo.record(mixer, STEP_FRAMES);
+        }
         let state = StateParts::of(&mut engine.world);
         hash.write(&state.hash().to_le_bytes());
         steps.push(step_report(engine, index + 1));

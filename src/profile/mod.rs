@@ -73,6 +73,9 @@ pub enum Stage {
     Animation,
     /// Transform propagation down the hierarchy (fixed steps).
     Transforms,
+    /// What the player's ears hear of each fixed step (`audio::Hearing`: sources, events
+    /// and the room through the level's acoustics); 0 where nothing listens.
+    Audio,
     /// The ECS made into the `RenderScene`: spawned, despawned, moved and changed things.
     Extract,
     /// Refitting (or rebuilding) the deformed meshes' BLASes.
@@ -88,12 +91,13 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const COUNT: usize = 10;
+    pub const COUNT: usize = 11;
     pub const ALL: [Stage; Stage::COUNT] = [
         Stage::Input,
         Stage::Gameplay,
         Stage::Animation,
         Stage::Transforms,
+        Stage::Audio,
         Stage::Extract,
         Stage::BlasRefit,
         Stage::TlasBuild,
@@ -116,6 +120,7 @@ impl Stage {
             Stage::Gameplay => "gameplay",
             Stage::Animation => "animation",
             Stage::Transforms => "transforms",
+            Stage::Audio => "audio",
             Stage::Extract => "extract",
             Stage::BlasRefit => "blas_refit",
             Stage::TlasBuild => "tlas_build",

@@ -72,3 +72,16 @@ pub fn absolute(path: &Path) -> PathBuf {
     }
     out
 }
+
+/// The project's assets folder for the level file `level`: `assets/` beside the level's
+/// folder (levels/ and assets/ are siblings), else the one Gloam was built from.
+pub fn assets_folder(level: &Path) -> PathBuf {
+    let beside = level
+        .parent()
+        .and_then(Path::parent)
+        .map(|root| root.join("assets"));
+    match beside {
+        Some(folder) if folder.is_dir() => folder,
+        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("assets"),
+    }
+}

@@ -840,6 +840,7 @@ fn looped(length: f64, crossfade: f64, make: impl FnOnce(usize) -> Vec<f64>) -> 
 
 /// A second-order section (Bristow-Johnson's "Audio EQ Cookbook" coefficients), in
 /// transposed direct form II.
+#[derive(Clone, Debug)]
 pub(crate) struct Biquad {
     b: [f64; 3],
     a: [f64; 2],
@@ -869,6 +870,13 @@ impl Biquad {
     fn set_bandpass(&mut self, frequency: f64, q: f64) {
         let z = self.z;
         *self = Biquad::bandpass(frequency, q);
+        self.z = z;
+    }
+
+    /// Moves a low-pass to a new cut-off, keeping its state (no click as it moves).
+    pub(crate) fn set_lowpass(&mut self, frequency: f64, q: f64) {
+        let z = self.z;
+        *self = Biquad::lowpass(frequency, q);
         self.z = z;
     }
 
