@@ -276,3 +276,76 @@ fn a_replays_sound_is_the_same_on_any_thread_count_and_audible() {
     assert!(seconds > 60.0, "{seconds} s");
     assert!(rms > -50.0, "{rms} dBFS");
 }
+
+/// A shipped level's ears at the start: the wind's bed and the tension layers (silent)
+/// start, every lamp hums where it hangs; a doused lamp's hum falls silent.
+#[test]
+fn the_first_levels_lamps_hum_until_doused_and_its_wind_blows() {
+    use bevy_ecs::prelude::{Entity, Name};
+    use gloam::audio::Hearing;
+    use gloam::frame::Engine;
+    use gloam::game::{SoundSource, SwitchedOff, spawn_player};
+    use gloam::render::RenderSettings;
+
+    let level = common::repo().join("levels/first-light.ron");
+    let scene = gloam::scene::Scene::load(&level).unwrap();
+    let mut engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
+    spawn_player(&mut engine.world).unwrap();
+    engine.hearing = Some(Hearing::for_level(&level));
+    engine.step();
+    let started = engine.hearing.as_mut().unwrap().take();
+    let plays: Vec<(u64, Bus, bool, f32)> = started
+        .iter()
+        .filter_map(|command| match command {
+            Command::Play {
+                voice,
+                bus,
+                looping,
+                mix,
+                ..
+            } => Some((*voice, *bus, *looping, mix.gain_db)),
+            _ => None,
+        })
+        .collect();
+    let sources = engine
+        .world
+        .query::<&SoundSource>()
+        .iter(&engine.world)
+        .count();
+    assert_eq!(sources, 5, "first-light's five lamps hum");
+    let effects = plays.iter().filter(|p| p.1 == Bus::Effects && p.2).count();
+    let ambience = plays.iter().filter(|p| p.1 == Bus::Ambience).count();
+    assert_eq!((effects, ambience), (5, 3), "{plays:?}");
+    // The hall's lamps are heard from the start (about 5 m off, -14 dB and the walls).
+    assert!(
+        plays
+            .iter()
+            .any(|p| p.1 == Bus::Effects && p.3 > -30.0 && p.3 < 0.0),
+        "{plays:?}"
+    );
+
+    let lamp: Entity = engine
+        .world
+        .query::<(Entity, &Name, &SoundSource)>()
+        .iter(&engine.world)
+        .find(|(_, name, _)| name.as_str() == "cellar lamp")
+        .map(|(entity, _, _)| entity)
+        .unwrap();
+    let mut silent = |engine: &mut Engine| {
+        engine.step();
+        let commands = engine.hearing.as_mut().unwrap().take();
+        commands
+            .iter()
+            .filter(|command| matches!(command, Command::Set { mix, .. } if mix.gain_db < -100.0))
+            .count()
+    };
+    // A lamp far behind many walls may be all but silent already.
+    let before = silent(&mut engine);
+    engine.world.entity_mut(lamp).insert(SwitchedOff);
+    let after = silent(&mut engine);
+    assert_eq!(
+        after,
+        before + 1,
+        "the doused lamp's hum, alone, falls silent"
+    );
+}

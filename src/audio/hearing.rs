@@ -33,12 +33,14 @@ use crate::game::acoustics::tuning::{REVERB_RAYS, SOURCE_LIFT};
 use crate::game::acoustics::{hear_direct, louder, reverb_of, reverb_ray, way_round};
 use crate::game::{
     GlobalTransform, LevelInfo, NavGrid, Player, PlayerEye, SoundEvents, SoundMaker, SoundSource,
-    ViewCamera, Warden, WardenState, WorldGeometry,
+    SwitchedOff, ViewCamera, Warden, WardenState, WorldGeometry,
 };
 use crate::scene::sound_kit::{RATE, read_wav, resample};
 
 /// Room rays cast each step.
 pub const ROOM_RAYS_PER_STEP: usize = 8;
+/// A voice held silent (a switched-off source, a tension layer at rest), decibels.
+const SILENT_DB: f32 = -120.0;
 /// A sound heard quieter than this against its level at 1 m is not started, decibels.
 const INAUDIBLE_DB: f32 = -80.0;
 /// The tension layers' level at full, decibels, and how fast they fade (the share of the
@@ -171,10 +173,14 @@ impl Hearing {
         if !self.started {
             self.start(world);
         }
-        let mut sources = world.query::<(Entity, &SoundSource, &GlobalTransform)>();
-        let placed: Vec<(Entity, crate::scene::level::SoundDef, Vec3)> = sources
+        let mut sources =
+            world.query::<(Entity, &SoundSource, &GlobalTransform, Has<SwitchedOff>)>();
+        // A switched-off source (a doused lamp's hum) is silent until it is on again.
+        let placed: Vec<(Entity, crate::scene::level::SoundDef, Vec3, bool)> = sources
             .iter(world)
-            .map(|(entity, source, at)| (entity, source.0.clone(), at.0.translation.into()))
+            .map(|(entity, source, at, off)| {
+                (entity, source.0.clone(), at.0.translation.into(), off)
+            })
             .collect();
         let events = world
             .get_resource::<SoundEvents>()
@@ -232,7 +238,7 @@ impl Hearing {
         // neither end leaves its metre (the stalest found again, as the searches left
         // allow).
         let mut stale: Vec<(u64, Entity)> = Vec::new();
-        for (entity, _, at) in &placed {
+        for (entity, _, at, _) in &placed {
             let key = (metre(ears), metre(*at));
             match self.ways_round.get(entity) {
                 Some(way) if way.key == key => {}
@@ -242,7 +248,7 @@ impl Hearing {
         }
         stale.sort();
         stale.truncate(WAYS_ROUND_PER_STEP - searches);
-        for (entity, def, at) in placed {
+        for (entity, def, at, off) in placed {
             let direct = hear_direct(geometry, at, ears);
             let heard = if direct.occluded {
                 let refresh = stale.iter().any(|&(_, e)| e == entity);
@@ -264,7 +270,8 @@ impl Hearing {
             } else {
                 direct
             };
-            let mix = Mix::heard(&heard, def.gain_db, (ears, yaw));
+            let gain_db = if off { SILENT_DB } else { def.gain_db };
+            let mix = Mix::heard(&heard, gain_db, (ears, yaw));
             match self.sources.get(&entity) {
                 Some(&voice) => self.commands.push(Command::Set { voice, mix }),
                 None => {
@@ -309,7 +316,7 @@ impl Hearing {
             let gain_db = if moved > 0.0 {
                 TENSION_DB + 20.0 * moved.log10()
             } else {
-                -120.0
+                SILENT_DB
             };
             self.commands.push(Command::Set {
                 voice: *voice,
@@ -348,7 +355,7 @@ impl Hearing {
                     clip,
                     looping: true,
                     bus: Bus::Ambience,
-                    mix: Mix::centred(-120.0),
+                    mix: Mix::centred(SILENT_DB),
                 });
             }
         }
