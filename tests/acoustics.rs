@@ -210,3 +210,38 @@ fn centroid(signal: &[f64]) -> f64 {
     }
     weighted / total
 }
+
+/// The editor's audibility map asks the wardens' own hearing: on first-light a landing is
+/// heard over more floor than a sprint, everything heard lies within the noise's reach of
+/// a warden, and walls keep some of that reach quiet.
+#[test]
+fn the_audibility_map_hears_as_the_wardens_do() {
+    use gloam::edit::audibility::{CELL, NoiseKind, compute};
+
+    let scene = Scene::load(&common::repo().join("levels/first-light.ron")).unwrap();
+    let area = |noise| {
+        let map = compute(&scene, 0.0, noise).expect("first-light has wardens");
+        for &(at, over_db, warden) in &map.heard {
+            let feet = map.wardens[warden].1;
+            assert!(
+                at.distance(feet) <= map.radius + 2.0 && over_db >= 0.0,
+                "{noise:?} heard at {at} by a warden at {feet}, {over_db} dB over"
+            );
+        }
+        println!(
+            "{}: heard over {:.0} m², kept quiet by walls over {:.0} m² ({:.0} ms)",
+            noise.name(),
+            map.heard.len() as f32 * CELL * CELL,
+            map.muffled.len() as f32 * CELL * CELL,
+            map.seconds * 1e3
+        );
+        (map.heard.len(), map.muffled.len())
+    };
+    let (sprint, _) = area(NoiseKind::Sprint);
+    let (landing, landing_muffled) = area(NoiseKind::Landing);
+    assert!(
+        landing > sprint && sprint > 0,
+        "landing {landing}, sprint {sprint}"
+    );
+    assert!(landing_muffled > 0, "no wall keeps a landing quiet");
+}

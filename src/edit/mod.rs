@@ -20,6 +20,7 @@
 //! of `levels/*.ron` picks up) and the new one is written atomically, so a failed save
 //! leaves the old file and the edits where they were.
 
+pub mod audibility;
 pub mod camera;
 pub mod exposure;
 pub mod palette;

@@ -198,19 +198,33 @@ pub fn hear_noises(
     };
     for noise in noises.0.iter().filter(|noise| noise.age == 0.0) {
         for (mut warden, placed) in &mut wardens {
-            let ears = placed.translation + Vec3::Y * EAR_HEIGHT;
-            let from = noise.at + Vec3::Y * super::acoustics::tuning::SOURCE_LIFT;
-            // Nothing in the level carries a sound further than the open air does.
-            if from.distance(ears) > noise.radius {
-                continue;
+            let world = geometry.0.as_ref();
+            if over_threshold_db(world, grid.as_deref(), noise, placed.translation).is_some() {
+                heard(&mut warden, placed.translation, noise.at, grid.as_deref());
             }
-            let through = super::acoustics::hear(geometry.0.as_ref(), grid.as_deref(), from, ears);
-            if noise.loudness_db() + through.level_db < HEARING_THRESHOLD_DB {
-                continue;
-            }
-            heard(&mut warden, placed.translation, noise.at, grid.as_deref());
         }
     }
+}
+
+/// How far over the hearing threshold a warden standing at `feet` hears `noise`,
+/// decibels, or `None` when it does not: the noise's loudness less what the level takes
+/// on the way to the warden's ears (`acoustics::hear`). The wardens' hearing and the
+/// editor's audibility map ask this one question.
+pub fn over_threshold_db(
+    world: &dyn super::world_query::WorldQuery,
+    grid: Option<&NavGrid>,
+    noise: &Noise,
+    feet: Vec3,
+) -> Option<f32> {
+    let ears = feet + Vec3::Y * EAR_HEIGHT;
+    let from = noise.at + Vec3::Y * super::acoustics::tuning::SOURCE_LIFT;
+    // Nothing in the level carries a sound further than the open air does.
+    if from.distance(ears) > noise.radius {
+        return None;
+    }
+    let through = super::acoustics::hear(world, grid, from, ears);
+    let over = noise.loudness_db() + through.level_db - HEARING_THRESHOLD_DB;
+    (over >= 0.0).then_some(over)
 }
 
 /// A warden at `at` heard something at `place`.

@@ -64,9 +64,17 @@ pub fn listen(
         .collect();
     found.sort_by(|a, b| a.0.cmp(&b.0));
     let geometry = &world.resource::<WorldGeometry>().0;
-    let nav = geometry
-        .bounds()
-        .map(|bounds| NavGrid::build(geometry.as_ref(), bounds, CELL));
+    // The engine's own grid when the level has wardens (it built one), else one for here.
+    let built;
+    let nav = match world.get_resource::<NavGrid>() {
+        Some(grid) => Some(grid),
+        None => {
+            built = geometry
+                .bounds()
+                .map(|bounds| NavGrid::build(geometry.as_ref(), bounds, CELL));
+            built.as_ref()
+        }
+    };
     let ears = (listening.at, listening.facing_degrees.to_radians());
     let mut mixer = Mixer::new();
     let mut reports = Vec::new();
@@ -74,7 +82,7 @@ pub fn listen(
     for (voice, (name, def, at)) in (1..).zip(found) {
         let file = base.join(&def.asset);
         let clip = load_clip(&file).with_context(|| format!("{}", level.display()))?;
-        let heard = hear(geometry.as_ref(), nav.as_ref(), at, listening.at);
+        let heard = hear(geometry.as_ref(), nav, at, listening.at);
         mixer.apply(Command::Play {
             voice,
             clip,

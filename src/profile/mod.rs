@@ -1117,7 +1117,7 @@ mod tests {
     #[test]
     fn trace_events_lie_end_to_end_inside_their_frames() {
         let frame = |render: f64| FrameSample {
-            stages: [0.1, 0.0, 0.2, 0.1, 0.0, 0.3, 0.1, render, 0.2, 0.0],
+            stages: [0.1, 0.0, 0.2, 0.1, 0.0, 0.0, 0.3, 0.1, render, 0.2, 0.0],
             render_phases: [render * 0.4, render * 0.1, render * 0.2, render * 0.3],
             film_phases: [0.1, 0.05, 0.05, 0.0],
             gameplay_phases: [0.0, 0.0, 0.0, 0.0],

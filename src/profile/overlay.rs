@@ -108,7 +108,7 @@ mod tests {
     #[test]
     fn overlay_stacks_stage_colours_and_survives_tiny_frames() {
         let sample = FrameSample {
-            stages: [0.5, 0.0, 1.0, 0.2, 0.1, 2.0, 0.3, 20.0, 0.5, 3.0],
+            stages: [0.5, 0.0, 1.0, 0.2, 0.0, 0.1, 2.0, 0.3, 20.0, 0.5, 3.0],
             frame_ms: 28.0,
             rays: RayMix {
                 camera: 100_000,

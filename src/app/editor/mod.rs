@@ -43,6 +43,7 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::window::{CursorGrabMode, Window, WindowId};
 
 use crate::accel::Ray;
+use crate::edit::audibility::{Audibility, CELL as AUDIBILITY_CELL, NoiseKind};
 use crate::edit::camera::FlyCamera;
 use crate::edit::exposure::Exposure;
 use crate::edit::palette::{asset_def, assets_folder};
@@ -260,6 +261,7 @@ impl EditorApp {
             error: None,
             switch: None,
             exposure: None,
+            audibility: None,
             exposure_job: None,
             exposure_for: None,
             play_check: PlayCheck::default(),
@@ -394,8 +396,11 @@ pub struct EditorApp {
     /// The exposure map on show, the one being computed (on a thread of its own, so the
     /// view stays live), and the level and time the last one was asked for.
     exposure: Option<Exposure>,
-    exposure_job: Option<Receiver<Result<Exposure, String>>>,
-    exposure_for: Option<(Level, f32)>,
+    /// Where the noise the map shows would be heard (with the exposure map, when the map
+    /// shows a noise).
+    audibility: Option<Audibility>,
+    exposure_job: Option<Receiver<Result<(Exposure, Option<Audibility>), String>>>,
+    exposure_for: Option<(Level, f32, Option<NoiseKind>)>,
     /// The player bot on the level (F6): the check under way, and the last answer.
     play_check: PlayCheck,
     /// The level has been edited since the last play-check ran.
@@ -576,6 +581,7 @@ impl EditorApp {
         self.disk = disk;
         self.panels.opened(&path);
         self.exposure = None;
+        self.audibility = None;
         self.exposure_job = None;
         self.exposure_for = None;
         self.play_check = PlayCheck::default();
@@ -699,7 +705,7 @@ impl EditorApp {
     fn update_exposure(&mut self) {
         if let Some(job) = &self.exposure_job {
             match job.try_recv() {
-                Ok(Ok(exposure)) => {
+                Ok(Ok((exposure, audibility))) => {
                     let route = &exposure.map.route;
                     self.panels.exposure.status = match route.max_exposure {
                         None => "no walkable route through every shard to the exit".to_owned(),
@@ -713,11 +719,22 @@ impl EditorApp {
                             exposure.seconds * 1e3
                         ),
                     };
+                    if let Some(heard) = &audibility {
+                        self.panels.exposure.status = format!(
+                            "{} carries {:.0} m: heard from {:.0} m² of floor, kept quiet by walls on {:.0} m² ({:.0} ms)",
+                            heard.noise.name(),
+                            heard.radius,
+                            heard.heard.len() as f32 * AUDIBILITY_CELL * AUDIBILITY_CELL,
+                            heard.muffled.len() as f32 * AUDIBILITY_CELL * AUDIBILITY_CELL,
+                            heard.seconds * 1e3
+                        );
+                    }
                     println!(
                         "exposure map at {} s: {}",
                         self.panels.exposure.time, self.panels.exposure.status
                     );
                     self.exposure = Some(exposure);
+                    self.audibility = audibility;
                     self.exposure_job = None;
                 }
                 Ok(Err(problem)) => {
@@ -735,25 +752,30 @@ impl EditorApp {
         let wanted = (
             crate::game::level_from_world(&mut self.engine.world),
             self.panels.exposure.time,
+            self.panels.exposure.heard,
         );
         if self.exposure_for.as_ref() == Some(&wanted) {
             return;
         }
         let (sender, receiver) = std::sync::mpsc::channel();
-        let (level, time) = wanted.clone();
+        let (level, time, heard) = wanted.clone();
         let path = self.path.clone();
         let threshold = self.panels.exposure.threshold;
         std::thread::spawn(move || {
             let result = Scene::from_level(level, &path)
                 .map_err(|error| format!("{error}"))
                 .and_then(|scene| {
-                    crate::edit::exposure::compute(
+                    let exposure = crate::edit::exposure::compute(
                         &scene,
                         time as f64,
                         crate::game::nav::CELL,
                         threshold,
                     )
-                    .map_err(|problem| problem.to_string())
+                    .map_err(|problem| problem.to_string())?;
+                    let audibility = heard.and_then(|noise| {
+                        crate::edit::audibility::compute(&scene, time as f64, noise)
+                    });
+                    Ok((exposure, audibility))
                 });
             let _ = sender.send(result);
         });
@@ -834,6 +856,7 @@ impl EditorApp {
         let camera_before = self.camera;
         let overlays = panels::Overlays {
             exposure: self.exposure.as_ref(),
+            audibility: self.audibility.as_ref(),
             play_check: self
                 .play_check
                 .checked()

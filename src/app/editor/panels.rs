@@ -16,6 +16,7 @@ use transform_gizmo_egui::prelude::*;
 
 use super::dialogs::DialogKind;
 use super::{Command, Leave, view_ray};
+use crate::edit::audibility::{Audibility, NoiseKind};
 use crate::edit::camera::FlyCamera;
 use crate::edit::exposure::Exposure;
 use crate::edit::palette::{Prefab, asset_files, assets_folder};
@@ -141,6 +142,9 @@ pub struct ExposureControls {
     pub time: f32,
     /// The gem a route may not rise above.
     pub threshold: f32,
+    /// What the map shows: where the player is seen (None), or where a noise would be
+    /// heard (`edit::audibility`).
+    pub heard: Option<NoiseKind>,
     /// What the last map says, or that one is being computed.
     pub status: String,
 }
@@ -150,6 +154,8 @@ pub struct ExposureControls {
 #[derive(Clone, Copy, Default)]
 pub struct Overlays<'a> {
     pub exposure: Option<&'a Exposure>,
+    /// Where the chosen noise would be heard, when the map shows that.
+    pub audibility: Option<&'a Audibility>,
     pub play_check: Option<(&'a Checked, bool)>,
 }
 
@@ -216,6 +222,7 @@ impl Panels {
                 crouching: false,
                 time: 0.0,
                 threshold: 0.5,
+                heard: None,
                 status: String::new(),
             },
             play_check: String::new(),
@@ -704,8 +711,10 @@ impl Panels {
             play_check_overlay(&painter, checked, stale, &projection);
         }
         if self.exposure.on {
-            if let Some(exposure) = overlays.exposure {
-                self.exposure_overlay(&painter, exposure, &projection);
+            match (self.exposure.heard, overlays.audibility, overlays.exposure) {
+                (Some(_), Some(heard), _) => audibility_overlay(&painter, heard, &projection),
+                (None, _, Some(exposure)) => self.exposure_overlay(&painter, exposure, &projection),
+                _ => {}
             }
             self.exposure_controls(ui, rect);
         }
@@ -816,13 +825,25 @@ impl Panels {
     /// The overlay's controls, in a corner of the view.
     fn exposure_controls(&mut self, ui: &mut egui::Ui, rect: Rect) {
         egui::Area::new(egui::Id::new("exposure controls"))
-            .fixed_pos(Pos2::new(rect.min.x + 8.0, rect.max.y - 92.0))
+            .fixed_pos(Pos2::new(rect.min.x + 8.0, rect.max.y - 116.0))
             .show(ui.ctx(), |ui| {
                 egui::Frame::popup(ui.style()).show(ui, |ui| {
                     ui.horizontal(|ui| {
-                        ui.radio_value(&mut self.exposure.crouching, false, "standing");
-                        ui.radio_value(&mut self.exposure.crouching, true, "crouching");
+                        ui.radio_value(&mut self.exposure.heard, None, "seen");
+                        for noise in NoiseKind::ALL {
+                            ui.radio_value(
+                                &mut self.exposure.heard,
+                                Some(noise),
+                                format!("heard: {}", noise.name()),
+                            );
+                        }
                     });
+                    if self.exposure.heard.is_none() {
+                        ui.horizontal(|ui| {
+                            ui.radio_value(&mut self.exposure.crouching, false, "standing");
+                            ui.radio_value(&mut self.exposure.crouching, true, "crouching");
+                        });
+                    }
                     ui.add(
                         egui::Slider::new(&mut self.exposure.time, 0.0..=EXPOSURE_TIME_MAX)
                             .step_by(0.25)
@@ -1736,5 +1757,76 @@ mod tests {
             ..FlyKeys::default()
         };
         assert_eq!(keys.direction(), Vec3::new(-1.0, 1.0, 1.0));
+    }
+}
+
+/// The audibility map over the floor: each place a warden would hear the noise made there
+/// in orange, brighter the further over the threshold (20 dB and more at full); places
+/// within its reach in the open that a wall keeps quiet in blue; each warden with its name
+/// and the noise's reach in the open around it.
+fn audibility_overlay(painter: &egui::Painter, map: &Audibility, projection: &ViewProjection) {
+    let half = crate::edit::audibility::CELL * 0.5;
+    let mut mesh = egui::Mesh::default();
+    let mut cell = |at: Vec3, colour: Color32| {
+        let y = at.y + 0.02;
+        let corners = [
+            Vec3::new(at.x - half, y, at.z - half),
+            Vec3::new(at.x + half, y, at.z - half),
+            Vec3::new(at.x + half, y, at.z + half),
+            Vec3::new(at.x - half, y, at.z + half),
+        ];
+        let Some(points) = corners
+            .iter()
+            .map(|&c| projection.point(c))
+            .collect::<Option<Vec<Pos2>>>()
+        else {
+            return;
+        };
+        let first = mesh.vertices.len() as u32;
+        for point in points {
+            mesh.colored_vertex(point, colour);
+        }
+        mesh.add_triangle(first, first + 1, first + 2);
+        mesh.add_triangle(first, first + 2, first + 3);
+    };
+    for &at in &map.muffled {
+        cell(at, Color32::from_rgba_unmultiplied(40, 70, 160, 90));
+    }
+    for &(at, over_db, _) in &map.heard {
+        let t = (over_db / 20.0).clamp(0.0, 1.0);
+        let colour = Color32::from_rgba_unmultiplied(
+            230,
+            (170.0 - 120.0 * t) as u8,
+            40,
+            (90.0 + 80.0 * t) as u8,
+        );
+        cell(at, colour);
+    }
+    painter.add(mesh);
+    for (name, feet) in &map.wardens {
+        let reach: Vec<Pos2> = (0..=48)
+            .filter_map(|i| {
+                let angle = i as f32 / 48.0 * std::f32::consts::TAU;
+                projection.point(
+                    *feet
+                        + Vec3::new(angle.cos(), 0.05, angle.sin())
+                            * Vec3::new(map.radius, 1.0, map.radius),
+                )
+            })
+            .collect();
+        painter.add(egui::Shape::line(
+            reach,
+            Stroke::new(1.0, Color32::from_rgba_unmultiplied(230, 120, 40, 160)),
+        ));
+        if let Some(at) = projection.point(*feet + Vec3::Y * 0.05) {
+            painter.circle_filled(at, 6.0, Color32::from_rgb(230, 60, 60));
+            painter.text(
+                at + egui::vec2(8.0, -8.0),
+                egui::Align2::LEFT_BOTTOM,
+                name,
+                egui::FontId::proportional(13.0),
+                Color32::WHITE,
+            );
+        }
     }
 }
