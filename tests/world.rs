@@ -101,6 +101,9 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
     let a_scene = Scene::load(&a_path).unwrap();
     let kit = common::repo().join("assets").join("kit");
     let mut b_level = a_scene.level.clone();
+    if let Some(bed) = &mut b_level.environment.ambience {
+        bed.asset = in_repo(&bed.asset);
+    }
     for entity in &mut b_level.entities {
         let body = entity.player_spawn.as_mut().and_then(|s| s.body.as_mut());
         for instance in entity.instance.iter_mut().chain(body) {
@@ -108,6 +111,9 @@ fn a_level_edited_into_another_renders_as_that_level_loaded() {
                 .join(std::path::Path::new(&instance.asset).file_name().unwrap())
                 .display()
                 .to_string();
+        }
+        if let Some(sound) = &mut entity.sound {
+            sound.asset = in_repo(&sound.asset);
         }
         match entity.name.as_str() {
             "pillar 3" => entity.transform.translation = Vec3::new(-2.5, 0.0, 2.5),
@@ -347,12 +353,14 @@ fn the_world_writes_back_as_its_level() {
     for entity in &mut relocated.entities {
         let body = entity.player_spawn.as_mut().and_then(|s| s.body.as_mut());
         for instance in entity.instance.iter_mut().chain(body) {
-            instance.asset = common::repo()
-                .join("levels")
-                .join(&instance.asset)
-                .display()
-                .to_string();
+            instance.asset = in_repo(&instance.asset);
         }
+        if let Some(sound) = &mut entity.sound {
+            sound.asset = in_repo(&sound.asset);
+        }
+    }
+    if let Some(bed) = &mut relocated.environment.ambience {
+        bed.asset = in_repo(&bed.asset);
     }
     save_level(&relocated, &path).unwrap();
     let reloaded = parse_level(&path, &std::fs::read_to_string(&path).unwrap()).unwrap();
@@ -378,7 +386,11 @@ fn the_world_writes_back_as_its_level() {
         if let (Some(body), Some(first)) = (body, first) {
             body.asset = first.asset.clone();
         }
+        if let (Some(sound), Some(first)) = (&mut entity.sound, &original.sound) {
+            sound.asset = first.asset.clone();
+        }
     }
+    resaved.environment.ambience = level.environment.ambience.clone();
     assert_eq!(resaved, level, "save, load, save gives the same level");
 }
 
@@ -457,4 +469,14 @@ fn the_light_set_is_rebuilt_only_when_the_lights_change() {
     spawn(&mut engine.world, &blue_lamp()).unwrap();
     engine.advance(1.0 / 60.0);
     assert_eq!(builds(&engine), at_load + 2, "a new lamp builds a set");
+}
+
+/// A shipped level's path (relative to levels/) made absolute, for a copy saved
+/// elsewhere.
+fn in_repo(asset: &str) -> String {
+    common::repo()
+        .join("levels")
+        .join(asset)
+        .display()
+        .to_string()
 }

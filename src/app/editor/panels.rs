@@ -770,28 +770,14 @@ impl Panels {
                 };
                 let x = map.origin.0 + (column % map.width) as f32 * map.cell_size;
                 let z = map.origin.1 + (column / map.width) as f32 * map.cell_size;
-                let y = floor + 0.02;
-                let corners = [
-                    Vec3::new(x, y, z),
-                    Vec3::new(x + map.cell_size, y, z),
-                    Vec3::new(x + map.cell_size, y, z + map.cell_size),
-                    Vec3::new(x, y, z + map.cell_size),
-                ];
-                let Some(points) = corners
-                    .iter()
-                    .map(|&c| projection.point(c))
-                    .collect::<Option<Vec<Pos2>>>()
-                else {
-                    continue;
-                };
                 let [r, g, b] = crate::edit::exposure::colour(*value, threshold);
-                let colour = Color32::from_rgba_unmultiplied(r, g, b, 120);
-                let first = mesh.vertices.len() as u32;
-                for point in points {
-                    mesh.colored_vertex(point, colour);
-                }
-                mesh.add_triangle(first, first + 1, first + 2);
-                mesh.add_triangle(first, first + 2, first + 3);
+                floor_cell(
+                    &mut mesh,
+                    projection,
+                    Vec3::new(x, *floor, z),
+                    map.cell_size,
+                    Color32::from_rgba_unmultiplied(r, g, b, 120),
+                );
             }
         }
         painter.add(mesh);
@@ -824,7 +810,9 @@ impl Panels {
 
     /// The overlay's controls, in a corner of the view.
     fn exposure_controls(&mut self, ui: &mut egui::Ui, rect: Rect) {
+        // In front of the view it lies over.
         egui::Area::new(egui::Id::new("exposure controls"))
+            .order(egui::Order::Foreground)
             .fixed_pos(Pos2::new(rect.min.x + 8.0, rect.max.y - 116.0))
             .show(ui.ctx(), |ui| {
                 egui::Frame::popup(ui.style()).show(ui, |ui| {
@@ -1765,29 +1753,11 @@ mod tests {
 /// within its reach in the open that a wall keeps quiet in blue; each warden with its name
 /// and the noise's reach in the open around it.
 fn audibility_overlay(painter: &egui::Painter, map: &Audibility, projection: &ViewProjection) {
-    let half = crate::edit::audibility::CELL * 0.5;
+    let size = crate::edit::audibility::CELL;
     let mut mesh = egui::Mesh::default();
     let mut cell = |at: Vec3, colour: Color32| {
-        let y = at.y + 0.02;
-        let corners = [
-            Vec3::new(at.x - half, y, at.z - half),
-            Vec3::new(at.x + half, y, at.z - half),
-            Vec3::new(at.x + half, y, at.z + half),
-            Vec3::new(at.x - half, y, at.z + half),
-        ];
-        let Some(points) = corners
-            .iter()
-            .map(|&c| projection.point(c))
-            .collect::<Option<Vec<Pos2>>>()
-        else {
-            return;
-        };
-        let first = mesh.vertices.len() as u32;
-        for point in points {
-            mesh.colored_vertex(point, colour);
-        }
-        mesh.add_triangle(first, first + 1, first + 2);
-        mesh.add_triangle(first, first + 2, first + 3);
+        let corner = at - Vec3::new(size * 0.5, 0.0, size * 0.5);
+        floor_cell(&mut mesh, projection, corner, size, colour);
     };
     for &at in &map.muffled {
         cell(at, Color32::from_rgba_unmultiplied(40, 70, 160, 90));
@@ -1829,4 +1799,36 @@ fn audibility_overlay(painter: &egui::Painter, map: &Audibility, projection: &Vi
             );
         }
     }
+}
+
+/// A map's cell on the floor: the square from `corner` (its minimum x and z, on the
+/// floor) `size` metres along +x and +z, just above the floor, in `colour` (nothing when
+/// a corner is behind the camera).
+fn floor_cell(
+    mesh: &mut egui::Mesh,
+    projection: &ViewProjection,
+    corner: Vec3,
+    size: f32,
+    colour: Color32,
+) {
+    let at = corner + Vec3::Y * 0.02;
+    let corners = [
+        at,
+        at + Vec3::X * size,
+        at + Vec3::new(size, 0.0, size),
+        at + Vec3::Z * size,
+    ];
+    let Some(points) = corners
+        .iter()
+        .map(|&c| projection.point(c))
+        .collect::<Option<Vec<Pos2>>>()
+    else {
+        return;
+    };
+    let first = mesh.vertices.len() as u32;
+    for point in points {
+        mesh.colored_vertex(point, colour);
+    }
+    mesh.add_triangle(first, first + 1, first + 2);
+    mesh.add_triangle(first, first + 2, first + 3);
 }
