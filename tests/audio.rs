@@ -331,7 +331,7 @@ fn the_first_levels_lamps_hum_until_doused_and_its_wind_blows() {
         .find(|(_, name, _)| name.as_str() == "cellar lamp")
         .map(|(entity, _, _)| entity)
         .unwrap();
-    let mut silent = |engine: &mut Engine| {
+    let silent = |engine: &mut Engine| {
         engine.step();
         let commands = engine.hearing.as_mut().unwrap().take();
         commands
