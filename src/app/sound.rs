@@ -46,10 +46,16 @@ impl GameSound {
     /// level (`paused`: a menu holds it, or no level is playing).
     pub fn frame(&mut self, engine: Option<&mut Engine>, paused: bool) {
         let Some(device) = &self.device else { return };
-        let mut commands = engine
-            .and_then(|engine| engine.hearing.as_mut())
-            .map(Hearing::take)
-            .unwrap_or_default();
+        let hearing = engine.and_then(|engine| engine.hearing.as_mut());
+        let mut commands = Vec::new();
+        if let Some(hearing) = hearing {
+            // A sound file that would not read or decode, said once as it is first asked
+            // for.
+            for warning in hearing.warnings.drain(..) {
+                eprintln!("gloam: warning: {warning}");
+            }
+            commands = hearing.take();
+        }
         if paused != self.paused {
             self.paused = paused;
             commands.push(Command::Pause(paused));

@@ -182,10 +182,6 @@ impl Hearing {
                 (entity, source.0.clone(), at.0.translation.into(), off)
             })
             .collect();
-        let events = world
-            .get_resource::<SoundEvents>()
-            .map(|sounds| sounds.events.clone())
-            .unwrap_or_default();
         let mut wardens = world.query::<&Warden>();
         let alarm = wardens
             .iter(world)
@@ -201,6 +197,9 @@ impl Hearing {
         };
         let geometry = geometry.0.as_ref();
         let nav = world.get_resource::<NavGrid>();
+        let events = world
+            .get_resource::<SoundEvents>()
+            .map_or(&[][..], |sounds| sounds.events.as_slice());
 
         // 1. The step's events, first to the searches for a way round (each is heard once).
         let mut searches = 0;
@@ -233,6 +232,19 @@ impl Hearing {
                 bus,
                 mix: Mix::heard(&heard, event.gain_db, (ears, yaw)),
             });
+        }
+        // A source gone from the level (despawned) stops.
+        let gone: Vec<Entity> = self
+            .sources
+            .keys()
+            .filter(|entity| placed.iter().all(|(e, ..)| e != *entity))
+            .copied()
+            .collect();
+        for entity in gone {
+            if let Some(voice) = self.sources.remove(&entity) {
+                self.commands.push(Command::Stop { voice });
+            }
+            self.ways_round.remove(&entity);
         }
         // 2. The level's sources: the direct path every step, the way round kept while
         // neither end leaves its metre (the stalest found again, as the searches left
