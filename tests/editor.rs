@@ -420,7 +420,7 @@ fn a_new_material_override_reaches_the_renderer_and_the_file_and_undoes() {
             let instance = def.instance.as_mut().unwrap();
             instance
                 .material_overrides
-                .insert("floor tiles".to_owned(), change);
+                .insert("flagstones".to_owned(), change);
         })
         .unwrap();
     assert!(glows(&engine), "the renderer's materials have the override");
@@ -429,7 +429,7 @@ fn a_new_material_override_reaches_the_renderer_and_the_file_and_undoes() {
         "the glowing tile is a light"
     );
     let saved = saved_text(&mut editor, &mut engine, &path);
-    assert!(saved.contains("\"floor tiles\": (\n"), "{saved}");
+    assert!(saved.contains("\"flagstones\": (\n"), "{saved}");
     assert!(saved.contains("emissive: (4.7, 0.0, 0.0),"), "{saved}");
 
     assert!(editor.undo(&mut engine).unwrap());

@@ -806,13 +806,22 @@ impl AccelScene {
         // them on the same physical side, although the world-space winding flips.
         let object_normal = (v1 - v0).cross(v2 - v0);
         let geometric_normal = (instance.normal_from_object * object_normal).normalize_or(Vec3A::Y);
+        let uvs = (!geometry.uvs.is_empty()).then(|| corners.map(|i| geometry.uvs[i as usize]));
+        let texture_frame = uvs.map_or(TextureFrame::NONE, |uvs| {
+            TextureFrame::of(
+                [v1 - v0, v2 - v0].map(|edge| instance.world_from_object.transform_vector3a(edge)),
+                [uvs[1] - uvs[0], uvs[2] - uvs[0]],
+                geometric_normal,
+            )
+        });
         TriangleSurface {
             instance,
             of: (hit.instance, hit.primitive),
             vertices: [v0, v1, v2],
             normals: (!geometry.normals.is_empty())
                 .then(|| corners.map(|i| Vec3A::from(geometry.normals[i as usize]))),
-            uvs: (!geometry.uvs.is_empty()).then(|| corners.map(|i| geometry.uvs[i as usize])),
+            uvs,
+            texture_frame,
             geometric_normal,
             material: geometry.materials.get(triangle).copied().unwrap_or(0),
         }
@@ -830,8 +839,46 @@ pub struct TriangleSurface<'a> {
     vertices: [Vec3A; 3],
     normals: Option<[Vec3A; 3]>,
     uvs: Option<[Vec2; 3]>,
+    texture_frame: TextureFrame,
     geometric_normal: Vec3A,
     material: u32,
+}
+
+/// A triangle's texture-space facts (`SurfaceHit::tangent`, `handedness`, `uv_density`).
+#[derive(Clone, Copy, Debug)]
+struct TextureFrame {
+    tangent: Vec3A,
+    handedness: f32,
+    uv_density: f32,
+}
+
+impl TextureFrame {
+    const NONE: TextureFrame = TextureFrame {
+        tangent: Vec3A::ZERO,
+        handedness: 1.0,
+        uv_density: f32::NEG_INFINITY,
+    };
+
+    /// From the triangle's two world-space edges from its first corner, the same edges in
+    /// UV, and its world normal: dP/du and dP/dv solve edge = dP/du du + dP/dv dv.
+    fn of([e1, e2]: [Vec3A; 2], [d1, d2]: [Vec2; 2], normal: Vec3A) -> TextureFrame {
+        let uv_area = d1.perp_dot(d2);
+        let world_area = e1.cross(e2).length();
+        if uv_area == 0.0 || !uv_area.is_finite() || !(world_area > 0.0) {
+            return TextureFrame::NONE;
+        }
+        let dp_du = (e1 * d2.y - e2 * d1.y) / uv_area;
+        let dp_dv = (e2 * d1.x - e1 * d2.x) / uv_area;
+        TextureFrame {
+            tangent: dp_du,
+            handedness: if normal.cross(dp_du).dot(-dp_dv) >= 0.0 {
+                1.0
+            } else {
+                -1.0
+            },
+            uv_density: 0.5 * super::approximate_log2(uv_area.abs() / world_area),
+        }
+    }
 }
 
 impl TriangleSurface<'_> {
@@ -862,6 +909,9 @@ impl TriangleSurface<'_> {
                 .uvs
                 .map_or(Vec2::ZERO, |uvs| interpolate_uv(uvs, barycentrics)),
             material: self.material,
+            tangent: self.texture_frame.tangent,
+            handedness: self.texture_frame.handedness,
+            uv_density: self.texture_frame.uv_density,
         }
     }
 }

@@ -111,6 +111,8 @@ impl MaterialTable {
             metallic: material.metallic,
             roughness: material.roughness,
             metallic_roughness_texture: self.slot(asset, &material.metallic_roughness_texture),
+            normal_texture: self.slot(asset, &material.normal_texture),
+            normal_scale: material.normal_scale,
             emissive: material.emissive,
             emissive_texture: self.slot(asset, &material.emissive_texture),
             transmission: material.transmission,

@@ -8,7 +8,7 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::integrator::NextHit;
+use super::integrator::{NextHit, RayCone};
 use super::planes::{RowPlanes, SharedRuns};
 use super::scene::RenderScene;
 
@@ -51,7 +51,34 @@ impl GuidePixel {
     /// returned through memory, each pixel's guides were read back before their stores
     /// had landed (the primary phase's p50 fell 3.36 -> 3.18 ms on first-light).
     #[inline(always)]
-    pub fn from_hit(scene: &RenderScene, origin: Vec3A, hit: Option<&NextHit>) -> GuidePixel {
+    pub fn from_hit(
+        scene: &RenderScene,
+        origin: Vec3A,
+        cone: RayCone,
+        hit: Option<&NextHit>,
+    ) -> GuidePixel {
+        let mut guide = GuidePixel::from_hit_but_albedo(scene, origin, hit);
+        if let Some(found) = hit {
+            guide.albedo = GuidePixel::albedo_of(scene, cone, found);
+        }
+        guide
+    }
+
+    /// The albedo guide of a camera ray's `found` hit, for a pixel's `cone`.
+    #[inline(always)]
+    pub fn albedo_of(scene: &RenderScene, cone: RayCone, found: &NextHit) -> Vec3 {
+        let material = scene.material(found.hit.instance, found.surface.material);
+        material.albedo_at(&scene.textures, found.surface.uv, cone.footprint_at(found))
+    }
+
+    /// `from_hit` with the albedo left at 1, for a render that sets it from the first
+    /// vertex's shading (`VertexOutcome::albedo`).
+    #[inline(always)]
+    pub fn from_hit_but_albedo(
+        scene: &RenderScene,
+        origin: Vec3A,
+        hit: Option<&NextHit>,
+    ) -> GuidePixel {
         let Some(found) = hit else {
             return GuidePixel {
                 unfiltered: scene.sky,
@@ -59,7 +86,6 @@ impl GuidePixel {
             };
         };
         let surface = &found.surface;
-        let material = scene.material(found.hit.instance, surface.material);
         let normal = if surface.shading_normal.dot(found.wo_world) >= 0.0 {
             surface.shading_normal
         } else {
@@ -70,7 +96,7 @@ impl GuidePixel {
             normal,
             depth: (surface.position - origin).length(),
             instance: found.hit.instance,
-            albedo: material.albedo_at(&scene.textures, surface.uv),
+            albedo: Vec3::ONE,
             unfiltered: found.emitted,
         }
     }

@@ -8,16 +8,21 @@
 //! - `reference`: BSDF sampling only, no NEE, no MIS, no roulette. Slow and simple: every
 //!   variance reduction in `path` must converge to the image this one converges to.
 //!   (It cannot see punctual lights, which only light sampling can reach.)
+//!
+//! Both carry a ray cone along each path ([`RayCone`]) and read every texture at the level
+//! of detail its footprint asks for, and both bend the shading normal by the material's
+//! normal map ([`shading_frame`]).
 
 use glam::{Vec2, Vec3, Vec3A};
 
 use super::bsdf::Bsdf;
 use super::cache::{CacheSample, CellKey, CellSizing};
 use super::light::{LightReach, LightSample};
+use super::material::FINEST;
 use super::sampler::{PixelSampler, VertexDraws};
 use super::sampling::{Frame, power_heuristic};
 use super::scene::{RenderScene, SceneAlpha};
-use crate::accel::{Hit, InstanceMask, Ray, SurfaceHit, TriangleSurface};
+use crate::accel::{Hit, InstanceMask, Ray, SurfaceHit, TriangleSurface, approximate_log2};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IntegratorKind {
@@ -51,9 +56,128 @@ impl RayCounts {
 /// Bounces after which Russian roulette may end a path.
 const ROULETTE_START: u32 = 3;
 
+/// A ray cone for texture level of detail (Akenine-Moller et al. 2019, "Texture Level of
+/// Detail Strategies for Real-Time Ray Tracing", Ray Tracing Gems ch. 20): the width of
+/// the beam a path's ray stands for where it starts, and how fast it widens. A camera ray's
+/// cone spans its pixel; at a hit, its width over the surface in UV units picks the mip
+/// level (`Texture::sample`), so a texture far off is read as its mean instead of one texel
+/// that changes with every frame's jitter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayCone {
+    /// Metres across at the ray's origin.
+    width: f32,
+    /// Radians the cone widens by per metre travelled (small-angle: width grows by
+    /// spread x distance).
+    spread: f32,
+}
+
+/// What a rough bounce adds to a cone's spread. Past a diffuse or glossy bounce the paths
+/// of neighbouring pixels part, and what the indirect light carries of a texture is its
+/// mean over a wide patch: the cone opens by about a radian, so the second hit reads a
+/// coarse level (which also spares the cache lines of the fine ones). A specular bounce,
+/// off a flat mirror or glass, keeps the spread (the chapter's curvature term is left out:
+/// the kit's mirrors and glass are flat).
+const ROUGH_BOUNCE_SPREAD: f32 = 1.0;
+
+/// The most a grazing view widens a footprint: 1 / |n . d| is held under 8 (three
+/// levels), since an isotropic tap that wide would blur the across-view axis as well.
+const MAX_GRAZING_STRETCH: f32 = 8.0;
+
+impl RayCone {
+    /// No cone: every texture is read at level 0 (light sampling, and tests that want
+    /// the finest image).
+    pub const NONE: RayCone = RayCone {
+        width: 0.0,
+        spread: 0.0,
+    };
+
+    /// The cone of a camera ray through one pixel of `height` rows spanning a vertical
+    /// field of view with tan(fov / 2) = `tan_half_fov`: spread atan(2 tan(fov/2) / height)
+    /// (the chapter's eq. 20.3), from a point.
+    pub fn pixel(tan_half_fov: f32, height: u32) -> RayCone {
+        RayCone {
+            width: 0.0,
+            spread: (2.0 * tan_half_fov / height.max(1) as f32).atan(),
+        }
+    }
+
+    /// Metres across after `distance` metres.
+    fn width_at(&self, distance: f32) -> f32 {
+        self.width + self.spread * distance
+    }
+
+    /// log2 of the cone's width over `surface` in UV units, met `distance` metres along a
+    /// ray leaving the surface along `wo`: `FINEST` for no cone or no UVs.
+    fn footprint(&self, distance: f32, surface: &SurfaceHit, wo: Vec3A) -> f32 {
+        let width = self.width_at(distance);
+        if !(width > 0.0) {
+            return FINEST;
+        }
+        let cosine = surface.geometric_normal.dot(wo).abs();
+        let stretch = 1.0 / cosine.max(1.0 / MAX_GRAZING_STRETCH);
+        approximate_log2(width * stretch) + surface.uv_density
+    }
+
+    /// `footprint` at `found`, the hit of a ray this cone stands for.
+    pub fn footprint_at(&self, found: &NextHit) -> f32 {
+        self.footprint(found.hit.t, &found.surface, found.wo_world)
+    }
+
+    /// The cone after a bounce at `distance`: as wide as it arrived, opened by a rough lobe.
+    fn bounced(&self, distance: f32, specular: bool) -> RayCone {
+        RayCone {
+            width: self.width_at(distance),
+            spread: self.spread + if specular { 0.0 } else { ROUGH_BOUNCE_SPREAD },
+        }
+    }
+}
+
+/// The local shading frame at `surface` for a ray leaving along `wo_world`, with the shading
+/// normal turned to the side the ray came from (two-sided shading) and bent by `mapped`,
+/// the material's normal map there (`RenderMaterial::normal_at`): the tangent is dP/du
+/// made orthogonal to the interpolated normal, the bitangent normal x tangent (by the
+/// triangle's handedness), as glTF's sample viewer builds them when a mesh has no
+/// tangents. Returns the frame, the geometric normal on `wo`'s side, and whether that is
+/// the front.
+pub fn shading_frame(
+    surface: &SurfaceHit,
+    wo_world: Vec3A,
+    mapped: Option<Vec3>,
+) -> (Frame, Vec3A, bool) {
+    let front = surface.geometric_normal.dot(wo_world) >= 0.0;
+    let facing_normal = if front {
+        surface.geometric_normal
+    } else {
+        -surface.geometric_normal
+    };
+    let mut normal = surface.shading_normal;
+    if let Some(mapped) = mapped {
+        // Gram-Schmidt left unnormalised: the tangent and the bitangent (normal x tangent)
+        // share one length, so the normal's part is scaled up by it instead, and the one
+        // normalisation at the end does for all three (two square roots and three
+        // divisions fewer a vertex).
+        let tangent = surface.tangent - normal * normal.dot(surface.tangent);
+        let length_squared = tangent.length_squared();
+        if length_squared > 0.0 {
+            let bitangent = normal.cross(tangent) * surface.handedness;
+            let normal_part = normal * (mapped.z * length_squared.sqrt());
+            normal = (tangent * mapped.x + bitangent * mapped.y + normal_part).normalize_or(normal);
+        }
+    }
+    let mut shading_normal = if front { normal } else { -normal };
+    // Interpolated or mapped normals can tip below the horizon at grazing angles: fall
+    // back to flat.
+    if shading_normal.dot(wo_world) <= 0.0 {
+        shading_normal = facing_normal;
+    }
+    (Frame::from_normal(shading_normal), facing_normal, front)
+}
+
 /// A hit resolved for shading: the surface, its material's lobe, and the frame.
 struct Vertex {
     surface: SurfaceHit,
+    /// `RenderMaterial::albedo_at` here.
+    albedo: Vec3,
     /// Geometric normal turned to the side `wo` is on.
     facing_normal: Vec3A,
     frame: Frame,
@@ -139,34 +263,24 @@ fn next_hit_at(scene: &RenderScene, ray: &Ray, hit: Hit, surface: SurfaceHit) ->
     }
 }
 
-/// Shades the hit: picks the material lobe and builds the local frame, with the shading
-/// normal turned to the side the ray came from (two-sided shading).
+/// Shades the hit: picks the material lobe, read at the ray cone's `footprint`, and builds
+/// the local frame (`shading_frame`).
 fn vertex(
     scene: &RenderScene,
     surface: SurfaceHit,
     wo_world: Vec3A,
     instance: u32,
+    footprint: f32,
     u_lobe: f32,
 ) -> Vertex {
     let material = scene.material(instance, surface.material);
-    let front = surface.geometric_normal.dot(wo_world) >= 0.0;
-    let facing_normal = if front {
-        surface.geometric_normal
-    } else {
-        -surface.geometric_normal
-    };
-    let mut shading_normal = if front {
-        surface.shading_normal
-    } else {
-        -surface.shading_normal
-    };
-    // Interpolated normals can tip below the horizon at grazing angles: fall back to flat.
-    if shading_normal.dot(wo_world) <= 0.0 {
-        shading_normal = facing_normal;
-    }
-    let frame = Frame::from_normal(shading_normal);
+    let textures = &scene.textures;
+    let (base, mapped) = material.base_and_normal_at(textures, surface.uv, footprint);
+    let base = base.truncate();
+    let (frame, facing_normal, front) = shading_frame(&surface, wo_world, mapped);
     Vertex {
-        bsdf: material.bsdf_at(&scene.textures, surface.uv, u_lobe, front),
+        bsdf: material.bsdf_with_base(base, textures, surface.uv, footprint, u_lobe, front),
+        albedo: material.albedo_of(base),
         wo: frame.to_local(wo_world),
         frame,
         facing_normal,
@@ -196,11 +310,13 @@ pub struct PathState {
     /// instead of in `radiance`, and next event estimation picks among the other lights.
     dominant_apart: bool,
     pub dominant_light: Vec3,
+    /// The cone of the ray the path traces next.
+    cone: RayCone,
 }
 
 impl PathState {
-    /// A path about to trace `camera_ray`.
-    pub fn new(camera_ray: &Ray) -> PathState {
+    /// A path about to trace `camera_ray`, whose pixel's cone is `cone`.
+    pub fn new(camera_ray: &Ray, cone: RayCone) -> PathState {
         PathState {
             radiance: Vec3::ZERO,
             beta: Vec3::ONE,
@@ -210,7 +326,14 @@ impl PathState {
             depth: 0,
             dominant_apart: false,
             dominant_light: Vec3::ZERO,
+            cone,
         }
+    }
+
+    /// The ray cone's footprint (`RayCone::footprint`) at `found`, the hit of the ray
+    /// the path traced last.
+    pub fn footprint(&self, found: &NextHit) -> f32 {
+        self.cone.footprint_at(found)
     }
 
     /// A path about to trace `camera_ray` whose first vertex's brightest lamp is shaded in
@@ -218,10 +341,10 @@ impl PathState {
     /// `new`'s radiance does. A lamp's direct light is then free of the one-in-N light
     /// pick's noise, sharp where a filter would blur it (the real-time film leaves it out
     /// of its filters), for one shadow ray more at the first vertex.
-    pub fn with_dominant_apart(camera_ray: &Ray) -> PathState {
+    pub fn with_dominant_apart(camera_ray: &Ray, cone: RayCone) -> PathState {
         PathState {
             dominant_apart: true,
-            ..PathState::new(camera_ray)
+            ..PathState::new(camera_ray, cone)
         }
     }
 }
@@ -263,6 +386,10 @@ pub struct VertexOutcome {
     /// The first vertex's brightest lamp, shaded in full (`PathState::with_dominant_apart`).
     pub dominant: Option<ShadowQuery>,
     pub next: Option<Ray>,
+    /// The vertex's albedo (`RenderMaterial::albedo_at` at the cone's footprint), when it
+    /// was shaded: the guides' demodulation reads the first vertex's instead of another
+    /// texture tap.
+    pub albedo: Option<Vec3>,
 }
 
 /// The path integrator at one vertex: `found` is what the path's last ray hit (None if it
@@ -323,12 +450,23 @@ pub fn path_vertex_inlined(
         return VertexOutcome::default();
     }
     state.depth += 1;
-    let v = vertex(scene, surface, wo_world, hit.instance, draws.lobe);
+    let footprint = state.cone.footprint(hit.t, &surface, wo_world);
+    let v = vertex(
+        scene,
+        surface,
+        wo_world,
+        hit.instance,
+        footprint,
+        draws.lobe,
+    );
+    let mut outcome = VertexOutcome {
+        albedo: Some(v.albedo),
+        ..VertexOutcome::default()
+    };
 
     // 3. Next event estimation: one light sample, one shadow ray (traced by the caller).
     //    Kept apart, the first vertex's brightest lamp is shaded in full, with a shadow
     //    ray of its own, and the sample picks among the other lights.
-    let mut outcome = VertexOutcome::default();
     let (u_pick, u_light) = (draws.pick, draws.light);
     let shadow_ray = |light: &LightSample, counts: &mut RayCounts, dominant: bool| {
         let wi = v.frame.to_local(light.wi);
@@ -376,6 +514,7 @@ pub fn path_vertex_inlined(
     state.specular_bounce = sample.specular;
     state.previous_bsdf_pdf = sample.pdf;
     state.previous_position = v.surface.position;
+    state.cone = state.cone.bounced(hit.t, sample.specular);
 
     // 5. Russian roulette: survive with probability q, and divide by it.
     if state.depth >= ROULETTE_START {
@@ -458,7 +597,7 @@ pub fn cache_vertex(
     }
     Some(CacheVertex {
         cell,
-        albedo: material.albedo_at(&scene.textures, found.surface.uv),
+        albedo: material.albedo_at(&scene.textures, found.surface.uv, state.footprint(found)),
     })
 }
 
@@ -541,6 +680,7 @@ pub fn continue_path(
 pub fn reference_radiance(
     scene: &RenderScene,
     camera_ray: Ray,
+    mut cone: RayCone,
     sampler: &mut PixelSampler,
     max_depth: u32,
     counts: &mut RayCounts,
@@ -576,7 +716,15 @@ pub fn reference_radiance(
             break;
         }
         depth += 1;
-        let v = vertex(scene, surface, wo_world, hit.instance, sampler.next_1d());
+        let footprint = cone.footprint(hit.t, &surface, wo_world);
+        let v = vertex(
+            scene,
+            surface,
+            wo_world,
+            hit.instance,
+            footprint,
+            sampler.next_1d(),
+        );
         let u_choice = sampler.next_1d();
         let u_direction = sampler.next_2d();
         let Some(sample) = v.bsdf.sample(v.wo, u_choice, u_direction) else {
@@ -586,6 +734,7 @@ pub fn reference_radiance(
         if !beta.is_finite() || beta == Vec3::ZERO {
             break;
         }
+        cone = cone.bounced(hit.t, sample.specular);
         ray = Ray::spawn(
             v.surface.position,
             v.facing_normal,
@@ -609,4 +758,98 @@ pub fn camera_sample(sampler: &mut PixelSampler, has_lens: bool) -> (Vec2, Vec2)
         Vec2::ZERO
     };
     (jitter, lens)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A flat surface facing +Z whose u runs along +X: glTF's normal-map convention
+    /// (x along +u, y along -v, that is "up" in the texture) bends the shading normal
+    /// towards +X for x > 0 and, where the bitangent runs along -v (handedness +1, here
+    /// +Y), towards +Y for y > 0; a mirrored layout (handedness -1) turns y the other way.
+    #[test]
+    fn normal_maps_bend_the_shading_normal_in_gltfs_convention() {
+        let surface = |handedness: f32| SurfaceHit {
+            position: Vec3A::ZERO,
+            geometric_normal: Vec3A::Z,
+            shading_normal: Vec3A::Z,
+            uv: Vec2::ZERO,
+            material: 0,
+            tangent: Vec3A::new(2.0, 0.0, 0.3),
+            handedness,
+            uv_density: 0.0,
+        };
+        let (s, c) = (0.5f32, 0.75f32.sqrt());
+        let wo = Vec3A::new(0.0, 0.0, 1.0);
+        let bent = |handedness: f32, mapped: Vec3| {
+            shading_frame(&surface(handedness), wo, Some(mapped))
+                .0
+                .normal
+        };
+        let close = |a: Vec3A, b: Vec3A| (a - b).length() < 1e-5;
+        assert!(close(
+            bent(1.0, Vec3::new(s, 0.0, c)),
+            Vec3A::new(s, 0.0, c)
+        ));
+        assert!(close(
+            bent(1.0, Vec3::new(0.0, s, c)),
+            Vec3A::new(0.0, s, c)
+        ));
+        assert!(close(
+            bent(-1.0, Vec3::new(0.0, s, c)),
+            Vec3A::new(0.0, -s, c)
+        ));
+        // A short filtered normal is normalised; no map leaves the normal as it is.
+        assert!(close(bent(1.0, Vec3::new(0.0, 0.0, 0.3)), Vec3A::Z));
+        assert!(close(
+            shading_frame(&surface(1.0), wo, None).0.normal,
+            Vec3A::Z
+        ));
+        // Seen from behind, the bent normal turns with the surface.
+        let (frame, facing, front) = shading_frame(
+            &surface(1.0),
+            Vec3A::new(0.0, 0.0, -1.0),
+            Some(Vec3::new(s, 0.0, c)),
+        );
+        assert!(!front && facing == -Vec3A::Z);
+        assert!(close(frame.normal, -Vec3A::new(s, 0.0, c)));
+    }
+
+    /// A camera ray's cone spans its pixel, and widens by a radian at a rough bounce but
+    /// not at a specular one; the footprint over a surface grows with distance and at
+    /// grazing angles, and a ray with no cone reads level 0.
+    #[test]
+    fn ray_cones_widen_with_distance_slant_and_rough_bounces() {
+        let cone = RayCone::pixel(1.0, 100);
+        assert!((cone.spread - 0.02f32.atan()).abs() < 1e-7);
+        let surface = SurfaceHit {
+            position: Vec3A::ZERO,
+            geometric_normal: Vec3A::Z,
+            shading_normal: Vec3A::Z,
+            uv: Vec2::ZERO,
+            material: 0,
+            tangent: Vec3A::X,
+            handedness: 1.0,
+            uv_density: 0.0,
+        };
+        let head_on = cone.footprint(10.0, &surface, Vec3A::Z);
+        let farther = cone.footprint(20.0, &surface, Vec3A::Z);
+        assert!(
+            (farther - head_on - 1.0).abs() < 0.1,
+            "twice as far, a level up"
+        );
+        let slanted = cone.footprint(10.0, &surface, Vec3A::new(0.0, 0.866, 0.5));
+        assert!(
+            (slanted - head_on - 1.0).abs() < 0.1,
+            "at 60 degrees, a level up"
+        );
+        assert_eq!(RayCone::NONE.footprint(10.0, &surface, Vec3A::Z), FINEST);
+        assert_eq!(cone.bounced(10.0, true).spread, cone.spread);
+        assert_eq!(
+            cone.bounced(10.0, false).spread,
+            cone.spread + ROUGH_BOUNCE_SPREAD
+        );
+        assert!((cone.bounced(10.0, true).width - cone.spread * 10.0).abs() < 1e-6);
+    }
 }

@@ -71,7 +71,7 @@ use cache::{CacheSample, CellSizing};
 use camera::FilmPoints;
 use guides::GuideRects;
 use integrator::{
-    CacheMark, CacheVertex, NextHit, PathState, ShadowQuery, VertexOutcome, cache_vertex,
+    CacheMark, CacheVertex, NextHit, PathState, RayCone, ShadowQuery, VertexOutcome, cache_vertex,
     camera_sample, end_at_cache, next_hit, next_hits, path_vertex, path_vertex_inlined,
     reference_radiance, surface_at,
 };
@@ -477,6 +477,11 @@ impl<'a> Tile<'a> {
 
     /// Where in `pixel` its camera ray goes through the film, and through the lens.
     #[inline(always)]
+    /// The ray cone of one of this render's pixels (`RayCone::pixel`).
+    fn pixel_cone(&self) -> RayCone {
+        RayCone::pixel(self.camera.tan_half_fov, self.camera.height)
+    }
+
     fn camera_sample(&self, (x, y): (u32, u32), sampler: &mut PixelSampler) -> (Vec2, Vec2) {
         let (jitter, lens) = camera_sample(sampler, self.camera.has_lens());
         (Vec2::new(x as f32, y as f32) + jitter, lens)
@@ -532,11 +537,12 @@ impl<'a> Tile<'a> {
                 }
                 // The real-time film leaves the dominant lamp's light out of its filters:
                 // only renders with guides split it off.
+                let cone = self.pixel_cone();
                 scratch.paths.extend(scratch.rays.iter().map(|ray| {
                     if self.want_guides {
-                        PathState::with_dominant_apart(ray)
+                        PathState::with_dominant_apart(ray, cone)
                     } else {
-                        PathState::new(ray)
+                        PathState::new(ray, cone)
                     }
                 }));
                 // The tile's rows in order: packets of 64 are 16 x 4 strips.
@@ -550,7 +556,7 @@ impl<'a> Tile<'a> {
                 counts.camera += count as u64;
                 if self.want_guides && sample == 0 {
                     (scratch.guides).extend(scratch.hits.iter().map(|hit| {
-                        GuidePixel::from_hit(scene, self.camera.position, hit.as_ref())
+                        GuidePixel::from_hit_but_albedo(scene, self.camera.position, hit.as_ref())
                     }));
                 }
             }
@@ -578,6 +584,7 @@ impl<'a> Tile<'a> {
                         shadow,
                         dominant,
                         next,
+                        albedo,
                     } = path_vertex_inlined(
                         scene,
                         path,
@@ -592,6 +599,17 @@ impl<'a> Tile<'a> {
                     }
                     if let Some(next) = next {
                         scratch.live.push((index, next));
+                    }
+                    // The guides' albedo is the first vertex's, as it was shaded (or, for a
+                    // path that ends at its first hit, read here).
+                    if self.want_guides && sample == 0 {
+                        let albedo = albedo.or_else(|| {
+                            let found = hit.as_ref()?;
+                            Some(GuidePixel::albedo_of(scene, self.pixel_cone(), found))
+                        });
+                        if let Some(albedo) = albedo {
+                            scratch.guides[index].albedo = albedo;
+                        }
                     }
                 }
             }
@@ -748,11 +766,17 @@ impl<'a> Tile<'a> {
                 let ray = self.camera_ray((x, y), &mut sampler);
                 if self.want_guides && sample == 0 {
                     let hit = next_hit(self.scene, &ray, InstanceMask::CAMERA, &alpha);
-                    guides.push(GuidePixel::from_hit(self.scene, ray.origin, hit.as_ref()));
+                    guides.push(GuidePixel::from_hit(
+                        self.scene,
+                        ray.origin,
+                        self.pixel_cone(),
+                        hit.as_ref(),
+                    ));
                 }
                 let radiance = reference_radiance(
                     self.scene,
                     ray,
+                    self.pixel_cone(),
                     &mut sampler,
                     settings.max_depth,
                     &mut counts,
@@ -860,7 +884,7 @@ mod tests {
                 for sample in 0..settings.spp {
                     let mut sampler = tile.sampler((x, y), sample);
                     let ray = tile.camera_ray((x, y), &mut sampler);
-                    let mut path = PathState::new(&ray);
+                    let mut path = PathState::new(&ray, tile.pixel_cone());
                     continue_path(&scene, &alpha, &mut path, ray, &mut sampler, 5, &mut counts);
                     sum += path.radiance;
                 }

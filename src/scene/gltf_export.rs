@@ -5,8 +5,8 @@
 //! NORMAL, optional TEXCOORD_0, optional JOINTS_0 + WEIGHTS_0 for skinning, optional morph
 //! targets with POSITION and NORMAL deltas, u32 indices; default morph weights as
 //! `mesh.weights` and target names as `mesh.extras.targetNames`), metallic-roughness
-//! materials with emission, transmission and ior, PNG images (one texture per image, one
-//! linear/repeat sampler), perspective cameras, a TRS node tree, skins (joints, inverse bind
+//! materials with emission, transmission, ior and base-colour, metallic-roughness and normal
+//! textures, PNG images (one texture per image, one trilinear/repeat sampler), perspective cameras, a TRS node tree, skins (joints, inverse bind
 //! matrices, skeleton root) and animations (one sampler per channel: translation, rotation,
 //! scale or morph weights with LINEAR, STEP or CUBICSPLINE interpolation). Everything is
 //! validated before anything is written; the JSON is built from gltf-json's own types and the
@@ -77,6 +77,12 @@ pub struct MaterialData {
     pub base_color_texture: Option<usize>,
     pub metallic: f32,
     pub roughness: f32,
+    /// Index into `GltfDocument::images`: roughness in G and metalness in B (linear),
+    /// multiplying `roughness` and `metallic`.
+    pub metallic_roughness_texture: Option<usize>,
+    /// Index into `GltfDocument::images`: tangent-space normals (linear, glTF's
+    /// convention: x along +u, y along -v), written with scale 1.
+    pub normal_texture: Option<usize>,
     /// Emitted radiance in W/(sr m^2); written as emissiveFactor x emissiveStrength.
     pub emissive: Vec3,
     /// KHR_materials_transmission factor (written only when not 0).
@@ -180,6 +186,8 @@ impl MaterialData {
             base_color_texture: None,
             metallic: 0.0,
             roughness: 1.0,
+            metallic_roughness_texture: None,
+            normal_texture: None,
             emissive: Vec3::ZERO,
             transmission: 0.0,
             ior: 1.5,
@@ -392,6 +400,49 @@ impl MeshData {
     }
 }
 
+/// Per-vertex glTF tangents (xyz unit and orthogonal to the vertex normal, w = +-1 so that
+/// the bitangent normal x tangent x w runs along -v, glTF's "up" in a texture) for a mesh
+/// with UVs: the area-weighted sum of its triangles' dP/du, made orthogonal to the normal.
+/// The kit's flat faces have their own vertices, so there each vertex's tangent is its
+/// face's, exactly what the renderer works out per triangle (`accel::SurfaceHit::tangent`).
+pub fn vertex_tangents(mesh: &MeshData) -> Vec<Vec4> {
+    let count = mesh.positions.len();
+    let mut along_u = vec![Vec3::ZERO; count];
+    let mut along_v = vec![Vec3::ZERO; count];
+    for triangle in &mesh.indices {
+        let [a, b, c] = triangle.map(|i| i as usize);
+        let (e1, e2) = (
+            mesh.positions[b] - mesh.positions[a],
+            mesh.positions[c] - mesh.positions[a],
+        );
+        let (d1, d2) = (mesh.uvs[b] - mesh.uvs[a], mesh.uvs[c] - mesh.uvs[a]);
+        // Unnormalised by the UV area's size, so each triangle weighs by its world area.
+        let sign = d1.perp_dot(d2).signum();
+        let dp_du = (e1 * d2.y - e2 * d1.y) * sign;
+        let dp_dv = (e2 * d1.x - e1 * d2.x) * sign;
+        for vertex in [a, b, c] {
+            along_u[vertex] += dp_du;
+            along_v[vertex] += dp_dv;
+        }
+    }
+    (0..count)
+        .map(|vertex| {
+            let normal = mesh.normals[vertex].normalize_or(Vec3::Z);
+            let tangent = along_u[vertex] - normal * normal.dot(along_u[vertex]);
+            // A vertex on degenerate UVs only: any direction across the normal.
+            let tangent = tangent
+                .try_normalize()
+                .unwrap_or_else(|| normal.any_orthonormal_vector());
+            let w = if normal.cross(tangent).dot(-along_v[vertex]) >= 0.0 {
+                1.0
+            } else {
+                -1.0
+            };
+            tangent.extend(w)
+        })
+        .collect()
+}
+
 /// Unit normal of a planar polygon by Newell's method (counter-clockwise = front).
 fn newell_normal(corners: &[Vec3]) -> Vec3 {
     let mut normal = Vec3::ZERO;
@@ -550,7 +601,14 @@ fn validate(document: &GltfDocument) -> anyhow::Result<()> {
             material.ior.is_finite() && material.ior >= 1.0,
             "material '{name}': ior must be at least 1"
         );
-        if let Some(image) = material.base_color_texture {
+        for image in [
+            material.base_color_texture,
+            material.metallic_roughness_texture,
+            material.normal_texture,
+        ]
+        .into_iter()
+        .flatten()
+        {
             ensure!(
                 image < document.images.len(),
                 "material '{name}' uses image {image} which does not exist"
@@ -1015,7 +1073,11 @@ fn build_root_and_buffer(document: &GltfDocument) -> anyhow::Result<(Root, Vec<u
         bytes: Vec::new(),
     };
     for mesh in &document.meshes {
-        let primitive = build_primitive(&mut builder, mesh);
+        let normal_mapped = document
+            .materials
+            .get(mesh.material)
+            .is_some_and(|material| material.normal_texture.is_some());
+        let primitive = build_primitive(&mut builder, mesh, normal_mapped);
         let (weights, extras) = if mesh.morph_targets.is_empty() {
             (None, None)
         } else {
@@ -1055,7 +1117,7 @@ fn build_root_and_buffer(document: &GltfDocument) -> anyhow::Result<(Root, Vec<u
     if !document.images.is_empty() {
         builder.root.push(texture::Sampler {
             mag_filter: Some(Valid(texture::MagFilter::Linear)),
-            min_filter: Some(Valid(texture::MinFilter::Linear)),
+            min_filter: Some(Valid(texture::MinFilter::LinearMipmapLinear)),
             wrap_s: Valid(texture::WrappingMode::Repeat),
             wrap_t: Valid(texture::WrappingMode::Repeat),
             ..Default::default()
@@ -1167,7 +1229,7 @@ fn build_root_and_buffer(document: &GltfDocument) -> anyhow::Result<(Root, Vec<u
 
 /// The mesh's one triangle-list primitive, its attributes, indices and morph targets
 /// appended to the buffer.
-fn build_primitive(builder: &mut Builder, mesh: &MeshData) -> mesh::Primitive {
+fn build_primitive(builder: &mut Builder, mesh: &MeshData, tangents: bool) -> mesh::Primitive {
     use mesh::Semantic;
     let vertex_data = Some(buffer::Target::ArrayBuffer);
     let mut attributes = BTreeMap::new();
@@ -1183,6 +1245,14 @@ fn build_primitive(builder: &mut Builder, mesh: &MeshData) -> mesh::Primitive {
         let uvs: Vec<f32> = mesh.uvs.iter().flat_map(|uv| uv.to_array()).collect();
         let accessor = builder.push_floats(&uvs, 2, vertex_data, false);
         attributes.insert(Valid(Semantic::TexCoords(0)), accessor);
+        if tangents {
+            let tangents: Vec<f32> = vertex_tangents(mesh)
+                .iter()
+                .flat_map(|t| t.to_array())
+                .collect();
+            let accessor = builder.push_floats(&tangents, 4, vertex_data, false);
+            attributes.insert(Valid(Semantic::Tangents), accessor);
+        }
     }
     if !mesh.joints.is_empty() {
         let bytes: Vec<u8> = mesh
@@ -1270,6 +1340,12 @@ fn build_material(
         });
         extensions_used.insert("KHR_materials_ior");
     }
+    let info = |image: usize| texture::Info {
+        index: index(image),
+        tex_coord: 0,
+        extensions: None,
+        extras: None,
+    };
     let any_extension = extensions.emissive_strength.is_some()
         || extensions.transmission.is_some()
         || extensions.ior.is_some();
@@ -1278,16 +1354,21 @@ fn build_material(
         double_sided: material.double_sided,
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
             base_color_factor: PbrBaseColorFactor(material.base_color.to_array()),
-            base_color_texture: material.base_color_texture.map(|image| texture::Info {
+            base_color_texture: material.base_color_texture.map(info),
+            metallic_factor: StrengthFactor(material.metallic),
+            roughness_factor: StrengthFactor(material.roughness),
+            metallic_roughness_texture: material.metallic_roughness_texture.map(info),
+            ..Default::default()
+        },
+        normal_texture: material
+            .normal_texture
+            .map(|image| json::material::NormalTexture {
                 index: index(image),
+                scale: 1.0,
                 tex_coord: 0,
                 extensions: None,
                 extras: None,
             }),
-            metallic_factor: StrengthFactor(material.metallic),
-            roughness_factor: StrengthFactor(material.roughness),
-            ..Default::default()
-        },
         emissive_factor: EmissiveFactor(emissive_factor),
         extensions: any_extension.then_some(extensions),
         ..Default::default()

@@ -943,6 +943,15 @@ impl Importer<'_> {
                     metallic_roughness_texture: pbr
                         .metallic_roughness_texture()
                         .map(|info| texture_ref(&info, ColorEncoding::Linear)),
+                    normal_texture: material.normal_texture().map(|normal| TextureRef {
+                        texture: normal.texture().index(),
+                        uv_set: normal.tex_coord(),
+                        encoding: ColorEncoding::Linear,
+                        uv_transform: Affine2::IDENTITY,
+                    }),
+                    normal_scale: material
+                        .normal_texture()
+                        .map_or(1.0, |normal| normal.scale()),
                     emissive: Vec3::from(material.emissive_factor()) * emissive_strength,
                     emissive_texture: material
                         .emissive_texture()

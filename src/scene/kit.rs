@@ -16,6 +16,9 @@
 //! - the collectable `shard` and the morphing cloth `banner`.
 //!
 //! Every kit piece but the banner is built from closed solids with outward faces.
+//! Every material but the glows and the mirror carries the textures of one of
+//! `kit_surfaces`' surfaces (base colour, metallic-roughness and normals; see `dress`), and
+//! each `.glb` embeds the ones it uses.
 //!
 //! Load-time tooling, never run by the game itself. `gloam generate assets` calls
 //! [`generate_assets`] to rewrite every file under `assets/`; a test checks that the
@@ -25,14 +28,14 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context as _, ensure};
+use anyhow::ensure;
 use glam::{Affine3A, Mat4, Vec2, Vec3};
-use image::ImageEncoder as _;
 
 use super::gltf_export::{
     AnimationData, CameraData, ChannelData, GltfDocument, ImageData, MaterialData, MeshData,
     MorphTargetData, NodeData, SkinData, write_gltf,
 };
+use super::kit_surfaces::Surface;
 use super::model::{AnimatedProperty, Interpolation};
 
 /// Writes every shipped asset under `out_dir` (normally `assets/`); returns the files written, sorted.
@@ -41,13 +44,13 @@ pub fn generate_assets(out_dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     write_gltf(&cornell_box()?, &cornell)?;
     let mut written = vec![cornell.with_extension("bin"), cornell];
     let mut kit: Vec<(&str, GltfDocument)> = vec![
-        ("wall", wall()),
+        ("wall", wall()?),
         ("floor", floor()?),
-        ("pillar", pillar()),
-        ("crate", crate_box()),
+        ("pillar", pillar()?),
+        ("crate", crate_box()?),
         ("shard", shard()?),
         ("warden", warden_document(WARDEN_DETAIL)?),
-        ("banner", banner()),
+        ("banner", banner()?),
     ];
     for (name, piece) in kit_pieces()? {
         let mut document = piece.document()?;
@@ -283,48 +286,110 @@ fn cornell_box() -> anyhow::Result<GltfDocument> {
 
 // ---- the level kit --------------------------------------------------------------------------
 
-/// One mesh, one material, one root node named after the mesh.
-fn single_mesh(mesh: MeshData, material: MaterialData) -> GltfDocument {
+/// One mesh, one material, one root node named after the mesh; textured by `dress`.
+fn single_mesh(mesh: MeshData, material: KitMaterial) -> anyhow::Result<GltfDocument> {
     let mut document = GltfDocument::default();
-    document.add_mesh_node(mesh, material);
-    document
+    document.add_mesh_node(mesh, material.data);
+    dress(&mut document, &[material.surface])?;
+    Ok(document)
+}
+
+/// A kit material: its glTF factors, and the surface whose textures it carries (none for
+/// the glows and the mirror, whose look is their light or their reflection).
+#[derive(Clone)]
+struct KitMaterial {
+    data: MaterialData,
+    surface: Option<Surface>,
+}
+
+/// `data` carrying `surface`'s textures.
+fn textured(surface: Surface, data: MaterialData) -> KitMaterial {
+    KitMaterial {
+        data,
+        surface: Some(surface),
+    }
+}
+
+/// `data` with no textures.
+fn plain(data: MaterialData) -> KitMaterial {
+    KitMaterial {
+        data,
+        surface: None,
+    }
+}
+
+/// Gives `document`'s materials their surfaces' textures: material `i` carries
+/// `surfaces[i]`'s three images (each surface's images embedded once, shared by every
+/// material on it), its base colour factor becomes the colour it names divided by the
+/// texture's mean (so the texture's mean is that colour), and the UVs of the meshes
+/// using it, in metres, are divided by the surface's period.
+fn dress(document: &mut GltfDocument, surfaces: &[Option<Surface>]) -> anyhow::Result<()> {
+    ensure!(
+        surfaces.len() == document.materials.len(),
+        "{} surfaces for {} materials",
+        surfaces.len(),
+        document.materials.len()
+    );
+    let mut embedded: Vec<(Surface, usize, Vec3)> = Vec::new();
+    for (material, surface) in document.materials.iter_mut().zip(surfaces) {
+        let Some(surface) = *surface else { continue };
+        let (first, mean) = match embedded.iter().find(|(s, ..)| *s == surface) {
+            Some(&(_, first, mean)) => (first, mean),
+            None => {
+                let images = surface.images()?;
+                let first = document.images.len();
+                for (kind, png) in [
+                    ("base colour", images.base_color),
+                    ("metallic-roughness", images.metallic_roughness),
+                    ("normals", images.normal),
+                ] {
+                    document.images.push(ImageData {
+                        name: format!("{} {kind}", surface.name()),
+                        png,
+                    });
+                }
+                embedded.push((surface, first, images.mean_detail));
+                (first, images.mean_detail)
+            }
+        };
+        let colour = material.base_color.truncate();
+        material.base_color = (colour / mean).min(Vec3::ONE).extend(material.base_color.w);
+        material.base_color_texture = Some(first);
+        material.metallic_roughness_texture = Some(first + 1);
+        material.normal_texture = Some(first + 2);
+    }
+    for mesh in &mut document.meshes {
+        if let Some(Some(surface)) = surfaces.get(mesh.material) {
+            let scale = 1.0 / surface.period();
+            mesh.uvs.iter_mut().for_each(|uv| *uv *= scale);
+        }
+    }
+    Ok(())
 }
 
 /// 4 m wide (x) x 3 m high x 0.2 m thick (z), origin at the bottom centre.
-fn wall() -> GltfDocument {
+fn wall() -> anyhow::Result<GltfDocument> {
     let mesh = MeshData::cuboid(
         "wall",
         Vec3::new(-2.0, 0.0, -0.1),
         Vec3::new(2.0, 3.0, 0.1),
         0,
     );
-    single_mesh(mesh, plaster())
+    single_mesh(mesh, ashlar())
 }
 
-/// A 4 x 4 m tile 0.1 m thick with its top at y = 0, textured once across.
+/// A 4 x 4 m tile 0.1 m thick with its top at y = 0, paved with flagstones.
 fn floor() -> anyhow::Result<GltfDocument> {
     let mesh = MeshData::cuboid(
         "floor",
         Vec3::new(-2.0, -0.1, -2.0),
         Vec3::new(2.0, 0.0, 2.0),
         0,
-    )
-    .scale_uvs(0.25);
-    let mut document = single_mesh(
-        mesh,
-        MaterialData {
-            base_color_texture: Some(0),
-            ..MaterialData::lambertian("floor tiles", Vec3::ONE)
-        },
     );
-    document.images.push(ImageData {
-        name: "floor tiles".into(),
-        png: floor_tiles_png()?,
-    });
-    Ok(document)
+    single_mesh(mesh, flagstones())
 }
 
-/// A small integer hash: deterministic noise for the floor texture and the books.
+/// A small integer hash: deterministic noise for the books.
 fn hash32(mut x: u32) -> u32 {
     x ^= x >> 16;
     x = x.wrapping_mul(0x7feb_352d);
@@ -333,54 +398,13 @@ fn hash32(mut x: u32) -> u32 {
     x ^ (x >> 16)
 }
 
-/// Side of the floor texture in texels.
-const FLOOR_TEXTURE_SIZE: u32 = 64;
-
-/// 64x64 sRGB PNG: four stone tiles with a little per-texel variation and darker grout.
-fn floor_tiles_png() -> anyhow::Result<Vec<u8>> {
-    const TILE: u32 = FLOOR_TEXTURE_SIZE / 2;
-    const STONE: [[i32; 3]; 4] = [
-        [150, 146, 138],
-        [140, 137, 131],
-        [146, 141, 132],
-        [136, 134, 130],
-    ];
-    const GROUT: [i32; 3] = [72, 68, 62];
-    let mut rgb = Vec::with_capacity((FLOOR_TEXTURE_SIZE * FLOOR_TEXTURE_SIZE * 3) as usize);
-    for y in 0..FLOOR_TEXTURE_SIZE {
-        for x in 0..FLOOR_TEXTURE_SIZE {
-            let (local_x, local_y) = (x % TILE, y % TILE);
-            // One texel of grout on each tile edge: two where tiles meet (also across the wrap).
-            let is_grout =
-                local_x == 0 || local_y == 0 || local_x == TILE - 1 || local_y == TILE - 1;
-            let base = if is_grout {
-                GROUT
-            } else {
-                STONE[(y / TILE * 2 + x / TILE) as usize]
-            };
-            let noise = (hash32(y * FLOOR_TEXTURE_SIZE + x) % 13) as i32 - 6;
-            rgb.extend(base.map(|channel| (channel + noise).clamp(0, 255) as u8));
-        }
-    }
-    let mut png = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut png)
-        .write_image(
-            &rgb,
-            FLOOR_TEXTURE_SIZE,
-            FLOOR_TEXTURE_SIZE,
-            image::ExtendedColorType::Rgb8,
-        )
-        .context("encoding the floor texture")?;
-    Ok(png)
-}
-
 /// Radius 0.3 m, 3 m tall, 24 segments, base at y = 0.
-fn pillar() -> GltfDocument {
+fn pillar() -> anyhow::Result<GltfDocument> {
     single_mesh(MeshData::cylinder("pillar", 0.3, 3.0, 24, 0), stone())
 }
 
 /// A 1 m cube sitting on y = 0.
-fn crate_box() -> GltfDocument {
+fn crate_box() -> anyhow::Result<GltfDocument> {
     let mesh = MeshData::cuboid(
         "crate",
         Vec3::new(-0.5, 0.0, -0.5),
@@ -411,69 +435,100 @@ fn shard() -> anyhow::Result<GltfDocument> {
         emissive: Vec3::new(1.5, 4.0, 5.0),
         ..MaterialData::lambertian("shard glow", Vec3::new(0.1, 0.2, 0.25))
     };
-    Ok(single_mesh(mesh, glow))
+    single_mesh(mesh, plain(glow))
 }
 
 // ---- modular pieces: openings, doors, stairs, lamps and furniture --------------------------
 
-/// `plaster` (0.62, 0.6, 0.56), roughness 0.9: the walls.
-fn plaster() -> MaterialData {
-    MaterialData {
-        roughness: 0.9,
-        ..MaterialData::lambertian("plaster", Vec3::new(0.62, 0.6, 0.56))
-    }
+/// `ashlar` (0.55, 0.52, 0.47) on the ashlar surface, roughness 0.9: the walls.
+fn ashlar() -> KitMaterial {
+    textured(
+        Surface::Ashlar,
+        MaterialData {
+            roughness: 0.9,
+            ..MaterialData::lambertian("ashlar", Vec3::new(0.55, 0.52, 0.47))
+        },
+    )
 }
 
-/// `stone` (0.5, 0.5, 0.48), Lambertian: the pillar and the stairs.
-fn stone() -> MaterialData {
-    MaterialData::lambertian("stone", Vec3::new(0.5, 0.5, 0.48))
+/// `flagstones` (0.3, 0.29, 0.27) on the flagstones surface, roughness 0.9: the floor.
+fn flagstones() -> KitMaterial {
+    textured(
+        Surface::Flagstones,
+        MaterialData {
+            roughness: 0.9,
+            ..MaterialData::lambertian("flagstones", Vec3::new(0.3, 0.29, 0.27))
+        },
+    )
 }
 
-/// `wood` (0.55, 0.38, 0.2), roughness 0.8: the crate and the table.
-fn wood() -> MaterialData {
-    MaterialData {
-        roughness: 0.8,
-        ..MaterialData::lambertian("wood", Vec3::new(0.55, 0.38, 0.2))
-    }
+/// `stone` (0.5, 0.5, 0.48) on dressed stone, Lambertian: the pillar and the stairs.
+fn stone() -> KitMaterial {
+    textured(
+        Surface::DressedStone,
+        MaterialData::lambertian("stone", Vec3::new(0.5, 0.5, 0.48)),
+    )
 }
 
-/// `dark wood` (0.3, 0.18, 0.1), roughness 0.7: the door, the window sill, the bookcase
-/// and the mirror frame.
-fn dark_wood() -> MaterialData {
-    MaterialData {
-        roughness: 0.7,
-        ..MaterialData::lambertian("dark wood", Vec3::new(0.3, 0.18, 0.1))
-    }
+/// `wood` (0.55, 0.38, 0.2) on planks, roughness 0.8: the crate and the table.
+fn wood() -> KitMaterial {
+    textured(
+        Surface::Planks,
+        MaterialData {
+            roughness: 0.8,
+            ..MaterialData::lambertian("wood", Vec3::new(0.55, 0.38, 0.2))
+        },
+    )
 }
 
-/// `iron` (0.2, 0.2, 0.2), metallic 1, roughness 0.5: the lamp bracket and the gate.
-fn iron() -> MaterialData {
-    MaterialData {
-        metallic: 1.0,
-        roughness: 0.5,
-        ..MaterialData::lambertian("iron", Vec3::splat(0.2))
-    }
+/// `dark wood` (0.3, 0.18, 0.1) on planks, roughness 0.7: the door, the window sill, the
+/// bookcase and the mirror frame.
+fn dark_wood() -> KitMaterial {
+    textured(
+        Surface::Planks,
+        MaterialData {
+            roughness: 0.7,
+            ..MaterialData::lambertian("dark wood", Vec3::new(0.3, 0.18, 0.1))
+        },
+    )
 }
 
-/// `brass` (0.75, 0.56, 0.3), metallic 1, roughness 0.4: the door handles and the candle dish.
-fn brass() -> MaterialData {
-    MaterialData {
-        metallic: 1.0,
-        roughness: 0.4,
-        ..MaterialData::lambertian("brass", Vec3::new(0.75, 0.56, 0.3))
-    }
+/// `iron` (0.2, 0.2, 0.2) on hammered metal, metallic 1, roughness 0.5: the lamp bracket
+/// and the gate.
+fn iron() -> KitMaterial {
+    textured(
+        Surface::Metal,
+        MaterialData {
+            metallic: 1.0,
+            roughness: 0.5,
+            ..MaterialData::lambertian("iron", Vec3::splat(0.2))
+        },
+    )
+}
+
+/// `brass` (0.75, 0.56, 0.3) on hammered metal, metallic 1, roughness 0.4: the door
+/// handles and the candle dish.
+fn brass() -> KitMaterial {
+    textured(
+        Surface::Metal,
+        MaterialData {
+            metallic: 1.0,
+            roughness: 0.4,
+            ..MaterialData::lambertian("brass", Vec3::new(0.75, 0.56, 0.3))
+        },
+    )
 }
 
 /// A kit piece made of closed solids, each a `MeshData` whose `material` indexes
 /// `materials`. [`Piece::document`] merges the solids that share a name into one mesh
 /// (in order of first use), each shown by a root node of the same name.
 struct Piece {
-    materials: Vec<MaterialData>,
+    materials: Vec<KitMaterial>,
     solids: Vec<MeshData>,
 }
 
 impl Piece {
-    fn new(materials: Vec<MaterialData>) -> Self {
+    fn new(materials: Vec<KitMaterial>) -> Self {
         Piece {
             materials,
             solids: Vec::new(),
@@ -515,7 +570,7 @@ impl Piece {
             mesh.indices
                 .extend(solid.indices.iter().map(|t| t.map(|i| first + i)));
         }
-        Ok(GltfDocument {
+        let mut document = GltfDocument {
             nodes: meshes
                 .iter()
                 .enumerate()
@@ -523,9 +578,12 @@ impl Piece {
                 .collect(),
             roots: (0..meshes.len()).collect(),
             meshes,
-            materials: self.materials.clone(),
+            materials: self.materials.iter().map(|m| m.data.clone()).collect(),
             ..GltfDocument::default()
-        })
+        };
+        let surfaces: Vec<Option<Surface>> = self.materials.iter().map(|m| m.surface).collect();
+        dress(&mut document, &surfaces)?;
+        Ok(document)
     }
 }
 
@@ -598,11 +656,11 @@ const DOORWAY_HALF_WIDTH: f32 = 0.6;
 const DOORWAY_HEIGHT: f32 = 2.2;
 
 /// `wall-doorway`: `wall` (4 m wide (x) x 3 m high x 0.2 m thick (z), origin at the bottom
-/// centre, `plaster`) with a doorway 1.2 m wide x 2.2 m high at x -0.6..0.6 from the floor:
+/// centre, `ashlar`) with a doorway 1.2 m wide x 2.2 m high at x -0.6..0.6 from the floor:
 /// three boxes, the jambs x -2..-0.6 and 0.6..2 (full height) and the lintel x -0.6..0.6,
 /// y 2.2..3. `door` placed at x = -0.6 fills the opening.
 fn wall_doorway() -> Piece {
-    let mut piece = Piece::new(vec![plaster()]);
+    let mut piece = Piece::new(vec![ashlar()]);
     let (w, h) = (DOORWAY_HALF_WIDTH, DOORWAY_HEIGHT);
     for side in [-1.0, 1.0] {
         piece.cuboid(
@@ -621,14 +679,14 @@ fn wall_doorway() -> Piece {
     piece
 }
 
-/// `wall-window`: `wall` (4 x 3 x 0.2 m, origin at the bottom centre, `plaster`) with a
-/// window opening 1.2 m wide x 1.0 m high, x -0.6..0.6, y 1.0..2.0: four plaster boxes (the
+/// `wall-window`: `wall` (4 x 3 x 0.2 m, origin at the bottom centre, `ashlar`) with a
+/// window opening 1.2 m wide x 1.0 m high, x -0.6..0.6, y 1.0..2.0: four ashlar boxes (the
 /// sides x -2..-0.6 and 0.6..2 full height, the breast under the opening up to y 0.95 and
 /// the head over it from y 2.0) and a `dark wood` sill x -0.7..0.7, y 0.95..1.0,
 /// z -0.15..0.15 whose top is the opening's bottom, its ends let 0.1 m into the sides and
 /// standing 5 cm proud of both faces.
 fn wall_window() -> Piece {
-    let mut piece = Piece::new(vec![plaster(), dark_wood()]);
+    let mut piece = Piece::new(vec![ashlar(), dark_wood()]);
     let v = Vec3::new;
     for side in [-1.0, 1.0] {
         piece.cuboid(
@@ -723,7 +781,7 @@ fn lamp_bracket() -> anyhow::Result<Piece> {
         emissive: Vec3::new(6.0, 4.0, 1.5),
         ..MaterialData::lambertian("lantern glass", Vec3::new(0.9, 0.8, 0.6))
     };
-    let mut piece = Piece::new(vec![iron(), glass]);
+    let mut piece = Piece::new(vec![iron(), plain(glass)]);
     let v = Vec3::new;
     let c = LANTERN_CENTRE;
     let name = "lamp bracket";
@@ -805,7 +863,7 @@ fn candle() -> anyhow::Result<Piece> {
         emissive: Vec3::new(8.0, 5.0, 1.5),
         ..MaterialData::lambertian("candle flame", Vec3::new(1.0, 0.9, 0.6))
     };
-    let mut piece = Piece::new(vec![brass(), wax, flame]);
+    let mut piece = Piece::new(vec![brass(), textured(Surface::Wax, wax), plain(flame)]);
     piece
         .solids
         .push(MeshData::cylinder("candle dish", 0.06, 0.015, 16, 0));
@@ -843,7 +901,7 @@ fn bottle() -> Piece {
         roughness: 0.25,
         ..MaterialData::lambertian("bottle green", Vec3::new(0.06, 0.16, 0.08))
     };
-    let mut piece = Piece::new(vec![glass]);
+    let mut piece = Piece::new(vec![textured(Surface::Glass, glass)]);
     piece
         .solids
         .push(MeshData::cylinder("bottle", 0.07, 0.24, 16, 0));
@@ -905,9 +963,14 @@ const BOOK_COLOURS: [(&str, Vec3); 4] = [
 /// `book ochre`), all chosen by a fixed hash.
 fn bookcase() -> Piece {
     let mut materials = vec![dark_wood()];
-    materials.extend(BOOK_COLOURS.iter().map(|&(name, colour)| MaterialData {
-        roughness: 0.8,
-        ..MaterialData::lambertian(name, colour)
+    materials.extend(BOOK_COLOURS.iter().map(|&(name, colour)| {
+        textured(
+            Surface::Leather,
+            MaterialData {
+                roughness: 0.8,
+                ..MaterialData::lambertian(name, colour)
+            },
+        )
     }));
     let mut piece = Piece::new(materials);
     let v = Vec3::new;
@@ -973,7 +1036,7 @@ fn mirror() -> Piece {
         roughness: 0.0,
         ..MaterialData::lambertian("mirror", Vec3::splat(0.9))
     };
-    let mut piece = Piece::new(vec![glass, dark_wood()]);
+    let mut piece = Piece::new(vec![plain(glass), dark_wood()]);
     let v = Vec3::new;
     piece.cuboid("mirror", v(-0.6, 0.0, 0.0), v(0.6, 2.0, 0.03), 0);
     for side in [-1.0, 1.0] {
@@ -1299,6 +1362,7 @@ fn push_body_part(
         .collect();
     let push_vertex = |mesh: &mut MeshData, position: Vec3| {
         let (joints, weights) = part_influences(part, seam_heights, position.y);
+        mesh.uvs.push(planar_uv(position));
         mesh.positions.push(position);
         mesh.joints.push(joints);
         mesh.weights.push(weights);
@@ -1347,10 +1411,22 @@ fn push_body_part(
     Ok(())
 }
 
-/// Appends a box (flat faces) rigidly bound to joint `bone`; UVs are dropped.
+/// The warden's UVs in metres: a planar projection, u along x - z and v down y, which a
+/// body of revolution takes without a seam (the cloth's weave stretches a little where
+/// the surface turns away from the projection, unseen on a figure in the dark).
+fn planar_uv(position: Vec3) -> Vec2 {
+    Vec2::new(
+        (position.x - position.z) * std::f32::consts::FRAC_1_SQRT_2,
+        -position.y,
+    )
+}
+
+/// Appends a box (flat faces) rigidly bound to joint `bone`, with `planar_uv`'s UVs.
 fn push_rigid_box(mesh: &mut MeshData, min: Vec3, max: Vec3, bone: usize) {
     let cuboid = MeshData::cuboid("", min, max, 0);
     let first = mesh.positions.len() as u32;
+    mesh.uvs
+        .extend(cuboid.positions.iter().map(|&p| planar_uv(p)));
     mesh.positions.extend(&cuboid.positions);
     mesh.normals.extend(&cuboid.normals);
     mesh.joints.extend(std::iter::repeat_n(
@@ -1581,7 +1657,7 @@ pub fn warden_document(detail: u32) -> anyhow::Result<GltfDocument> {
             ..NodeData::with_mesh(name, mesh)
         });
     }
-    Ok(GltfDocument {
+    let mut document = GltfDocument {
         meshes: vec![body, lantern],
         materials: vec![
             MaterialData {
@@ -1603,7 +1679,9 @@ pub fn warden_document(detail: u32) -> anyhow::Result<GltfDocument> {
         }],
         animations: vec![warden_walk(), warden_idle(), warden_alert()],
         ..GltfDocument::default()
-    })
+    };
+    dress(&mut document, &[Some(Surface::Cloth), None])?;
+    Ok(document)
 }
 
 /// Writes a warden (as [`warden_document`]) whose detail is raised until it has at least
@@ -1671,7 +1749,7 @@ fn grid_normals(points: &[Vec3], columns: usize, rows: usize) -> Vec<Vec3> {
 /// A 1 x 2 m cloth banner hanging from its top edge (y = 3, x -0.5..0.5) in the z = 0
 /// plane, front facing +Z, with the morph targets `billow` and `sway` (position and
 /// normal deltas) and the looping clip `wind`.
-fn banner() -> GltfDocument {
+fn banner() -> anyhow::Result<GltfDocument> {
     let (columns, rows) = BANNER_CELLS;
     let mut mesh = MeshData::new("banner", 0);
     for row in 0..=rows {
@@ -1679,7 +1757,8 @@ fn banner() -> GltfDocument {
             let uv = Vec2::new(column as f32 / columns as f32, row as f32 / rows as f32);
             mesh.positions
                 .push(Vec3::new(uv.x - 0.5, 3.0 - 2.0 * uv.y, 0.0));
-            mesh.uvs.push(uv);
+            // In metres, as every kit UV is (`dress` scales them to the cloth's period).
+            mesh.uvs.push(Vec2::new(uv.x, 2.0 * uv.y));
         }
     }
     mesh.normals = grid_normals(&mesh.positions, columns, rows);
@@ -1751,7 +1830,8 @@ fn banner() -> GltfDocument {
             values,
         }],
     });
-    document
+    dress(&mut document, &[Some(Surface::Cloth)])?;
+    Ok(document)
 }
 
 #[cfg(test)]
@@ -1895,13 +1975,13 @@ mod tests {
                 32,
                 &["white", "red", "green", "light"],
             ),
-            ("kit/wall.glb", 12, &["plaster"]),
-            ("kit/floor.glb", 12, &["floor tiles"]),
+            ("kit/wall.glb", 12, &["ashlar"]),
+            ("kit/floor.glb", 12, &["flagstones"]),
             ("kit/pillar.glb", 24 * 2 + 2 * 22, &["stone"]),
             ("kit/crate.glb", 12, &["wood"]),
             ("kit/shard.glb", 8, &["shard glow"]),
-            ("kit/wall-doorway.glb", 3 * 12, &["plaster"]),
-            ("kit/wall-window.glb", 5 * 12, &["plaster", "dark wood"]),
+            ("kit/wall-doorway.glb", 3 * 12, &["ashlar"]),
+            ("kit/wall-window.glb", 5 * 12, &["ashlar", "dark wood"]),
             ("kit/door.glb", 7 * 12, &["dark wood", "brass"]),
             ("kit/stairs.glb", 15 * 12, &["stone"]),
             (
@@ -1995,7 +2075,9 @@ mod tests {
             .as_ref()
             .expect("floor has a base-colour texture");
         let image = &floor.images[floor.textures[texture.texture].image];
-        assert_eq!((image.width, image.height), (64, 64));
+        assert_eq!((image.width, image.height), (256, 256));
+        assert!(floor.materials[0].normal_texture.is_some());
+        assert!(floor.materials[0].metallic_roughness_texture.is_some());
         let primitive = &floor.meshes[0].primitives[0];
         let top_uvs: Vec<Vec2> = primitive
             .normals
@@ -2011,8 +2093,8 @@ mod tests {
             });
         assert_eq!(
             (uv_min, uv_max),
-            (Vec2::ZERO, Vec2::ONE),
-            "the texture covers the top once"
+            (Vec2::ZERO, Vec2::splat(4.0)),
+            "the flagstones repeat once a metre across the 4 m top"
         );
 
         let shard = import_gltf(&dir.join("kit/shard.glb")).unwrap();
@@ -2093,7 +2175,7 @@ mod tests {
                 assert!(
                     document.meshes.iter().any(|m| m.material == index),
                     "{name}: material '{}' is unused",
-                    material.name
+                    material.data.name
                 );
             }
             for solid in &piece.solids {
@@ -2259,10 +2341,10 @@ mod tests {
     #[test]
     fn kit_solids_face_outwards() {
         for (document, name) in [
-            (wall(), "wall"),
+            (wall().unwrap(), "wall"),
             (floor().unwrap(), "floor"),
-            (pillar(), "pillar"),
-            (crate_box(), "crate"),
+            (pillar().unwrap(), "pillar"),
+            (crate_box().unwrap(), "crate"),
             (shard().unwrap(), "shard"),
         ] {
             let mesh = &document.meshes[0];
@@ -2516,17 +2598,18 @@ mod tests {
         use crate::scene::model::{AnimatedProperty, Interpolation};
         let dir = unique_temp_dir("banner");
         let path = dir.join("banner.glb");
-        write_gltf(&banner(), &path).unwrap();
+        write_gltf(&banner().unwrap(), &path).unwrap();
         let asset = import_gltf(&path).unwrap();
         let cloth = &asset.materials[0];
         assert_eq!(
-            (
-                cloth.name.as_str(),
-                cloth.base_color.truncate(),
-                cloth.double_sided
-            ),
-            ("banner cloth", Vec3::new(0.35, 0.05, 0.05), true)
+            (cloth.name.as_str(), cloth.double_sided),
+            ("banner cloth", true)
         );
+        // The cloth's mean colour is the banner's red: the factor times the weave's mean.
+        let mean = Surface::Cloth.images().unwrap().mean_detail;
+        let colour = cloth.base_color.truncate() * mean;
+        assert!((colour - Vec3::new(0.35, 0.05, 0.05)).abs().max_element() < 1e-5);
+        assert!(cloth.normal_texture.is_some());
         let mesh = &asset.meshes[0];
         assert_eq!(mesh.morph_weights, [0.0, 0.0]);
         let primitive = &mesh.primitives[0];

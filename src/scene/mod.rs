@@ -5,7 +5,7 @@
 //! (`level`), loading a level or a bare glTF into one `Scene` (`world`), the cache that imports each
 //! asset file once (`assets`), validation with
 //! `file:line:column` diagnostics (`diagnostic`, `source_map`), and the generators that
-//! write Gloam's own assets (`gltf_export`, `kit`, and the sounds' `sound_kit`). The editor saves through this module;
+//! write Gloam's own assets (`gltf_export`, `kit` with its textures' `kit_surfaces`, and the sounds' `sound_kit`). The editor saves through this module;
 //! no other module touches asset or level files.
 
 pub mod animation;
@@ -15,6 +15,7 @@ pub mod files;
 pub mod gltf_export;
 pub mod gltf_import;
 pub mod kit;
+pub mod kit_surfaces;
 pub mod level;
 pub mod model;
 pub mod sound_kit;

@@ -145,6 +145,10 @@ pub struct Material {
     pub roughness: f32,
     /// Roughness in G, metalness in B (linear).
     pub metallic_roughness_texture: Option<TextureRef>,
+    /// Tangent-space normals (linear; x along +u, y along -v, z out of the surface), and
+    /// glTF's `normalTexture.scale` on their x and y.
+    pub normal_texture: Option<TextureRef>,
+    pub normal_scale: f32,
     /// Emitted radiance in W/(sr m^2): emissiveFactor x KHR_materials_emissive_strength.
     pub emissive: Vec3,
     pub emissive_texture: Option<TextureRef>,
@@ -166,6 +170,8 @@ impl Default for Material {
             metallic: 1.0,
             roughness: 1.0,
             metallic_roughness_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
             emissive: Vec3::ZERO,
             emissive_texture: None,
             transmission: 0.0,
