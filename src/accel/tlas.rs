@@ -47,6 +47,13 @@ pub struct Instance {
     normal_from_object: Mat3A,
     /// World and object space coincide: the world ray is used as is.
     is_identity: bool,
+    /// log2 of how much the transform scales areas, (2/3) log2 |det|: exact for a
+    /// rotation and a uniform scale, the mean for a non-uniform one (which only a texture's
+    /// level of detail reads, `SurfaceHit::uv_density`).
+    log2_area_scale: f32,
+    /// -1 where the transform mirrors (negative determinant), else 1: it turns a UV
+    /// layout's handedness.
+    mirror: f32,
     pub mask: InstanceMask,
     /// The caller's id for this instance (the game's ECS entity).
     pub user_id: u64,
@@ -67,6 +74,8 @@ impl Instance {
             object_from_world: Affine3A::IDENTITY,
             normal_from_object: Mat3A::IDENTITY,
             is_identity: true,
+            log2_area_scale: 0.0,
+            mirror: 1.0,
             mask,
             user_id,
             mobility: Mobility::Movable,
@@ -96,6 +105,9 @@ impl Instance {
         self.object_from_world = object_from_world;
         self.normal_from_object = self.object_from_world.matrix3.transpose();
         self.is_identity = world_from_object == Affine3A::IDENTITY;
+        let determinant = world_from_object.matrix3.determinant();
+        self.log2_area_scale = 2.0 / 3.0 * determinant.abs().log2();
+        self.mirror = if determinant < 0.0 { -1.0 } else { 1.0 };
     }
 
     pub fn world_from_object(&self) -> Affine3A {
@@ -809,9 +821,10 @@ impl AccelScene {
         let uvs = (!geometry.uvs.is_empty()).then(|| corners.map(|i| geometry.uvs[i as usize]));
         let texture_frame = uvs.map_or(TextureFrame::NONE, |uvs| {
             TextureFrame::of(
-                [v1 - v0, v2 - v0].map(|edge| instance.world_from_object.transform_vector3a(edge)),
+                instance,
+                [v1 - v0, v2 - v0],
                 [uvs[1] - uvs[0], uvs[2] - uvs[0]],
-                geometric_normal,
+                object_normal,
             )
         });
         TriangleSurface {
@@ -859,24 +872,38 @@ impl TextureFrame {
         uv_density: f32::NEG_INFINITY,
     };
 
-    /// From the triangle's two world-space edges from its first corner, the same edges in
-    /// UV, and its world normal: dP/du and dP/dv solve edge = dP/du du + dP/dv dv.
-    fn of([e1, e2]: [Vec3A; 2], [d1, d2]: [Vec2; 2], normal: Vec3A) -> TextureFrame {
+    /// From the triangle's two object-space edges from its first corner, the same edges
+    /// in UV, and their cross product (`object_normal`, as long as twice the triangle's
+    /// area), worked out in object space and carried to `instance`'s world: dP/du and
+    /// dP/dv solve edge = dP/du du + dP/dv dv; the transform scales the area by
+    /// 2^log2_area_scale and a mirror turns the handedness (the world frame built from the
+    /// world edges is the same, `the_texture_frame_is_the_world_edges_frame`).
+    #[inline]
+    fn of(
+        instance: &Instance,
+        [e1, e2]: [Vec3A; 2],
+        [d1, d2]: [Vec2; 2],
+        object_normal: Vec3A,
+    ) -> TextureFrame {
         let uv_area = d1.perp_dot(d2);
-        let world_area = e1.cross(e2).length();
-        if uv_area == 0.0 || !uv_area.is_finite() || !(world_area > 0.0) {
+        let area_squared = object_normal.length_squared();
+        if uv_area == 0.0 || !uv_area.is_finite() || !(area_squared > 0.0) {
             return TextureFrame::NONE;
         }
         let dp_du = (e1 * d2.y - e2 * d1.y) / uv_area;
         let dp_dv = (e2 * d1.x - e1 * d2.x) / uv_area;
+        let turns = object_normal.cross(dp_du).dot(-dp_dv) >= 0.0;
+        // log2 of the area as half log2 of its square: no square root.
+        let log2_world_area =
+            0.5 * super::approximate_log2(area_squared) + instance.log2_area_scale;
         TextureFrame {
-            tangent: dp_du,
-            handedness: if normal.cross(dp_du).dot(-dp_dv) >= 0.0 {
-                1.0
+            tangent: instance.world_from_object.transform_vector3a(dp_du),
+            handedness: if turns {
+                instance.mirror
             } else {
-                -1.0
+                -instance.mirror
             },
-            uv_density: 0.5 * super::approximate_log2(uv_area.abs() / world_area),
+            uv_density: 0.5 * (super::approximate_log2(uv_area.abs()) - log2_world_area),
         }
     }
 }
@@ -958,4 +985,66 @@ pub(crate) fn transform_aabb(aabb: &Aabb, transform: &Affine3A) -> Aabb {
     let m = transform.matrix3;
     let extent = m.x_axis.abs() * half.x + m.y_axis.abs() * half.y + m.z_axis.abs() * half.z;
     Aabb::new(centre - extent, centre + extent)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{Quat, Vec3};
+
+    /// The texture frame worked out in object space and carried to the world is the one
+    /// built from the world-space edges: the same tangent, the same handedness (mirrors
+    /// included), and the same UV density to within the bit-level log2's error.
+    #[test]
+    fn the_texture_frame_is_the_world_edges_frame() {
+        let corners = [
+            Vec3A::new(0.1, 0.2, 0.3),
+            Vec3A::new(1.3, 0.1, -0.2),
+            Vec3A::new(0.4, 1.1, 0.5),
+        ];
+        let uvs = [
+            Vec2::new(0.2, 0.9),
+            Vec2::new(1.7, 0.8),
+            Vec2::new(0.5, -0.4),
+        ];
+        let transforms = [
+            Affine3A::IDENTITY,
+            Affine3A::from_scale_rotation_translation(
+                Vec3::splat(2.5),
+                Quat::from_rotation_y(0.7) * Quat::from_rotation_x(-0.3),
+                Vec3::new(4.0, -1.0, 2.0),
+            ),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(-1.0, 1.0, 1.0) * 0.5,
+                Quat::from_rotation_z(1.1),
+                Vec3::ZERO,
+            ),
+        ];
+        for (flip, transform) in transforms.iter().enumerate() {
+            let instance = Instance::new(0, *transform, InstanceMask::ALL, 0);
+            for uvs in [uvs, [uvs[0], uvs[2], uvs[1]]] {
+                let [e1, e2] = [corners[1] - corners[0], corners[2] - corners[0]];
+                let [d1, d2] = [uvs[1] - uvs[0], uvs[2] - uvs[0]];
+                let frame = TextureFrame::of(&instance, [e1, e2], [d1, d2], e1.cross(e2));
+                // The same in world space.
+                let [w1, w2] = [e1, e2].map(|e| transform.transform_vector3a(e));
+                let uv_area = d1.perp_dot(d2);
+                let dp_du = (w1 * d2.y - w2 * d1.y) / uv_area;
+                let dp_dv = (w2 * d1.x - w1 * d2.x) / uv_area;
+                let normal = (instance.normal_from_object * e1.cross(e2)).normalize();
+                let handedness = if normal.cross(dp_du).dot(-dp_dv) >= 0.0 {
+                    1.0
+                } else {
+                    -1.0
+                };
+                let density = 0.5 * (uv_area.abs() / w1.cross(w2).length()).log2();
+                assert!(
+                    (frame.tangent - dp_du).length() < 1e-4 * dp_du.length(),
+                    "{flip}"
+                );
+                assert_eq!(frame.handedness, handedness, "transform {flip}");
+                assert!((frame.uv_density - density).abs() < 0.1, "transform {flip}");
+            }
+        }
+    }
 }
