@@ -24,13 +24,17 @@
 //! page rebinds them): W A S D walk, Shift sprints, Space jumps, C or Ctrl crouches, E
 //! douses or relights the lamp looked at, N toggles noclip (fly through walls: Space and C
 //! rise and sink), mouse looks once captured (click). Fixed: Esc pauses (the pause page:
-//! resume, restart, settings, main menu, quit), F11 toggles fullscreen, V vsync, F3 the
+//! resume, restart, settings, main menu, quit), F11 toggles fullscreen, V vsync (both
+//! remembered in the settings), F3 the
 //! profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw), F2
 //! opens the level's file in the editor (`shell`), F12 writes a screenshot (`screenshot`: the frame as PNG and the linear film as EXR). No
 //! single key quits. A level without a player start is flown through with the same keys.
+//! Prompts name the key the player bound, and the campaign's first level states its goal
+//! and, the first time the player stands lit, the crouch key (`hints`).
 
 mod captions;
 pub mod editor;
+pub mod hints;
 mod hud;
 pub mod menu;
 pub mod resolution;
@@ -240,6 +244,7 @@ impl App {
         }
         let log = StageLog::new(&options);
         let overlay = options.profiler;
+        let player_settings_vsync = player_settings.vsync;
         let mut app = App {
             resolution: None,
             game: None,
@@ -265,7 +270,7 @@ impl App {
             pixels: None,
             last_frame: Instant::now(),
             frame_ms: Vec::new(),
-            vsync: true,
+            vsync: player_settings_vsync,
             overlay,
             screenshot: false,
             captured: false,
@@ -383,8 +388,8 @@ fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// "E  douse the lamp" or "E  light the lamp" when a lamp is within reach of the player's
-/// aim (`game::lamps::aimed_lamp`, the question E's press asks).
+/// "douse the lamp" or "light the lamp" when a lamp is within reach of the player's aim
+/// (`game::lamps::aimed_lamp`, the question the interact key's press asks).
 fn lamp_prompt(world: &mut bevy_ecs::world::World) -> Option<&'static str> {
     use crate::game::{
         GlobalTransform, LevelEntity, Player, PlayerEye, PunctualLight, SwitchedOff, WorldGeometry,
@@ -411,9 +416,36 @@ fn lamp_prompt(world: &mut bevy_ecs::world::World) -> Option<&'static str> {
     let (_, doused) =
         crate::game::lamps::aimed_lamp(&*geometry.0, eye, view, candidates.into_iter())?;
     Some(if doused {
-        "E  light the lamp"
+        "light the lamp"
     } else {
-        "E  douse the lamp"
+        "douse the lamp"
+    })
+}
+
+/// What the first level's hints read of the attempt: its clock, the light gem, the crouch,
+/// the shards in all.
+fn hint_moment(engine: &mut Engine) -> Option<hints::Moment> {
+    let world = &mut engine.world;
+    let progress = world.get_resource::<crate::game::Progress>()?.clone();
+    let gem = world
+        .query::<&crate::game::Exposure>()
+        .iter(world)
+        .next()?
+        .gem;
+    let crouched = world
+        .query::<&crate::game::Player>()
+        .iter(world)
+        .next()?
+        .crouched;
+    let left = world
+        .query_filtered::<(), bevy_ecs::query::With<crate::game::Shard>>()
+        .iter(world)
+        .count() as u32;
+    Some(hints::Moment {
+        seconds: (progress.steps as f64 / crate::game::SIMULATION_HZ) as f32,
+        gem,
+        crouched,
+        shards: progress.shards_taken + left,
     })
 }
 
@@ -432,6 +464,8 @@ struct Game {
     /// The level as loaded: a caught player starts it again from here.
     scene: Scene,
     level: PathBuf,
+    /// The first level's hints (`hints`).
+    hints: hints::Hints,
 }
 
 pub(crate) struct App {
@@ -539,6 +573,7 @@ impl App {
             engine,
             scene,
             level,
+            hints: hints::Hints::default(),
         });
         self.backdrop = None;
         self.menu = None;
@@ -916,11 +951,10 @@ impl App {
         match binding {
             Binding::Fullscreen => {
                 if let Some(window) = &self.window {
-                    let fullscreen = window
-                        .fullscreen()
-                        .is_none()
-                        .then_some(Fullscreen::Borderless(None));
-                    window.set_fullscreen(fullscreen);
+                    let fullscreen = window.fullscreen().is_none();
+                    window.set_fullscreen(fullscreen.then_some(Fullscreen::Borderless(None)));
+                    self.context.settings.fullscreen = fullscreen;
+                    self.settings_changed();
                 }
             }
             Binding::Profiler => self.overlay = !self.overlay,
@@ -937,6 +971,8 @@ impl App {
                 if let Some(pixels) = &mut self.pixels {
                     pixels.enable_vsync(self.vsync);
                 }
+                self.context.settings.vsync = self.vsync;
+                self.settings_changed();
             }
             Binding::Screenshot => self.screenshot = true,
             Binding::Pause | Binding::Edit => {}
@@ -1079,13 +1115,23 @@ impl App {
             }
         }
         if let Some(game) = &mut self.game {
+            let keys = &self.context.settings.keys;
             draw_hud(
                 frame,
                 (width, height),
                 &mut game.engine,
                 &self.caught,
                 self.options.watch.is_some(),
+                &hints::key_label(keys, crate::game::Action::Interact),
             );
+            if game.scene.level.campaign == Some(1)
+                && let Some(moment) = hint_moment(&mut game.engine)
+                && let Some(line) = game.hints.line(moment, keys)
+            {
+                let wide = line.chars().count() as u32 * hud::GLYPH_WIDTH;
+                let x = width.saturating_sub(wide) / 2;
+                hud::draw_text(frame, width, height, x, height / 4, &line);
+            }
             // Captions centred above the bottom line, the newest lowest.
             let lines: Vec<&str> = self.captions.lines().collect();
             for (row, line) in lines.iter().rev().enumerate() {
@@ -1244,6 +1290,7 @@ fn draw_hud(
     engine: &mut Engine,
     caught: &Option<(Instant, String)>,
     watching: bool,
+    interact_key: &str,
 ) {
     let gem = engine
         .world
@@ -1273,10 +1320,11 @@ fn draw_hud(
             );
         }
     }
-    // The lamp within reach of the player's aim, and what E would do to it.
-    if let Some(prompt) = lamp_prompt(&mut engine.world) {
+    // The lamp within reach of the player's aim, and what the interact key would do to it.
+    if let Some(verb) = lamp_prompt(&mut engine.world) {
+        let prompt = format!("{interact_key}  {verb}");
         let x = (width / 2).saturating_sub(prompt.len() as u32 * 4);
-        hud::draw_text(frame, width, height, x, height.saturating_sub(44), prompt);
+        hud::draw_text(frame, width, height, x, height.saturating_sub(44), &prompt);
     }
     // Each noise the player made, as a ring of its reach on the floor, fading.
     if let Some(noises) = engine.world.get_resource::<crate::game::Noises>() {
@@ -1353,6 +1401,9 @@ impl ApplicationHandler for App {
         let size = LogicalSize::new(width * 2, height * 2);
         match open_window(event_loop, title, size, (width, height), self.vsync) {
             Ok((window, pixels)) => {
+                if self.context.settings.fullscreen {
+                    window.set_fullscreen(Some(Fullscreen::Borderless(None)));
+                }
                 self.pixels = Some(pixels);
                 self.window = Some(window);
             }

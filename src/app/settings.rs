@@ -44,6 +44,10 @@ pub struct Settings {
     /// The sound's volumes, 0 to 1 each: `(master: 1.0, effects: 1.0, voices: 1.0,
     /// ambience: 1.0)`.
     pub volume: crate::audio::Volumes,
+    /// The window fills the screen (F11 toggles it, and it is remembered).
+    pub fullscreen: bool,
+    /// Frames wait for the display's refresh (V toggles it, and it is remembered).
+    pub vsync: bool,
 }
 
 impl Default for Settings {
@@ -57,6 +61,8 @@ impl Default for Settings {
             keys: KeyBindings::default(),
             captions: true,
             volume: crate::audio::Volumes::default(),
+            fullscreen: false,
+            vsync: true,
         }
     }
 }
@@ -557,6 +563,8 @@ mod tests {
             field_of_view: 85.0,
             brightness: 1.5,
             frame_time_target_ms: None,
+            fullscreen: true,
+            vsync: false,
             ..Settings::default()
         };
         assert!(settings.keys.bind(Action::Sprint, KeyCode::AltLeft));
@@ -564,6 +572,11 @@ mod tests {
         let loaded = load::<Settings>(&path);
         assert_eq!(loaded.warning, None);
         assert_eq!(loaded.value, settings);
+        // A file from before fullscreen and vsync were kept loads with their defaults.
+        std::fs::write(&path, "(field_of_view: 90.0)").unwrap();
+        let older = load::<Settings>(&path);
+        assert_eq!(older.warning, None);
+        assert_eq!((older.value.fullscreen, older.value.vsync), (false, true));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -561,21 +561,9 @@ impl RenderMaterial {
         )
     }
 
-    /// The BSDF lobe to use at `uv`: one of the mixture's lobes, chosen with `u_lobe` with
-    /// probability equal to its weight. `entering` says `wo` is on the front side.
-    pub fn bsdf_at(
-        &self,
-        textures: &[Texture],
-        uv: Vec2,
-        footprint: f32,
-        u_lobe: f32,
-        entering: bool,
-    ) -> Bsdf {
-        let base = self.base_color_at(textures, uv, footprint).truncate();
-        self.bsdf_with_base(base, textures, uv, footprint, u_lobe, entering)
-    }
-
-    /// `bsdf_at` with the base colour already read there.
+    /// The BSDF lobe to use at `uv`, whose base colour (`base_color_at`, already read
+    /// there) is `base`: one of the mixture's lobes, chosen with `u_lobe` with probability
+    /// equal to its weight. `entering` says `wo` is on the front side.
     pub fn bsdf_with_base(
         &self,
         base: Vec3,

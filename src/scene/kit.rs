@@ -35,7 +35,7 @@ use super::gltf_export::{
     AnimationData, CameraData, ChannelData, GltfDocument, ImageData, MaterialData, MeshData,
     MorphTargetData, NodeData, SkinData, write_gltf,
 };
-use super::kit_surfaces::Surface;
+use super::kit_surfaces::{self, Surface};
 use super::model::{AnimatedProperty, Interpolation};
 
 /// Writes every shipped asset under `out_dir` (normally `assets/`); returns the files written, sorted.
@@ -387,15 +387,6 @@ fn floor() -> anyhow::Result<GltfDocument> {
         0,
     );
     single_mesh(mesh, flagstones())
-}
-
-/// A small integer hash: deterministic noise for the books.
-fn hash32(mut x: u32) -> u32 {
-    x ^= x >> 16;
-    x = x.wrapping_mul(0x7feb_352d);
-    x ^= x >> 15;
-    x = x.wrapping_mul(0x846c_a68b);
-    x ^ (x >> 16)
 }
 
 /// Radius 0.3 m, 3 m tall, 24 segments, base at y = 0.
@@ -993,12 +984,12 @@ fn bookcase() -> Piece {
     }
     for shelf in 0..4_u32 {
         let floor = bottom + shelf as f32 * pitch;
-        let seed = hash32(0x0b00_c500 + shelf);
+        let seed = kit_surfaces::hash(0x0b00_c500 + shelf);
         let run = 0.45 + (seed % 36) as f32 * 0.01;
         let from_left = seed & 0x100 == 0;
         let mut filled = 0.0;
         for book in 0_u32.. {
-            let r = hash32(seed ^ book.wrapping_mul(0x9e37_79b9));
+            let r = kit_surfaces::hash(seed ^ book.wrapping_mul(0x9e37_79b9));
             let thickness = 0.025 + (r % 31) as f32 * 0.001;
             if filled + thickness > run {
                 break;

@@ -237,8 +237,8 @@ fn fifth_root(x: f32) -> f32 {
 
 // ---- noise ----------------------------------------------------------------------------------
 
-/// A small integer hash: the seed of every random choice.
-fn hash(mut x: u32) -> u32 {
+/// A small integer hash: the seed of every random choice (and of the kit's books).
+pub(super) fn hash(mut x: u32) -> u32 {
     x ^= x >> 16;
     x = x.wrapping_mul(0x7feb_352d);
     x ^= x >> 15;

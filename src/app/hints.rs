@@ -1,0 +1,115 @@
+//! Window step `present`, on the HUD: what a first-time player is told in the campaign's
+//! first level. As the level starts, its goal ("Take the 3 shards, then find the way
+//! out."); the first time the player stands lit, the crouch key; and every prompt names
+//! the key bound to its action, not the default one (`key_label`). Hints only inform:
+//! nothing the game does depends on them.
+
+use super::settings::KeyBindings;
+use crate::game::Action;
+
+/// Seconds of each attempt the goal is shown for.
+const GOAL_SECONDS: f32 = 8.0;
+/// Seconds a verb's hint stays up.
+const HINT_SECONDS: f32 = 5.0;
+/// The light gem's reading (0 dark .. 1 lit) above which standing tall is a risk: the
+/// crouch hint's cue. At 0.5 the body reads as half seen (`game::exposure::curve`).
+const LIT_GEM: f32 = 0.5;
+
+/// One level's hints, shown once each while it is played.
+#[derive(Clone, Debug, Default)]
+pub struct Hints {
+    /// Level seconds when the crouch hint came up.
+    crouch_shown_at: Option<f32>,
+}
+
+/// What the player is doing now, as the hints read it.
+#[derive(Clone, Copy, Debug)]
+pub struct Moment {
+    /// Seconds since the attempt began.
+    pub seconds: f32,
+    /// The light gem's reading.
+    pub gem: f32,
+    pub crouched: bool,
+    /// The level's shards in all.
+    pub shards: u32,
+}
+
+impl Hints {
+    /// The hint line to show now, if any.
+    pub fn line(&mut self, moment: Moment, keys: &KeyBindings) -> Option<String> {
+        if self.crouch_shown_at.is_none()
+            && moment.seconds >= GOAL_SECONDS
+            && moment.gem > LIT_GEM
+            && !moment.crouched
+        {
+            self.crouch_shown_at = Some(moment.seconds);
+        }
+        if moment.seconds < GOAL_SECONDS {
+            return Some(match moment.shards {
+                0 => "Find the way out.".to_owned(),
+                1 => "Take the shard, then find the way out.".to_owned(),
+                n => format!("Take the {n} shards, then find the way out."),
+            });
+        }
+        let shown = self.crouch_shown_at?;
+        (moment.seconds - shown < HINT_SECONDS).then(|| {
+            format!(
+                "{}  crouch: lit, lower is harder to see",
+                key_label(keys, Action::MoveDown)
+            )
+        })
+    }
+}
+
+/// The first key bound to `action` as the settings screen shows it, or "(unbound)".
+pub fn key_label(keys: &KeyBindings, action: Action) -> String {
+    keys.keys(action)
+        .first()
+        .map_or_else(|| "(unbound)".to_owned(), |key| key.label())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use winit::keyboard::KeyCode;
+
+    fn moment(seconds: f32, gem: f32, crouched: bool) -> Moment {
+        Moment {
+            seconds,
+            gem,
+            crouched,
+            shards: 3,
+        }
+    }
+
+    #[test]
+    fn the_goal_comes_first_then_the_crouch_key_once_when_lit() {
+        let keys = KeyBindings::default();
+        let mut hints = Hints::default();
+        assert_eq!(
+            hints.line(moment(0.5, 0.9, false), &keys).as_deref(),
+            Some("Take the 3 shards, then find the way out.")
+        );
+        // In the dark, or crouched in the light, nothing.
+        assert_eq!(hints.line(moment(9.0, 0.1, false), &keys), None);
+        assert_eq!(hints.line(moment(10.0, 0.9, true), &keys), None);
+        // Standing lit: the crouch key, for a while, and never again.
+        let line = hints.line(moment(11.0, 0.9, false), &keys).unwrap();
+        assert!(line.starts_with("C  crouch"), "{line}");
+        assert!(hints.line(moment(15.0, 0.1, false), &keys).is_some());
+        assert_eq!(hints.line(moment(16.5, 0.9, false), &keys), None);
+        assert_eq!(hints.line(moment(40.0, 0.9, false), &keys), None);
+    }
+
+    #[test]
+    fn prompts_name_the_key_the_player_bound() {
+        let mut keys = KeyBindings::default();
+        assert_eq!(key_label(&keys, Action::Interact), "E");
+        assert!(keys.bind(Action::Interact, KeyCode::KeyF));
+        assert_eq!(key_label(&keys, Action::Interact), "F");
+        assert!(keys.bind(Action::MoveDown, KeyCode::ControlLeft));
+        let mut hints = Hints::default();
+        let line = hints.line(moment(12.0, 0.9, false), &keys).unwrap();
+        assert!(line.starts_with("ControlLeft  crouch"), "{line}");
+    }
+}
