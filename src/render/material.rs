@@ -156,11 +156,6 @@ impl Texture {
         (self.levels[0].width, self.levels[0].height)
     }
 
-    /// How many levels the pyramid has (1 for a 1 x 1 texture).
-    pub fn level_count(&self) -> usize {
-        self.levels.len()
-    }
-
     /// Whether a footprint `footprint` wide covers the whole texture, so a tap reads the
     /// texels' mean (the 1 x 1 level).
     pub fn is_covered_by(&self, footprint: f32) -> bool {
@@ -195,19 +190,31 @@ impl Texture {
             into_first_period(uv.x, self.wrap_u),
             into_first_period(uv.y, self.wrap_v),
         );
-        let level = footprint + self.log2_size;
-        if self.filter == Filter::Nearest || !(level > 0.0) {
+        if self.filter == Filter::Nearest {
             return self.sample_level(0, uv);
         }
-        let last = self.levels.len() - 1;
-        if level >= last as f32 {
-            // The last level is 1 x 1: its one texel, without a tap's arithmetic (most of
-            // the hits past a rough bounce read it).
-            return widen(self.levels[last].texels[0]) * (1.0 / TEXEL_ONE);
+        match self.level_at(uv, footprint) {
+            // The 1 x 1 level: its one texel, without a tap's arithmetic.
+            level if level + 1 == self.levels.len() => self.mean(),
+            level => self.sample_level(level, uv),
         }
-        let below = floor(level);
-        let coarser = uv_hash(uv) < level - below;
-        self.sample_level(below as usize + usize::from(coarser), uv)
+    }
+
+    /// The level `sample` reads for a footprint `footprint` at `uv` (in its first
+    /// period): 0 where a texel is at least as wide, the last (1 x 1) where the footprint
+    /// covers the texture, and between, one of the two levels around it, the coarser with
+    /// the footprint's fraction for its probability.
+    #[inline]
+    fn level_at(&self, uv: Vec2, footprint: f32) -> usize {
+        let level = footprint + self.log2_size;
+        if !(level > 0.0) {
+            0
+        } else if self.is_covered_by(footprint) {
+            self.levels.len() - 1
+        } else {
+            let below = floor(level);
+            below as usize + usize::from(uv_hash(uv) < level - below)
+        }
     }
 
     /// Whether `other`'s taps read where this one's do (`tap`): the same shape, both on
@@ -231,25 +238,18 @@ impl Texture {
         if !uv.is_finite() {
             return None;
         }
-        let level = footprint + self.log2_size;
-        let last = self.levels.len() - 1;
-        if level >= last as f32 {
+        // `floor`, not glam's, which calls libm's floorf on x86-64 without SSE4.1.
+        let uv = uv - Vec2::new(floor(uv.x), floor(uv.y));
+        let level = self.level_at(uv, footprint);
+        if level + 1 == self.levels.len() {
             // The 1 x 1 level: its one texel (most hits past a rough bounce).
             return Some(Tap {
-                level: last,
+                level,
                 corners: [0; 4],
                 fx: 0.0,
                 fy: 0.0,
             });
         }
-        // `floor`, not glam's, which calls libm's floorf on x86-64 without SSE4.1.
-        let uv = uv - Vec2::new(floor(uv.x), floor(uv.y));
-        let level = if !(level > 0.0) {
-            0
-        } else {
-            let below = floor(level);
-            below as usize + usize::from(uv_hash(uv) < level - below)
-        };
         let mip = &self.levels[level];
         // uv is in [0, 1] (1 where a tiny negative rounds up), so p = uv size + 0.5, one
         // more than the tap's texel coordinate, lies in [0.5, size + 0.5]: truncating it
