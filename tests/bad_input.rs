@@ -481,6 +481,44 @@ fn duplicate_names_and_bad_lights_are_all_listed() {
 }
 
 #[test]
+fn a_lamps_fixture_must_name_an_instance() {
+    let lamp = |fixture: &str| {
+        format!(
+            "(name: \"start\", player_spawn: (eye_height: 1.6)),\n        (name: \"lamp\", light: Point(color: (1.0, 1.0, 1.0), intensity: 5.0), fixture: \"{fixture}\"),"
+        )
+    };
+    let (path, text) = broken_level(
+        "fixture-missing",
+        "(name: \"start\", player_spawn: (eye_height: 1.6)),",
+        &lamp("bracket"),
+    );
+    let line = line_of(&text, "fixture:");
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line),
+        &["no entity is named 'bracket'"],
+    );
+    let (path, _) = broken_level(
+        "fixture-bare",
+        "(name: \"start\", player_spawn: (eye_height: 1.6)),",
+        &lamp("start"),
+    );
+    assert_reported(
+        &path,
+        "level.ron",
+        Some(line),
+        &["the fixture 'start' draws no instance"],
+    );
+    let (path, _) = broken_level(
+        "fixture-good",
+        "(name: \"start\", player_spawn: (eye_height: 1.6)),",
+        &lamp("thing"),
+    );
+    assert!(Scene::load(&path).is_ok());
+}
+
+#[test]
 fn unknown_animation_clip_is_reported_with_the_clips_there_are() {
     let (path, text) = broken_level(
         "clip",

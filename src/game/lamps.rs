@@ -9,6 +9,10 @@
 //! (inside its sight cones, nothing between its eyes and the lamp) walks to it on the
 //! navigation grid and, within `RELIGHT_REACH` of it, lights it again, then walks back to
 //! its route. A warden that notices the player drops the errand.
+//!
+//! Last in the step (`switch_fixtures`), a lamp's fixture (`EntityDef::fixture`, the
+//! bracket or hanging lamp it shines from) is switched with it, so its glass glows only
+//! while its light is lit.
 
 use bevy_ecs::prelude::*;
 use glam::{Quat, Vec3};
@@ -18,8 +22,8 @@ use super::sight;
 use super::warden::{Warden, WardenState, plan};
 use super::world_query::{WorldGeometry, WorldQuery};
 use super::{
-    Action, GlobalTransform, Input, LevelEntity, Player, PlayerEye, PunctualLight, SwitchedOff,
-    Transform,
+    Action, AssetInstance, GlobalTransform, Input, LevelEntity, Player, PlayerEye, PunctualLight,
+    SwitchedOff, Transform,
 };
 
 /// How close (across the ground) a warden gets to a lamp to light it again.
@@ -64,6 +68,39 @@ pub fn douse_lamps(
                 commands.entity(lamp).remove::<SwitchedOff>();
             } else {
                 commands.entity(lamp).insert(SwitchedOff);
+            }
+        }
+    }
+}
+
+/// The level entity, by name, whose instance a level lamp shines from
+/// (`EntityDef::fixture`): it is switched off and on with the lamp, so its glow goes dark
+/// with the light. Held by name, as the level writes it, so a fixture respawned by the
+/// editor is found again.
+#[derive(Component, Clone, Debug, PartialEq, Eq)]
+pub struct LampFixture(pub String);
+
+/// A level instance as `switch_fixtures` reads it: its name and its switch.
+type FixtureData<'a> = (Entity, &'a Name, Has<SwitchedOff>);
+
+/// Fixed step, after the lamps were doused and relit: each fixture takes its lamp's
+/// switch, so the renderer draws its glass dark exactly while the light is out.
+pub fn switch_fixtures(
+    mut commands: Commands,
+    lamps: Query<(&LampFixture, Has<SwitchedOff>), With<PunctualLight>>,
+    fixtures: Query<FixtureData, (With<LevelEntity>, With<AssetInstance>)>,
+) {
+    // A few lamps, each looked up among the level's instances by name: a few microseconds
+    // a step, and nothing to keep in step with spawns and renames.
+    for (LampFixture(name), doused) in &lamps {
+        let Some((fixture, _, dark)) = fixtures.iter().find(|(_, n, _)| n.as_str() == name) else {
+            continue;
+        };
+        if dark != doused {
+            if doused {
+                commands.entity(fixture).insert(SwitchedOff);
+            } else {
+                commands.entity(fixture).remove::<SwitchedOff>();
             }
         }
     }

@@ -58,6 +58,7 @@ pub fn entity_defs(world: &mut World) -> Vec<(LevelEntity, EntityDef)> {
             Option<&super::noise::Knockable>,
             Option<&super::patrol::Patrol>,
             Option<&super::SoundSource>,
+            Option<&super::LampFixture>,
         ),
     )>();
     let mut entities: Vec<(LevelEntity, EntityDef)> = query
@@ -74,7 +75,7 @@ pub fn entity_defs(world: &mut World) -> Vec<(LevelEntity, EntityDef)> {
                 spawn,
                 animation,
                 deformer,
-                (shard, exit, warden, knock, mover, sound),
+                (shard, exit, warden, knock, mover, sound, fixture),
             )| {
                 // A mover is saved at its place, not where its swing has taken it.
                 let transform = mover.map_or(*transform, |m| m.origin);
@@ -114,6 +115,7 @@ pub fn entity_defs(world: &mut World) -> Vec<(LevelEntity, EntityDef)> {
                         period: m.period as f32,
                     }),
                     sound: sound.map(|s| s.0.clone()),
+                    fixture: fixture.map(|f| f.0.clone()),
                 };
                 (*order, def)
             },

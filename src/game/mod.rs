@@ -20,7 +20,8 @@
 //!    `acoustics`, the rays the player's own ears use;
 //!    `relight_lamps`; `walk_wardens`: their feet, on the `nav::NavGrid` built at load),
 //!    then `patrol` movers, and last what the step sounded like (`hear_the_step`: the
-//!    sound kit's files, where and by whom, in `SoundEvents`);
+//!    sound kit's files, where and by whom, in `SoundEvents`), and the lamps' fixtures
+//!    take their lamps' switch (`switch_fixtures`);
 //! 3. `Stage::Animation`: `animate_wardens` (each warden's clip for its state) and
 //!    `animate_player_body` (the player's own body walks or idles), then
 //!    `advance_animations` and `apply_animations` (glTF clips into node transforms and
@@ -64,7 +65,7 @@ pub use animation::{
 pub use exposure::{Exposure, measure_exposure};
 pub use goal::{Exit, Outcome, Progress, Shard, collect_shards, play_time, reach_exit};
 pub use input::{Action, Input, fly_camera};
-pub use lamps::{douse_lamps, relight_lamps};
+pub use lamps::{LampFixture, douse_lamps, relight_lamps, switch_fixtures};
 pub use level_io::level_from_world;
 pub use nav::NavGrid;
 pub use noise::{Footfalls, Knockable, Noises, hear_noises, knock_over, make_noise};
@@ -221,6 +222,7 @@ pub fn fixed_step_schedules() -> Vec<(Stage, Schedule)> {
                             walk_wardens,
                             patrol,
                             hear_the_step,
+                            switch_fixtures,
                         )
                             .chain(),
                     );

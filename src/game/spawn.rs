@@ -225,6 +225,9 @@ pub fn spawn_entity(
     if let Some(sound) = &def.sound {
         root.insert(super::SoundSource(sound.clone()));
     }
+    if let Some(fixture) = &def.fixture {
+        root.insert(super::LampFixture(fixture.clone()));
+    }
     if let Some(shard) = &def.shard {
         root.insert(super::Shard {
             radius: shard.radius,

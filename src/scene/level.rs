@@ -140,6 +140,11 @@ pub struct EntityDef {
     /// A sound the entity makes where it stands.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sound: Option<SoundDef>,
+    /// For a light: the entity (by name) whose instance is the lamp it shines from, a
+    /// bracket or a hanging lamp. Its glow goes dark while the light is doused, so a lamp
+    /// never looks lit when it is not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixture: Option<String>,
 }
 
 /// Moves the entity up to `offset` (world metres) either side of its place, a sine over
@@ -336,6 +341,7 @@ impl EntityDef {
             knock: None,
             mover: None,
             sound: None,
+            fixture: None,
         }
     }
 }
@@ -980,6 +986,26 @@ pub fn validate_level(level: &Level) -> Vec<(Pointer, String)> {
                         format!("lamp {name} must be finite (found {value})"),
                     );
                 }
+            }
+        }
+
+        if let Some(fixture) = &entity.fixture {
+            let named = level.entities.iter().find(|other| &other.name == fixture);
+            let problem = if entity.light.is_none() {
+                Some("only a light has a fixture".to_string())
+            } else if fixture == &entity.name {
+                Some("a light cannot be its own fixture".to_string())
+            } else {
+                match named {
+                    None => Some(format!("no entity is named '{fixture}'")),
+                    Some(other) if other.instance.is_none() => {
+                        Some(format!("the fixture '{fixture}' draws no instance"))
+                    }
+                    Some(_) => None,
+                }
+            };
+            if let Some(problem) = problem {
+                report(at.key("fixture"), problem);
             }
         }
 
