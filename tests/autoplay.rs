@@ -79,14 +79,14 @@ fn every_campaign_level_has_a_won_and_a_caught_recording() {
 
 /// Every shipped recording and the state hash its replay ends at.
 const PINNED: [(&str, &str); 8] = [
-    ("first-light-won.json", "92f8ffc5aef185ff"),
-    ("first-light-caught.json", "5dba92dbe305efbc"),
-    ("first-light-glimpsed.json", "aca8e5daf412399d"),
-    ("the-gallery-won.json", "efb6921cd2c355a6"),
-    ("the-gallery-caught.json", "ba47fa37f2c16ad1"),
-    ("the-gallery-mirror.json", "19068791daade4a4"),
-    ("the-keep-won.json", "161f0b2233c26d55"),
-    ("the-keep-caught.json", "8081d50c21194529"),
+    ("first-light-won.json", "5ddff7ccb98b1d06"),
+    ("first-light-caught.json", "fb58a06b4eaa922d"),
+    ("first-light-glimpsed.json", "09e08d9214ca0a3a"),
+    ("the-gallery-won.json", "9011e6ce9cdc1ddd"),
+    ("the-gallery-caught.json", "56f78bae2d8dce5c"),
+    ("the-gallery-mirror.json", "6a474f736aff7f43"),
+    ("the-keep-won.json", "1989861cb5e7eeeb"),
+    ("the-keep-caught.json", "3bb06ba89365c936"),
 ];
 
 #[test]

@@ -188,3 +188,51 @@ fn the_keep_s_balcony_is_a_second_storey_reached_by_its_stairs() {
         "climbs: {path:?}"
     );
 }
+
+/// Every lamp of every playable level shines from a fixture (a bracket, a hanging lamp, a
+/// candle), and the fixture is switched with its lamp: doused, its glass goes dark with
+/// the light; relit, it glows again.
+#[test]
+fn every_lamp_shines_from_a_fixture_that_goes_dark_with_it() {
+    use bevy_ecs::prelude::{Entity, Name};
+    use gloam::game::{LampFixture, SwitchedOff};
+    for path in common::shipped_levels() {
+        let scene = Scene::load(&path).unwrap();
+        if !scene.level.playable {
+            continue;
+        }
+        for entity in scene.level.entities.iter().filter(|e| e.light.is_some()) {
+            assert!(
+                entity.fixture.is_some(),
+                "{}: the light '{}' has no fixture",
+                path.display(),
+                entity.name
+            );
+        }
+    }
+    let scene = Scene::load(&common::repo().join("levels").join("first-light.ron")).unwrap();
+    let mut engine = Engine::new(&scene, RenderSettings::real_time(8, 8));
+    let (lamp, name) = engine
+        .world
+        .query::<(Entity, &LampFixture)>()
+        .iter(&engine.world)
+        .map(|(lamp, fixture)| (lamp, fixture.0.clone()))
+        .next()
+        .expect("first-light's lamps have fixtures");
+    let fixture = engine
+        .world
+        .query::<(Entity, &Name)>()
+        .iter(&engine.world)
+        .find(|(_, n)| n.as_str() == name)
+        .expect("the fixture is spawned")
+        .0;
+    let dark = |engine: &Engine| engine.world.get::<SwitchedOff>(fixture).is_some();
+    engine.simulate(1.0 / 60.0);
+    assert!(!dark(&engine), "the fixture of a lit lamp glows");
+    engine.world.entity_mut(lamp).insert(SwitchedOff);
+    engine.simulate(1.0 / 60.0);
+    assert!(dark(&engine), "the doused lamp's fixture stays lit");
+    engine.world.entity_mut(lamp).remove::<SwitchedOff>();
+    engine.simulate(1.0 / 60.0);
+    assert!(!dark(&engine), "the relit lamp's fixture stays dark");
+}

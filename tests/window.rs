@@ -469,7 +469,8 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
 
     // Hot reload: a change on disk by someone else is loaded; a broken file leaves the
     // level as it is and says where the problem is, until it is fixed.
-    let brighter = original.replacen("intensity: 25.0,", "intensity: 60.0,", 1);
+    let brighter = original.replacen("intensity: ", "intensity: 6", 1);
+    assert_ne!(brighter, original, "first-light has a lamp to brighten");
     std::fs::write(&level, &brighter).unwrap();
     assert_eq!(
         next_line("the reload"),
@@ -532,7 +533,8 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
     // Someone else saves the level while the edit is unsaved: the editor asks, and Enter
     // takes the answer that has the keyboard, keeping the edits; the next save replaces
     // their file, which .bak then holds.
-    let theirs = original.replacen("intensity: 25.0,", "intensity: 40.0,", 1);
+    let theirs = original.replacen("intensity: ", "intensity: 4", 1);
+    assert_ne!(theirs, original);
     std::fs::write(&level, &theirs).unwrap();
     assert_eq!(
         next_line("the conflict"),

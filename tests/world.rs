@@ -278,17 +278,16 @@ fn lights_and_emitters_switch_off_and_on() {
         engine.world.entity_mut(lamp).insert(SwitchedOff);
     }
     engine.advance(1.0 / 60.0);
-    assert_eq!(
-        engine.render_scene().lights.lights.len(),
-        lights - lamps.len()
+    // The lamps leave the light set, and so do their fixtures' glowing glass triangles.
+    let out = engine.render_scene().lights.lights.len();
+    assert!(
+        out < lights - lamps.len(),
+        "the lamps and their fixtures' glass left the light set ({lights} -> {out})"
     );
     engine.world.entity_mut(shard).insert(SwitchedOff);
     engine.advance(1.0 / 60.0);
     let dark = engine.render_scene().lights.lights.len();
-    assert!(
-        dark < lights - lamps.len(),
-        "the shard's emitters left the light set"
-    );
+    assert!(dark < out, "the shard's emitters left the light set");
     let darker = image(&engine, 2);
     let mean = |film: &Film| film.mean().element_sum();
     assert!(mean(&darker) < mean(&before) * 0.9);

@@ -4,15 +4,17 @@
 //! warden for skinning benchmarks.
 //!
 //! The kit (one `.glb` each; the dimensions and origins are in each builder's doc):
-//! - structure: `wall`, `wall-doorway` and `wall-window` (4 x 3 x 0.2 m, with a 1.2 x
-//!   2.2 m doorway or a 1.2 x 1 m window), `floor` (4 x 4 m tile), `pillar`, `stairs`
-//!   (15 steps, 3 m up over 5 m), `door` (fills the doorway) and `gate` (an iron
-//!   portcullis);
-//! - furniture: `crate`, `table`, `bookcase` (with books), `bottle` (to knock over),
-//!   `mirror` (its reflecting face is the z = 0.03 plane over x -0.6..0.6, y 0..2);
-//! - lights: `lamp-bracket` (a wall lantern) and `candle`, whose emissive glass and flame
-//!   are closed solids: their punctual lights go just outside them ([`LAMP_BRACKET_LIGHT`],
-//!   [`CANDLE_LIGHT`]);
+//! - structure: `wall`, `wall-doorway` (framed) and `wall-window` (4 x 3 x 0.2 m, with a
+//!   1.2 x 2.2 m doorway or a 1.2 x 1 m window), `floor` (4 x 4 m tile), `pillar`,
+//!   `stairs` (15 steps, 3 m up over 5 m), `beam` (8 m, to rest on two walls' tops),
+//!   `door` (fills the doorway) and `gate` (an iron portcullis);
+//! - furniture: `crate`, `barrel`, `table`, `bookcase` (with books), `shelf` (with jars),
+//!   `rug`, `bottle` (to knock over), `mirror` (its reflecting face is the z = 0.03 plane
+//!   over x -0.6..0.6, y 0..2);
+//! - lights: `lamp-bracket` (a wall lantern), `hanging-lamp` (the same lantern on a rod,
+//!   to hang under a beam) and `candle`, whose emissive glass and flame are closed solids:
+//!   their punctual lights go just outside them ([`LAMP_BRACKET_LIGHT`],
+//!   [`HANGING_LAMP_LIGHT`], [`CANDLE_LIGHT`]);
 //! - the collectable `shard` and the morphing cloth `banner`.
 //!
 //! Every kit piece but the banner is built from closed solids with outward faces.
@@ -645,28 +647,46 @@ fn pyramid(
 /// which is also the size of `door`.
 const DOORWAY_HALF_WIDTH: f32 = 0.6;
 const DOORWAY_HEIGHT: f32 = 2.2;
+/// How wide `wall-doorway`'s wooden frame is around the opening, and how far it stands
+/// proud of each face of the wall.
+const DOOR_FRAME_WIDTH: f32 = 0.1;
+const DOOR_FRAME_PROUD: f32 = 0.02;
 
 /// `wall-doorway`: `wall` (4 m wide (x) x 3 m high x 0.2 m thick (z), origin at the bottom
-/// centre, `ashlar`) with a doorway 1.2 m wide x 2.2 m high at x -0.6..0.6 from the floor:
-/// three boxes, the jambs x -2..-0.6 and 0.6..2 (full height) and the lintel x -0.6..0.6,
-/// y 2.2..3. `door` placed at x = -0.6 fills the opening.
+/// centre, `ashlar`) with a doorway 1.2 m wide x 2.2 m high at x -0.6..0.6 from the floor,
+/// framed in `dark wood`. The stone is three boxes, the jambs x -2..-0.7 and 0.7..2 (full
+/// height) and the lintel x -0.7..0.7, y 2.3..3; the frame fills the 0.1 m between them and
+/// the opening (posts x 0.6..0.7 up to y 2.2 each side, a head x -0.7..0.7, y 2.2..2.3) and
+/// stands 2 cm proud of both faces (z -0.12..0.12), so the opening reads as a door's even
+/// where no door hangs in it. `door` placed at x = -0.6 fills the opening.
 fn wall_doorway() -> Piece {
-    let mut piece = Piece::new(vec![ashlar()]);
-    let (w, h) = (DOORWAY_HALF_WIDTH, DOORWAY_HEIGHT);
+    let mut piece = Piece::new(vec![ashlar(), dark_wood()]);
+    let v = Vec3::new;
+    let (w, h, f) = (DOORWAY_HALF_WIDTH, DOORWAY_HEIGHT, DOOR_FRAME_WIDTH);
+    let z = 0.1 + DOOR_FRAME_PROUD;
     for side in [-1.0, 1.0] {
         piece.cuboid(
             "wall-doorway",
-            Vec3::new(side * 2.0, 0.0, -0.1),
-            Vec3::new(side * w, 3.0, 0.1),
+            v(side * 2.0, 0.0, -0.1),
+            v(side * (w + f), 3.0, 0.1),
             0,
         );
     }
     piece.cuboid(
         "wall-doorway",
-        Vec3::new(-w, h, -0.1),
-        Vec3::new(w, 3.0, 0.1),
+        v(-w - f, h + f, -0.1),
+        v(w + f, 3.0, 0.1),
         0,
     );
+    for side in [-1.0, 1.0] {
+        piece.cuboid(
+            "door frame",
+            v(side * w, 0.0, -z),
+            v(side * (w + f), h, z),
+            1,
+        );
+    }
+    piece.cuboid("door frame", v(-w - f, h, -z), v(w + f, h + f, z), 1);
     piece
 }
 
@@ -759,20 +779,11 @@ pub const LAMP_BRACKET_LIGHT: Vec3 = Vec3::new(0.0, -0.27, 0.35);
 /// `lamp-bracket`: a wall-mounted `iron` bracket with a lantern. Origin at the mount point
 /// on the wall, which is the z = 0 plane behind it; nothing lies behind z = 0. A back plate
 /// (x -0.05..0.05, y -0.12..0.06, z 0..0.015), a 2.5 cm square arm along +Z at y = 0 out to
-/// z = 0.38 with a diagonal brace under it, a hanger, and the lantern housing 0.16 m
-/// across centred at (0, -0.15, 0.35) (x -0.08..0.08, y -0.23..-0.07, z 0.27..0.43): an
-/// iron cap, base and four corner posts around an emissive `lantern glass` box (0.14 x
-/// 0.125 x 0.14 m, base colour (0.9, 0.8, 0.6), radiance (6, 4, 1.5)), under a pyramid
-/// roof peaking at y = -0.035. A level's light goes at (0, -0.27, 0.35), 4 cm under the
-/// housing (see `LAMP_BRACKET_LIGHT`).
+/// z = 0.38 with a diagonal brace under it, a hanger, and the lantern ([`lantern`])
+/// centred at (0, -0.15, 0.35), x -0.08..0.08, y -0.23..-0.07, z 0.27..0.43. A level's
+/// light goes at (0, -0.27, 0.35), 4 cm under the housing (see `LAMP_BRACKET_LIGHT`).
 fn lamp_bracket() -> anyhow::Result<Piece> {
-    const IRON: usize = 0;
-    const GLASS: usize = 1;
-    let glass = MaterialData {
-        emissive: Vec3::new(6.0, 4.0, 1.5),
-        ..MaterialData::lambertian("lantern glass", Vec3::new(0.9, 0.8, 0.6))
-    };
-    let mut piece = Piece::new(vec![iron(), plain(glass)]);
+    let mut piece = Piece::new(vec![iron(), lantern_glass()]);
     let v = Vec3::new;
     let c = LANTERN_CENTRE;
     let name = "lamp bracket";
@@ -797,6 +808,28 @@ fn lamp_bracket() -> anyhow::Result<Piece> {
         v(0.006, 0.0, c.z + 0.006),
         IRON,
     );
+    lantern(&mut piece, name, c)?;
+    Ok(piece)
+}
+
+/// The lantern pieces' materials, by index: `iron` first, then `lantern glass`.
+const IRON: usize = 0;
+const GLASS: usize = 1;
+
+/// `lantern glass`: base colour (0.9, 0.8, 0.6), radiance (6, 4, 1.5).
+fn lantern_glass() -> KitMaterial {
+    plain(MaterialData {
+        emissive: Vec3::new(6.0, 4.0, 1.5),
+        ..MaterialData::lambertian("lantern glass", Vec3::new(0.9, 0.8, 0.6))
+    })
+}
+
+/// A lantern housing 0.16 m across centred at `c`, solids named `name` (and `lantern
+/// glass`): an `IRON` pyramid roof from 8 cm over `c` peaking 11.5 cm over it, a cap and a
+/// base, four corner posts, and round the emissive `GLASS` box (0.14 x 0.125 x 0.14 m)
+/// between them. The housing spans `c` +- (0.08, 0.08, 0.08).
+fn lantern(piece: &mut Piece, name: &str, c: Vec3) -> anyhow::Result<()> {
+    let v = Vec3::new;
     piece.solids.push(pyramid(
         name,
         c + v(0.0, 0.08, 0.0),
@@ -830,7 +863,48 @@ fn lamp_bracket() -> anyhow::Result<Piece> {
         c + v(0.07, 0.065, 0.07),
         GLASS,
     );
+    Ok(())
+}
+
+/// The centre of `hanging-lamp`'s lantern, under the point it hangs from.
+pub const HANGING_LAMP_CENTRE: Vec3 = Vec3::new(0.0, -0.3, 0.0);
+/// Where a level puts `hanging-lamp`'s punctual light: 4 cm under the housing, on its
+/// axis (as `LAMP_BRACKET_LIGHT`).
+pub const HANGING_LAMP_LIGHT: Vec3 = Vec3::new(0.0, -0.42, 0.0);
+
+/// `hanging-lamp`: the lantern of `lamp-bracket` hung on an `iron` rod under a ceiling
+/// plate. Origin at the point it hangs from, nothing above y = 0: a plate 0.12 m square
+/// (y -0.02..0), a 1.2 cm rod down into the lantern's roof, and the lantern centred at
+/// (0, -0.3, 0) (x and z -0.08..0.08, y -0.38..-0.22). Hang it under a `beam` (its
+/// underside is the beam's origin); its light goes at (0, -0.42, 0) (`HANGING_LAMP_LIGHT`).
+fn hanging_lamp() -> anyhow::Result<Piece> {
+    let mut piece = Piece::new(vec![iron(), lantern_glass()]);
+    let v = Vec3::new;
+    let c = HANGING_LAMP_CENTRE;
+    let name = "hanging lamp";
+    piece.cuboid(name, v(-0.06, -0.02, -0.06), v(0.06, 0.0, 0.06), IRON);
+    piece.cuboid(
+        name,
+        v(-0.006, c.y + 0.1, -0.006),
+        v(0.006, -0.02, 0.006),
+        IRON,
+    );
+    lantern(&mut piece, name, c)?;
     Ok(piece)
+}
+
+/// `beam`: a `dark wood` ceiling beam 8 m long (x -4..4), 0.2 m wide (z -0.1..0.1) and
+/// 0.25 m deep, origin at the middle of its underside: set at y = 3 with its ends on the
+/// centre lines of two walls 8 m apart, it rests on their tops and spans the room.
+fn beam() -> Piece {
+    let mut piece = Piece::new(vec![dark_wood()]);
+    piece.cuboid(
+        "beam",
+        Vec3::new(-4.0, 0.0, -0.1),
+        Vec3::new(4.0, 0.25, 0.1),
+        0,
+    );
+    piece
 }
 
 /// Height of the middle of `candle`'s flame (y 0.17..0.22).
@@ -931,6 +1005,112 @@ fn table() -> Piece {
             v(side * 0.71, 0.6, -0.28),
             v(side * 0.73, 0.7, 0.28),
             0,
+        );
+    }
+    piece
+}
+
+/// `barrel`: a `wood` barrel 0.9 m tall of radius 0.3 m standing on its base at the origin
+/// (16 staves' worth of sides), with two `iron` hoops 5 cm wide standing 1 cm proud (their
+/// middles at y 0.15 and 0.75).
+fn barrel() -> Piece {
+    let mut piece = Piece::new(vec![wood(), iron()]);
+    piece
+        .solids
+        .push(MeshData::cylinder("barrel", 0.3, 0.9, 16, 0));
+    for middle in [0.15, 0.75] {
+        piece.solids.push(translated(
+            MeshData::cylinder("barrel hoops", 0.31, 0.05, 16, 1),
+            Vec3::new(0.0, middle - 0.025, 0.0),
+        ));
+    }
+    piece
+}
+
+/// `shelf`: open `wood` shelves 1.0 m wide x 1.8 m high x 0.35 m deep, origin at the bottom
+/// centre of its back (x -0.5..0.5, y 0..1.8, z 0..0.35), to stand against a wall as
+/// `bookcase` does. Two 2 cm sides and four 2.5 cm boards (tops at y 0.1, 0.65, 1.2 and
+/// 1.8); on the lower three stand `earthenware` jars (0.42, 0.26, 0.16) on dressed stone,
+/// 5..9 cm in radius and 0.14..0.26 m tall, placed by a fixed hash.
+fn shelf() -> Piece {
+    let earthenware = MaterialData {
+        roughness: 0.7,
+        ..MaterialData::lambertian("earthenware", Vec3::new(0.42, 0.26, 0.16))
+    };
+    let mut piece = Piece::new(vec![wood(), textured(Surface::DressedStone, earthenware)]);
+    let v = Vec3::new;
+    for side in [-1.0, 1.0] {
+        piece.cuboid(
+            "shelf",
+            v(side * 0.5, 0.0, 0.0),
+            v(side * 0.48, 1.8, 0.35),
+            0,
+        );
+    }
+    let boards = [0.1, 0.65, 1.2, 1.8];
+    for top in boards {
+        piece.cuboid("shelf", v(-0.48, top - 0.025, 0.0), v(0.48, top, 0.35), 0);
+    }
+    for (board, &floor) in boards[..3].iter().enumerate() {
+        let mut x = -0.46;
+        for jar in 0_u32.. {
+            let r = kit_surfaces::hash(0x5e1f_0000 + 16 * board as u32 + jar);
+            let radius = 0.05 + (r % 5) as f32 * 0.01;
+            let gap = 0.02 + ((r >> 4) % 10) as f32 * 0.02;
+            if x + gap + 2.0 * radius > 0.46 {
+                break;
+            }
+            x += gap + radius;
+            let height = 0.14 + ((r >> 8) % 7) as f32 * 0.02;
+            let z = 0.17 + ((r >> 12) % 3) as f32 * 0.02;
+            piece.solids.push(translated(
+                MeshData::cylinder("jars", radius, height, 12, 1),
+                v(x, floor, z),
+            ));
+            x += radius;
+        }
+    }
+    piece
+}
+
+/// `rug`: a woven rug 2.4 x 1.6 m and 1 cm thick lying on the floor, origin at the middle
+/// of its underside (x -1.2..1.2, z -0.8..0.8, y 0..0.01): a `rug red` (0.3, 0.05, 0.04)
+/// field inside a 0.15 m `rug ochre` (0.45, 0.3, 0.1) border, both cloth, roughness 1.
+/// Thinner than a step, so feet and the wardens' paths cross it as floor.
+fn rug() -> Piece {
+    let cloth = |name: &str, colour: Vec3| {
+        textured(
+            Surface::Cloth,
+            MaterialData {
+                roughness: 1.0,
+                ..MaterialData::lambertian(name, colour)
+            },
+        )
+    };
+    let mut piece = Piece::new(vec![
+        cloth("rug red", Vec3::new(0.3, 0.05, 0.04)),
+        cloth("rug ochre", Vec3::new(0.45, 0.3, 0.1)),
+    ]);
+    let v = Vec3::new;
+    let (x, z, border, top) = (1.2, 0.8, 0.15, 0.01);
+    piece.cuboid(
+        "rug",
+        v(border - x, 0.0, border - z),
+        v(x - border, top, z - border),
+        0,
+    );
+    for side in [-1.0, 1.0] {
+        piece.cuboid(
+            "rug border",
+            v(-x, 0.0, side * (z - border)),
+            v(x, top, side * z),
+            1,
+        );
+        piece.cuboid(
+            "rug border",
+            v(side * (x - border), 0.0, border - z),
+            v(side * x, top, z - border),
+            1,
         );
     }
     piece
@@ -1106,10 +1286,15 @@ fn kit_pieces() -> anyhow::Result<Vec<(&'static str, Piece)>> {
         ("door", door()),
         ("stairs", stairs()),
         ("lamp-bracket", lamp_bracket()?),
+        ("hanging-lamp", hanging_lamp()?),
+        ("beam", beam()),
         ("candle", candle()?),
         ("bottle", bottle()),
         ("table", table()),
         ("bookcase", bookcase()),
+        ("shelf", shelf()),
+        ("barrel", barrel()),
+        ("rug", rug()),
         ("mirror", mirror()),
         ("gate", gate()?),
     ])
@@ -1928,6 +2113,8 @@ mod tests {
             "cornell/cornell-box.bin",
             "cornell/cornell-box.gltf",
             "kit/banner.glb",
+            "kit/barrel.glb",
+            "kit/beam.glb",
             "kit/bookcase.glb",
             "kit/bottle.glb",
             "kit/candle.glb",
@@ -1935,10 +2122,13 @@ mod tests {
             "kit/door.glb",
             "kit/floor.glb",
             "kit/gate.glb",
+            "kit/hanging-lamp.glb",
             "kit/lamp-bracket.glb",
             "kit/mirror.glb",
             "kit/pillar.glb",
+            "kit/rug.glb",
             "kit/shard.glb",
+            "kit/shelf.glb",
             "kit/stairs.glb",
             "kit/table.glb",
             "kit/wall-doorway.glb",
@@ -1954,7 +2144,7 @@ mod tests {
             "the shipped warden has {warden_triangles} triangles"
         );
         // (file, triangles, material names)
-        let expectations: [(&str, usize, &[&str]); 19] = [
+        let expectations: [(&str, usize, &[&str]); 24] = [
             (
                 "kit/warden.glb",
                 warden_triangles,
@@ -1971,7 +2161,7 @@ mod tests {
             ("kit/pillar.glb", 24 * 2 + 2 * 22, &["stone"]),
             ("kit/crate.glb", 12, &["wood"]),
             ("kit/shard.glb", 8, &["shard glow"]),
-            ("kit/wall-doorway.glb", 3 * 12, &["ashlar"]),
+            ("kit/wall-doorway.glb", 6 * 12, &["ashlar", "dark wood"]),
             ("kit/wall-window.glb", 5 * 12, &["ashlar", "dark wood"]),
             ("kit/door.glb", 7 * 12, &["dark wood", "brass"]),
             ("kit/stairs.glb", 15 * 12, &["stone"]),
@@ -1988,6 +2178,19 @@ mod tests {
             ),
             ("kit/bottle.glb", 2 * (2 * 16 + 2 * 14), &["bottle green"]),
             ("kit/table.glb", 9 * 12, &["wood"]),
+            // Plate, rod, roof (6), cap, base, four posts and the glass.
+            (
+                "kit/hanging-lamp.glb",
+                9 * 12 + 6,
+                &["iron", "lantern glass"],
+            ),
+            ("kit/beam.glb", 12, &["dark wood"]),
+            // A body and two hoops, each 2 triangles a segment and 14 a cap.
+            ("kit/barrel.glb", 3 * (2 * 16 + 2 * 14), &["wood", "iron"]),
+            // A field and four border strips.
+            ("kit/rug.glb", 5 * 12, &["rug red", "rug ochre"]),
+            // Two sides, four boards and nine jars (2 triangles a segment, 10 a cap).
+            ("kit/shelf.glb", 6 * 12 + 9 * 44, &["wood", "earthenware"]),
             ("kit/mirror.glb", 5 * 12, &["mirror", "dark wood"]),
             ("kit/gate.glb", 10 * (12 + 6) + 3 * 12, &["iron"]),
             // Eight carcass boxes and 64 books.
@@ -2222,8 +2425,17 @@ mod tests {
         };
 
         let wall = (v(-2.0, 0.0, -0.1), v(2.0, 3.0, 0.1));
-        assert_near(whole("wall-doorway"), wall, "wall-doorway");
+        assert_near(
+            mesh_bounds("wall-doorway", "wall-doorway"),
+            wall,
+            "wall-doorway",
+        );
         clear("wall-doorway", v(-0.6, 0.0, -1.0), v(0.6, 2.2, 1.0));
+        assert_near(
+            mesh_bounds("wall-doorway", "door frame"),
+            (v(-0.7, 0.0, -0.12), v(0.7, 2.3, 0.12)),
+            "door frame",
+        );
         assert_near(
             mesh_bounds("wall-window", "wall-window"),
             wall,
@@ -2281,8 +2493,18 @@ mod tests {
             (v(-0.08, -0.23, 0.27), v(0.08, -0.07, 0.43)),
             "lantern housing",
         );
+        let (lo, hi) = whole("hanging-lamp");
+        assert!(hi.y == 0.0 && lo.y > HANGING_LAMP_LIGHT.y, "{lo} .. {hi}");
+        let (lo, hi) = mesh_bounds("hanging-lamp", "lantern glass");
+        assert!(((lo + hi) * 0.5 - HANGING_LAMP_CENTRE).length() < 0.01);
+        assert_near(
+            whole("beam"),
+            (v(-4.0, 0.0, -0.1), v(4.0, 0.25, 0.1)),
+            "beam",
+        );
         for (piece, light) in [
             ("lamp-bracket", LAMP_BRACKET_LIGHT),
+            ("hanging-lamp", HANGING_LAMP_LIGHT),
             ("candle", CANDLE_LIGHT),
         ] {
             for solid in &pieces[piece].solids {
@@ -2310,6 +2532,19 @@ mod tests {
             "bookcase",
         );
         assert!(pieces["bookcase"].solids.len() > 40, "too few books");
+        assert_near(
+            whole("shelf"),
+            (v(-0.5, 0.0, 0.0), v(0.5, 1.8, 0.35)),
+            "shelf",
+        );
+        let jars = pieces["shelf"].solids.iter().filter(|s| s.name == "jars");
+        assert!(jars.count() >= 6, "too few jars");
+        assert_near(
+            whole("barrel"),
+            (v(-0.31, 0.0, -0.31), v(0.31, 0.9, 0.31)),
+            "barrel",
+        );
+        assert_near(whole("rug"), (v(-1.2, 0.0, -0.8), v(1.2, 0.01, 0.8)), "rug");
 
         let glass = mesh_bounds("mirror", "mirror");
         assert_near(
