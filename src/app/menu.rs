@@ -2,17 +2,20 @@
 //! over the darkened game (or a plain backdrop before a level is chosen).
 //!
 //! The menus are a small state machine with no window in it, so tests drive it: the shell
-//! turns keys and the mouse into [`MenuInput`]s, and [`Menu::input`] answers with a
-//! [`MenuCommand`] for the shell to carry out (play a level, resume, quit...). Pages:
-//! main -> level select, settings -> keys; Esc in play opens the pause page. No single key
-//! quits: Quit is a row to choose and confirm with Enter or a click.
+//! turns keys, the mouse and gamepad buttons into [`MenuInput`]s, and [`Menu::input`]
+//! answers with a [`MenuCommand`] for the shell to carry out (play a level, resume,
+//! quit...). Pages: main -> level select, settings -> keys, gamepad buttons; Esc (or Start)
+//! in play opens the pause page. No single key quits: Quit is a row to choose and confirm
+//! with Enter, A or a click.
 
 use std::path::{Path, PathBuf};
 
 use winit::keyboard::KeyCode;
 
 use super::hud::draw_text;
-use super::settings::{ACTION_NAMES, Best, BestTimes, Key, KeyBindings, Settings, ranges};
+use super::settings::{
+    ACTION_NAMES, Best, BestTimes, Key, KeyBindings, PadBindings, PadButton, Settings, ranges,
+};
 use crate::game::Action;
 
 /// A playable level the level select lists.
@@ -106,6 +109,8 @@ pub enum Page {
     Levels,
     Settings,
     Keys,
+    /// The gamepad's buttons for each action.
+    Pad,
     Paused,
     Won,
 }
@@ -124,6 +129,8 @@ pub enum MenuInput {
     Point(usize),
     /// A key press, while the keys page waits for one to bind.
     Key(KeyCode),
+    /// A gamepad button press, while the gamepad page waits for one to bind.
+    Pad(PadButton),
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -187,6 +194,9 @@ enum Row {
     Keys,
     Bind(Action),
     ResetKeys,
+    Pad,
+    BindPad(Action),
+    ResetPad,
     Resume,
     Restart,
     MainMenu,
@@ -233,6 +243,8 @@ pub struct Menu {
     stack: Vec<(Page, usize)>,
     /// The keys page is waiting for the key to bind to this action.
     binding: Option<Action>,
+    /// The gamepad page is waiting for the button to bind to this action.
+    pad_binding: Option<Action>,
 }
 
 impl Menu {
@@ -240,12 +252,14 @@ impl Menu {
         Menu {
             stack: vec![(page, 0)],
             binding: None,
+            pad_binding: None,
         }
     }
 
-    /// The keys page waits for the key to bind: every key goes to it.
+    /// The keys page waits for the key to bind (or the gamepad page for a button, which a
+    /// key cancels): every key goes to it.
     pub fn waiting_for_key(&self) -> bool {
-        self.binding.is_some()
+        self.binding.is_some() || self.pad_binding.is_some()
     }
 
     pub fn page(&self) -> Page {
@@ -271,12 +285,18 @@ impl Menu {
                 Row::Volume(Channel::Voices),
                 Row::Volume(Channel::Ambience),
                 Row::Keys,
+                Row::Pad,
                 Row::Back,
             ],
             Page::Keys => ACTION_NAMES
                 .iter()
                 .map(|&(action, _)| Row::Bind(action))
                 .chain([Row::ResetKeys, Row::Back])
+                .collect(),
+            Page::Pad => ACTION_NAMES
+                .iter()
+                .map(|&(action, _)| Row::BindPad(action))
+                .chain([Row::ResetPad, Row::Back])
                 .collect(),
             Page::Paused => vec![
                 Row::Resume,
@@ -314,6 +334,20 @@ impl Menu {
 
     /// One input; returns what the shell must do, if anything.
     pub fn input(&mut self, input: MenuInput, context: &mut MenuContext) -> Option<MenuCommand> {
+        if let Some(action) = self.pad_binding {
+            match input {
+                // Start keeps the binding, as Esc does on the keys page.
+                MenuInput::Pad(button) => {
+                    self.pad_binding = None;
+                    if context.settings.pad.bind(action, button) {
+                        return Some(MenuCommand::SettingsChanged);
+                    }
+                }
+                MenuInput::Key(_) | MenuInput::Back => self.pad_binding = None,
+                _ => {}
+            }
+            return None;
+        }
         if let Some(action) = self.binding {
             if let MenuInput::Key(code) = input {
                 self.binding = None;
@@ -389,6 +423,18 @@ impl Menu {
                 context.settings.keys = KeyBindings::default();
                 Some(MenuCommand::SettingsChanged)
             }
+            Row::Pad => {
+                self.open(Page::Pad);
+                None
+            }
+            Row::BindPad(action) => {
+                self.pad_binding = Some(action);
+                None
+            }
+            Row::ResetPad => {
+                context.settings.pad = PadBindings::default();
+                Some(MenuCommand::SettingsChanged)
+            }
             Row::Resume => Some(MenuCommand::Resume),
             Row::Restart | Row::PlayAgain => Some(MenuCommand::Restart),
             Row::MainMenu => Some(MenuCommand::MainMenu),
@@ -416,6 +462,13 @@ impl Menu {
             Page::Keys => vec![match self.binding {
                 Some(action) => format!("Press a key for {}  (Esc: keep it)", action_name(action)),
                 None => "Keys".to_string(),
+            }],
+            Page::Pad => vec![match self.pad_binding {
+                Some(action) => format!(
+                    "Press a button for {}  (Start or Esc: keep it)",
+                    action_name(action)
+                ),
+                None => "Gamepad buttons".to_string(),
             }],
             Page::Paused => vec![
                 "Paused".to_string(),
@@ -480,20 +533,19 @@ impl Menu {
                     ),
                     Row::Keys => ("Keys".to_string(), None),
                     Row::Bind(action) => {
-                        let keys = settings.keys.keys(action);
-                        let value = if self.binding == Some(action) {
-                            "...".to_string()
-                        } else if keys.is_empty() {
-                            "(none)".to_string()
-                        } else {
-                            keys.iter()
-                                .map(|key| key.label())
-                                .collect::<Vec<_>>()
-                                .join(" ")
-                        };
+                        let labels = settings.keys.of(action).iter().map(|key| key.label());
+                        let value = bound_value(labels, self.binding == Some(action));
                         (action_name(action).to_string(), Some(value))
                     }
                     Row::ResetKeys => ("Reset keys to defaults".to_string(), None),
+                    Row::Pad => ("Gamepad buttons".to_string(), None),
+                    Row::BindPad(action) => {
+                        let labels = (settings.pad.of(action).iter())
+                            .map(|button| button.label().to_string());
+                        let value = bound_value(labels, self.pad_binding == Some(action));
+                        (action_name(action).to_string(), Some(value))
+                    }
+                    Row::ResetPad => ("Reset buttons to defaults".to_string(), None),
                     Row::Resume => ("Resume".to_string(), None),
                     Row::Restart => ("Restart the level".to_string(), None),
                     Row::MainMenu => ("Main menu".to_string(), None),
@@ -510,6 +562,7 @@ impl Menu {
         let hint = match self.page() {
             Page::Settings => "Up/Down choose  Left/Right change  Esc back",
             Page::Keys if self.binding.is_some() => "",
+            Page::Pad if self.pad_binding.is_some() => "",
             Page::Main | Page::Won => "Up/Down choose  Enter select",
             Page::Paused => "Up/Down choose  Enter select  Esc resume",
             _ => "Up/Down choose  Enter select  Esc back",
@@ -520,6 +573,20 @@ impl Menu {
             selected: self.selected(),
             hint,
         }
+    }
+}
+
+/// A binding row's value: what is bound, "(none)", or "..." while the page waits for
+/// the input to bind.
+fn bound_value(labels: impl Iterator<Item = String>, waiting: bool) -> String {
+    if waiting {
+        return "...".to_string();
+    }
+    let labels: Vec<String> = labels.collect();
+    if labels.is_empty() {
+        "(none)".to_string()
+    } else {
+        labels.join(" ")
     }
 }
 
@@ -835,7 +902,7 @@ mod tests {
             Some(MenuCommand::SettingsChanged)
         );
         assert_eq!(
-            context.settings.keys.action(KeyCode::ArrowUp),
+            context.settings.keys.action(Key(KeyCode::ArrowUp)),
             Some(Action::MoveForward)
         );
         menu.input(MenuInput::Activate, &mut context);
@@ -844,8 +911,47 @@ mod tests {
             None
         );
         assert_eq!(
-            context.settings.keys.action(KeyCode::ArrowUp),
+            context.settings.keys.action(Key(KeyCode::ArrowUp)),
             Some(Action::MoveForward)
+        );
+    }
+
+    #[test]
+    fn a_pad_button_is_rebound_from_the_settings_and_start_keeps_the_old_one() {
+        let mut context = context();
+        let mut menu = Menu::new(Page::Settings);
+        let rows = menu.rows(&context);
+        let pad = rows.iter().position(|&row| row == Row::Pad).unwrap();
+        menu.input(MenuInput::Point(pad), &mut context);
+        menu.input(MenuInput::Activate, &mut context);
+        assert_eq!(menu.page(), Page::Pad);
+        let view = menu.view(&context);
+        assert_eq!(view.rows[4].label, "jump");
+        assert_eq!(view.rows[4].value.as_deref(), Some("A"));
+        menu.input(MenuInput::Point(4), &mut context);
+        menu.input(MenuInput::Activate, &mut context);
+        assert!(menu.waiting_for_key());
+        assert!(menu.view(&context).title[0].starts_with("Press a button for jump"));
+        assert_eq!(
+            menu.input(MenuInput::Pad(PadButton::North), &mut context),
+            Some(MenuCommand::SettingsChanged)
+        );
+        assert_eq!(context.settings.pad.jump, [PadButton::North]);
+        // Start (and a key) keeps the binding as it was.
+        menu.input(MenuInput::Activate, &mut context);
+        assert_eq!(
+            menu.input(MenuInput::Pad(PadButton::Start), &mut context),
+            None
+        );
+        assert!(!menu.waiting_for_key());
+        assert_eq!(context.settings.pad.jump, [PadButton::North]);
+        menu.input(MenuInput::Activate, &mut context);
+        menu.input(MenuInput::Key(KeyCode::Escape), &mut context);
+        assert_eq!(context.settings.pad.jump, [PadButton::North]);
+        assert_eq!(
+            menu.page(),
+            Page::Pad,
+            "Esc cancelled the binding, not the page"
         );
     }
 

@@ -34,6 +34,7 @@
 
 mod captions;
 pub mod editor;
+pub mod gamepad;
 pub mod hints;
 mod hud;
 pub mod menu;
@@ -70,7 +71,7 @@ use crate::scene::watch::FileWatch;
 use crate::scene::world::Scene;
 use menu::{Finish, Menu, MenuCommand, MenuContext, MenuInput, Page};
 use resolution::ResolutionController;
-use settings::{BestTimes, Settings};
+use settings::{BestTimes, PadButton, Settings};
 
 pub struct PlayOptions {
     /// The level to play; None opens the main menu.
@@ -242,6 +243,11 @@ impl App {
         for notice in &notices {
             eprintln!("gloam: {notice}");
         }
+        // Said on the terminal only: a machine without gamepads needs no notice on screen.
+        let (gamepad, gamepad_warning) = gamepad::Gamepad::open();
+        if let Some(warning) = gamepad_warning {
+            eprintln!("gloam: warning: {warning}");
+        }
         let log = StageLog::new(&options);
         let overlay = options.profiler;
         let player_settings_vsync = player_settings.vsync;
@@ -281,6 +287,8 @@ impl App {
             switch: None,
             play_test: false,
             focused: false,
+            gamepad,
+            device: hints::Device::Keyboard,
         };
         app.apply_target();
         app
@@ -522,6 +530,10 @@ pub(crate) struct App {
     play_test: bool,
     /// Whether the window has the keyboard focus (losing it pauses an attempt).
     focused: bool,
+    /// The gamepads, read once a frame (`read_gamepad`).
+    gamepad: gamepad::Gamepad,
+    /// The device the player last used: the prompts name its controls.
+    device: hints::Device,
 }
 
 /// How long a notice stays on screen.
@@ -829,6 +841,9 @@ impl App {
 
     fn key(&mut self, event_loop: &ActiveEventLoop, code: KeyCode, state: ElementState) {
         let pressed = state == ElementState::Pressed;
+        if pressed {
+            self.device = hints::Device::Keyboard;
+        }
         if self.menu.is_some() {
             if !pressed {
                 return;
@@ -848,7 +863,7 @@ impl App {
             };
             return self.menu_input(event_loop, input);
         }
-        if let Some(action) = self.context.settings.keys.action(code) {
+        if let Some(action) = self.context.settings.keys.action(settings::Key(code)) {
             // A recording being watched plays its own input.
             if self.options.watch.is_some() {
                 return;
@@ -881,6 +896,58 @@ impl App {
             return self.pause();
         }
         self.window_key(binding);
+    }
+
+    /// The gamepads since the last frame: in a menu their buttons steer it (the d-pad
+    /// moves and changes, A chooses, B and Start go back; a button to bind goes to the
+    /// gamepad page); in play the actions they hold join the keyboard's, Start pauses, and
+    /// the right stick turns the view for the frame's `seconds`.
+    fn read_gamepad(&mut self, event_loop: &ActiveEventLoop, seconds: f32) {
+        let pressed = self.gamepad.poll();
+        let state = &self.gamepad.state;
+        if !pressed.is_empty()
+            || gamepad::past_dead_zone(state.left) != Vec2::ZERO
+            || gamepad::past_dead_zone(state.right) != Vec2::ZERO
+        {
+            self.device = hints::Device::Gamepad;
+        }
+        if self.menu.is_some() {
+            // Whatever the pads held was let go when the menu opened (`pause`).
+            self.gamepad.held.clear();
+            for button in pressed {
+                let Some(menu) = &self.menu else { break };
+                let Some(input) = gamepad::menu_input(button, menu.waiting_for_key()) else {
+                    continue;
+                };
+                self.menu_input(event_loop, input);
+            }
+            return;
+        }
+        // A recording being watched plays its own input.
+        if self.options.watch.is_some() {
+            return;
+        }
+        if pressed.contains(&PadButton::Start) && self.attempt_running() {
+            return self.pause();
+        }
+        let Some(game) = &mut self.game else { return };
+        let now = gamepad::held_actions(&self.gamepad.state, &self.context.settings.pad);
+        let mut input = game.engine.world.resource_mut::<Input>();
+        for &action in now.difference(&self.gamepad.held) {
+            input.held.insert(action);
+            input.pressed.insert(action);
+        }
+        for action in self.gamepad.held.difference(&now) {
+            input.held.remove(action);
+        }
+        let pitch = if self.context.settings.invert_y {
+            -1.0
+        } else {
+            1.0
+        };
+        input.look +=
+            gamepad::look_rate(self.gamepad.state.right) * seconds * Vec2::new(1.0, pitch);
+        self.gamepad.held = now;
     }
 
     /// Takes the sounds the steps since the last frame made and captions those that
@@ -1036,6 +1103,10 @@ impl App {
             .options
             .frames
             .is_some_and(|limit| self.rendered >= limit);
+        self.read_gamepad(event_loop, elapsed.as_secs_f32());
+        if self.switch.is_some() {
+            return; // a menu row chosen on the pad left this window's level
+        }
         // A menu holds the level; the main menu's backdrop goes on living behind it.
         let held = self.menu.is_some() && self.game.is_some();
         let advanced = !held && !holding && (self.game.is_some() || self.backdrop.is_some());
@@ -1115,18 +1186,23 @@ impl App {
             }
         }
         if let Some(game) = &mut self.game {
-            let keys = &self.context.settings.keys;
+            let settings = &self.context.settings;
+            let controls = hints::Controls {
+                keys: &settings.keys,
+                pad: &settings.pad,
+                device: self.device,
+            };
             draw_hud(
                 frame,
                 (width, height),
                 &mut game.engine,
                 &self.caught,
                 self.options.watch.is_some(),
-                &hints::key_label(keys, crate::game::Action::Interact),
+                &controls.label(crate::game::Action::Interact),
             );
             if game.scene.level.campaign == Some(1)
                 && let Some(moment) = hint_moment(&mut game.engine)
-                && let Some(line) = game.hints.line(moment, keys)
+                && let Some(line) = game.hints.line(moment, &controls)
             {
                 let wide = line.chars().count() as u32 * hud::GLYPH_WIDTH;
                 let x = width.saturating_sub(wide) / 2;

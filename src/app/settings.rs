@@ -1,5 +1,6 @@
 //! The player's own files, read when the window opens and written when they change: the
-//! settings (mouse, view, brightness, frame-time target, keys, captions, volumes) and the best time of each
+//! settings (mouse, view, brightness, frame-time target, keys, gamepad buttons, captions,
+//! volumes) and the best time of each
 //! level, both RON in the user's config folder (`$GLOAM_CONFIG_DIR`, else
 //! `$XDG_CONFIG_HOME/gloam`, `~/.config/gloam`, `%APPDATA%\gloam` or
 //! `~/Library/Application Support/gloam`).
@@ -48,6 +49,9 @@ pub struct Settings {
     pub fullscreen: bool,
     /// Frames wait for the display's refresh (V toggles it, and it is remembered).
     pub vsync: bool,
+    /// The gamepad's buttons bound to each game action (the left stick always moves, the
+    /// right stick always looks, Start always pauses).
+    pub pad: PadBindings,
 }
 
 impl Default for Settings {
@@ -63,6 +67,7 @@ impl Default for Settings {
             volume: crate::audio::Volumes::default(),
             fullscreen: false,
             vsync: true,
+            pad: PadBindings::default(),
         }
     }
 }
@@ -125,21 +130,101 @@ impl Settings {
     }
 }
 
-/// The keys bound to each game action, by winit key code name (`"KeyW"`, `"ShiftLeft"`,
-/// `"Space"`, `"ArrowUp"`...). The window's own keys (`RESERVED_KEYS`: Esc, F3, F4, F11,
-/// F12 and V) are fixed.
+/// The inputs bound to each game action: `KeyBindings` (keyboard keys, by winit key code
+/// name: `"KeyW"`, `"ShiftLeft"`, `"Space"`, `"ArrowUp"`...) and `PadBindings` (gamepad
+/// buttons). The window's own keys (`RESERVED_KEYS`: Esc, F2, F3, F4, F11, F12 and V) and
+/// button (Start) are fixed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct KeyBindings {
-    pub forward: Vec<Key>,
-    pub back: Vec<Key>,
-    pub left: Vec<Key>,
-    pub right: Vec<Key>,
-    pub jump: Vec<Key>,
-    pub crouch: Vec<Key>,
-    pub sprint: Vec<Key>,
-    pub interact: Vec<Key>,
-    pub noclip: Vec<Key>,
+#[serde(
+    deny_unknown_fields,
+    default,
+    bound(deserialize = "T: Deserialize<'de>, Bindings<T>: Default")
+)]
+pub struct Bindings<T> {
+    pub forward: Vec<T>,
+    pub back: Vec<T>,
+    pub left: Vec<T>,
+    pub right: Vec<T>,
+    pub jump: Vec<T>,
+    pub crouch: Vec<T>,
+    pub sprint: Vec<T>,
+    pub interact: Vec<T>,
+    pub noclip: Vec<T>,
+}
+
+pub type KeyBindings = Bindings<Key>;
+pub type PadBindings = Bindings<PadButton>;
+
+impl<T: Copy + PartialEq> Bindings<T> {
+    /// What is bound to `action`, the first one shown in prompts.
+    pub fn of(&self, action: Action) -> &Vec<T> {
+        match action {
+            Action::MoveForward => &self.forward,
+            Action::MoveBack => &self.back,
+            Action::MoveLeft => &self.left,
+            Action::MoveRight => &self.right,
+            Action::MoveUp => &self.jump,
+            Action::MoveDown => &self.crouch,
+            Action::Sprint => &self.sprint,
+            Action::Interact => &self.interact,
+            Action::Noclip => &self.noclip,
+        }
+    }
+
+    fn of_mut(&mut self, action: Action) -> &mut Vec<T> {
+        match action {
+            Action::MoveForward => &mut self.forward,
+            Action::MoveBack => &mut self.back,
+            Action::MoveLeft => &mut self.left,
+            Action::MoveRight => &mut self.right,
+            Action::MoveUp => &mut self.jump,
+            Action::MoveDown => &mut self.crouch,
+            Action::Sprint => &mut self.sprint,
+            Action::Interact => &mut self.interact,
+            Action::Noclip => &mut self.noclip,
+        }
+    }
+
+    /// The game action `input` is bound to.
+    pub fn action(&self, input: T) -> Option<Action> {
+        Action::ALL
+            .into_iter()
+            .find(|&action| self.of(action).contains(&input))
+    }
+
+    /// Binds `input` to `action` alone: it leaves any other action it was bound to, and
+    /// the action's other inputs go.
+    fn bind_alone(&mut self, action: Action, input: T) {
+        for other in Action::ALL {
+            self.of_mut(other).retain(|&bound| bound != input);
+        }
+        *self.of_mut(action) = vec![input];
+    }
+
+    /// Each action that holds one of `reserved`, as a problem of the file's `field`.
+    fn reserved_problems(
+        &self,
+        field: &str,
+        reserved: &[T],
+        name: impl Fn(T) -> String,
+        whose: &str,
+    ) -> Vec<(Pointer, String)> {
+        let mut problems = Vec::new();
+        for (action, action_name) in ACTION_NAMES {
+            for &input in self.of(action) {
+                if reserved.contains(&input) {
+                    problems.push((
+                        Pointer::root().key(field),
+                        format!(
+                            "{} is the window's own {whose}; {action_name} cannot take it",
+                            name(input)
+                        ),
+                    ));
+                }
+            }
+        }
+        problems
+    }
 }
 
 impl Default for KeyBindings {
@@ -185,70 +270,103 @@ pub const RESERVED_KEYS: [KeyCode; super::WINDOW_KEYS.len()] = {
 };
 
 impl KeyBindings {
-    pub fn keys(&self, action: Action) -> &Vec<Key> {
-        match action {
-            Action::MoveForward => &self.forward,
-            Action::MoveBack => &self.back,
-            Action::MoveLeft => &self.left,
-            Action::MoveRight => &self.right,
-            Action::MoveUp => &self.jump,
-            Action::MoveDown => &self.crouch,
-            Action::Sprint => &self.sprint,
-            Action::Interact => &self.interact,
-            Action::Noclip => &self.noclip,
-        }
-    }
-
-    fn keys_mut(&mut self, action: Action) -> &mut Vec<Key> {
-        match action {
-            Action::MoveForward => &mut self.forward,
-            Action::MoveBack => &mut self.back,
-            Action::MoveLeft => &mut self.left,
-            Action::MoveRight => &mut self.right,
-            Action::MoveUp => &mut self.jump,
-            Action::MoveDown => &mut self.crouch,
-            Action::Sprint => &mut self.sprint,
-            Action::Interact => &mut self.interact,
-            Action::Noclip => &mut self.noclip,
-        }
-    }
-
-    /// The game action `code` is bound to.
-    pub fn action(&self, code: KeyCode) -> Option<Action> {
-        Action::ALL
-            .into_iter()
-            .find(|&action| self.keys(action).contains(&Key(code)))
-    }
-
-    /// Binds `code` to `action` alone: it leaves any other action it was bound to, and the
-    /// action's other keys go. A reserved key is refused.
+    /// Binds `code` to `action` alone (`Bindings::bind_alone`); a reserved key is refused.
     pub fn bind(&mut self, action: Action, code: KeyCode) -> bool {
         if RESERVED_KEYS.contains(&code) {
             return false;
         }
-        for other in Action::ALL {
-            self.keys_mut(other).retain(|key| key.0 != code);
-        }
-        *self.keys_mut(action) = vec![Key(code)];
+        self.bind_alone(action, Key(code));
         true
     }
 
     fn problems(&self) -> Vec<(Pointer, String)> {
-        let mut problems = Vec::new();
-        for (action, name) in ACTION_NAMES {
-            for key in self.keys(action) {
-                if RESERVED_KEYS.contains(&key.0) {
-                    problems.push((
-                        Pointer::root().key("keys"),
-                        format!(
-                            "{} is the window's own key; {name} cannot take it",
-                            key.name()
-                        ),
-                    ));
-                }
-            }
+        let reserved: Vec<Key> = RESERVED_KEYS.iter().copied().map(Key).collect();
+        self.reserved_problems("keys", &reserved, Key::name, "key")
+    }
+}
+
+/// A gamepad button, by where it sits on a standard pad (the names gilrs' mapping gives
+/// every pad it knows); written by these names in the settings file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum PadButton {
+    /// The bottom face button (A on an Xbox pad, Cross on a PlayStation one).
+    South,
+    East,
+    West,
+    North,
+    LeftBumper,
+    RightBumper,
+    LeftTrigger,
+    RightTrigger,
+    /// Pressing the left stick in.
+    LeftStick,
+    RightStick,
+    DPadUp,
+    DPadDown,
+    DPadLeft,
+    DPadRight,
+    Select,
+    /// The window's own: pause, and back in the menus.
+    Start,
+}
+
+impl PadButton {
+    /// What the settings screen shows, in Xbox terms, the commonest labels.
+    pub fn label(self) -> &'static str {
+        match self {
+            PadButton::South => "A",
+            PadButton::East => "B",
+            PadButton::West => "X",
+            PadButton::North => "Y",
+            PadButton::LeftBumper => "LB",
+            PadButton::RightBumper => "RB",
+            PadButton::LeftTrigger => "LT",
+            PadButton::RightTrigger => "RT",
+            PadButton::LeftStick => "L3",
+            PadButton::RightStick => "R3",
+            PadButton::DPadUp => "D-pad up",
+            PadButton::DPadDown => "D-pad down",
+            PadButton::DPadLeft => "D-pad left",
+            PadButton::DPadRight => "D-pad right",
+            PadButton::Select => "Select",
+            PadButton::Start => "Start",
         }
-        problems
+    }
+}
+
+impl Default for PadBindings {
+    /// The layout most first-person games share: A jumps, B (or the right stick pressed)
+    /// crouches, the left stick pressed (or the left trigger) runs, X uses, and the d-pad
+    /// walks as the left stick does.
+    fn default() -> Self {
+        use PadButton::*;
+        PadBindings {
+            forward: vec![DPadUp],
+            back: vec![DPadDown],
+            left: vec![DPadLeft],
+            right: vec![DPadRight],
+            jump: vec![South],
+            crouch: vec![East, RightStick],
+            sprint: vec![LeftStick, LeftTrigger],
+            interact: vec![West],
+            noclip: vec![],
+        }
+    }
+}
+
+impl PadBindings {
+    /// Binds `button` to `action` alone (`Bindings::bind_alone`); Start is refused.
+    pub fn bind(&mut self, action: Action, button: PadButton) -> bool {
+        if button == PadButton::Start {
+            return false;
+        }
+        self.bind_alone(action, button);
+        true
+    }
+
+    fn problems(&self) -> Vec<(Pointer, String)> {
+        let name = |button: PadButton| format!("{button:?}");
+        self.reserved_problems("pad", &[PadButton::Start], name, "button (pause)")
     }
 }
 
@@ -498,6 +616,7 @@ impl Checked for Settings {
     fn problems(&self) -> Vec<(Pointer, String)> {
         let mut problems = Settings::problems(self);
         problems.extend(self.keys.problems());
+        problems.extend(self.pad.problems());
         problems
     }
 }
@@ -568,6 +687,7 @@ mod tests {
             ..Settings::default()
         };
         assert!(settings.keys.bind(Action::Sprint, KeyCode::AltLeft));
+        assert!(settings.pad.bind(Action::Interact, PadButton::RightBumper));
         save(&path, &settings).expect("save");
         let loaded = load::<Settings>(&path);
         assert_eq!(loaded.warning, None);
@@ -577,6 +697,7 @@ mod tests {
         let older = load::<Settings>(&path);
         assert_eq!(older.warning, None);
         assert_eq!((older.value.fullscreen, older.value.vsync), (false, true));
+        assert_eq!(older.value.pad, PadBindings::default());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
@@ -625,6 +746,8 @@ mod tests {
                 "Escape is the window's own key",
             ),
             ("(frame_time_target_ms: Some(0.0))", "outside 1..=1000"),
+            ("(pad: (jump: [Start]))", "Start is the window's own button"),
+            ("(pad: (jump: [Triangle]))", "Triangle"),
         ] {
             let error = parse::<Settings>(dir, text).expect_err(text).to_string();
             assert!(error.contains(expect), "{text}: {error}");
@@ -636,11 +759,28 @@ mod tests {
     fn binding_a_key_moves_it_from_the_action_that_had_it() {
         let mut keys = KeyBindings::default();
         assert!(keys.bind(Action::Interact, KeyCode::KeyW));
-        assert_eq!(keys.action(KeyCode::KeyW), Some(Action::Interact));
+        assert_eq!(keys.action(Key(KeyCode::KeyW)), Some(Action::Interact));
         assert!(keys.forward.is_empty());
-        assert_eq!(keys.action(KeyCode::KeyE), None);
+        assert_eq!(keys.action(Key(KeyCode::KeyE)), None);
         assert!(!keys.bind(Action::MoveUp, KeyCode::Escape));
-        assert_eq!(keys.action(KeyCode::Space), Some(Action::MoveUp));
+        assert_eq!(keys.action(Key(KeyCode::Space)), Some(Action::MoveUp));
+    }
+
+    #[test]
+    fn binding_a_pad_button_moves_it_and_start_stays_the_window_s() {
+        let mut pad = PadBindings::default();
+        assert!(pad.bind(Action::Sprint, PadButton::East));
+        assert_eq!(pad.sprint, [PadButton::East]);
+        assert_eq!(pad.crouch, [PadButton::RightStick], "B left crouch");
+        assert!(!pad.bind(Action::MoveUp, PadButton::Start));
+        assert_eq!(pad.jump, [PadButton::South]);
+        // Every action but noclip has a button out of the box, and no two share one.
+        let mut seen = std::collections::HashSet::new();
+        for (action, name) in ACTION_NAMES {
+            let buttons = PadBindings::default().of(action).clone();
+            assert!(buttons.is_empty() == (action == Action::Noclip), "{name}");
+            assert!(buttons.iter().all(|&b| seen.insert(b)), "{name}");
+        }
     }
 
     #[test]
