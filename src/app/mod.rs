@@ -1396,11 +1396,12 @@ fn draw_hud(
             );
         }
     }
-    // The lamp within reach of the player's aim, and what the interact key would do to it.
+    // The lamp within reach of the player's aim, and what the interact key would do to it:
+    // under the aim point, clear of the captions along the bottom.
     if let Some(verb) = lamp_prompt(&mut engine.world) {
         let prompt = format!("{interact_key}  {verb}");
         let x = (width / 2).saturating_sub(prompt.len() as u32 * 4);
-        hud::draw_text(frame, width, height, x, height.saturating_sub(44), &prompt);
+        hud::draw_text(frame, width, height, x, height / 2 + 20, &prompt);
     }
     // Each noise the player made, as a ring of its reach on the floor, fading.
     if let Some(noises) = engine.world.get_resource::<crate::game::Noises>() {
