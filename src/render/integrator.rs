@@ -263,17 +263,18 @@ fn next_hit_at(scene: &RenderScene, ray: &Ray, hit: Hit, surface: SurfaceHit) ->
     }
 }
 
-/// Shades the hit: picks the material lobe, read at the ray cone's `footprint`, and builds
-/// the local frame (`shading_frame`).
+/// Shades `hit`: picks the material lobe, read where `cone` (the cone of the ray that found
+/// it) meets the surface, and builds the local frame (`shading_frame`).
 fn vertex(
     scene: &RenderScene,
     surface: SurfaceHit,
     wo_world: Vec3A,
-    instance: u32,
-    footprint: f32,
+    hit: &Hit,
+    cone: &RayCone,
     u_lobe: f32,
 ) -> Vertex {
-    let material = scene.material(instance, surface.material);
+    let footprint = cone.footprint(hit.t, &surface, wo_world);
+    let material = scene.material(hit.instance, surface.material);
     let textures = &scene.textures;
     let (base, mapped) = material.base_and_normal_at(textures, surface.uv, footprint);
     let base = base.truncate();
@@ -450,15 +451,7 @@ pub fn path_vertex_inlined(
         return VertexOutcome::default();
     }
     state.depth += 1;
-    let footprint = state.cone.footprint(hit.t, &surface, wo_world);
-    let v = vertex(
-        scene,
-        surface,
-        wo_world,
-        hit.instance,
-        footprint,
-        draws.lobe,
-    );
+    let v = vertex(scene, surface, wo_world, &hit, &state.cone, draws.lobe);
     let mut outcome = VertexOutcome {
         albedo: Some(v.albedo),
         ..VertexOutcome::default()
@@ -716,15 +709,7 @@ pub fn reference_radiance(
             break;
         }
         depth += 1;
-        let footprint = cone.footprint(hit.t, &surface, wo_world);
-        let v = vertex(
-            scene,
-            surface,
-            wo_world,
-            hit.instance,
-            footprint,
-            sampler.next_1d(),
-        );
+        let v = vertex(scene, surface, wo_world, &hit, &cone, sampler.next_1d());
         let u_choice = sampler.next_1d();
         let u_direction = sampler.next_2d();
         let Some(sample) = v.bsdf.sample(v.wo, u_choice, u_direction) else {
