@@ -19,7 +19,7 @@ use glam::Vec2;
 
 use super::menu::MenuInput;
 use super::settings::{PadBindings, PadButton};
-use crate::game::Action;
+use crate::game::{Action, Input};
 
 /// How far a stick must lean (of 1) before it counts: worn sticks rest up to about a fifth
 /// off centre.
@@ -73,6 +73,26 @@ pub fn held_actions(state: &PadState, bindings: &PadBindings) -> HashSet<Action>
         }
     }
     held
+}
+
+/// Brings the game's `input` from the actions the pads held at the last frame, `before`,
+/// to those they hold `now`: each newly held one is held and pressed once; each let go is
+/// released, unless a key (`keys_down`) still holds it.
+pub fn hand_over(
+    input: &mut Input,
+    before: &HashSet<Action>,
+    now: &HashSet<Action>,
+    keys_down: &HashSet<Action>,
+) {
+    for &action in now.difference(before) {
+        input.held.insert(action);
+        input.pressed.insert(action);
+    }
+    for action in before.difference(now) {
+        if !keys_down.contains(action) {
+            input.held.remove(action);
+        }
+    }
 }
 
 /// The turn the right stick asks for, radians per second as (yaw right, pitch up), before
@@ -241,6 +261,24 @@ mod tests {
         );
         // Start is the window's (pause), never an action.
         assert!(held(&state(&[PadButton::Start], Vec2::ZERO)).is_empty());
+    }
+
+    #[test]
+    fn the_pad_and_the_keyboard_hold_an_action_together() {
+        let set = |actions: &[Action]| actions.iter().copied().collect::<HashSet<_>>();
+        let mut input = Input::default();
+        let keys = set(&[Action::MoveForward]);
+        input.held = keys.clone();
+        // The stick pushes forward too, and crouch goes down: crouch is pressed once.
+        let now = set(&[Action::MoveForward, Action::MoveDown]);
+        hand_over(&mut input, &set(&[]), &now, &keys);
+        assert_eq!(input.held, now);
+        assert_eq!(input.pressed, set(&[Action::MoveForward, Action::MoveDown]));
+        // The pad lets go of both: W is still down, so forward stays held.
+        input.pressed.clear();
+        hand_over(&mut input, &now, &set(&[]), &keys);
+        assert_eq!(input.held, keys);
+        assert!(input.pressed.is_empty());
     }
 
     #[test]

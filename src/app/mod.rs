@@ -44,6 +44,7 @@ pub mod settings;
 pub(crate) mod shell;
 mod sound;
 
+use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -61,7 +62,7 @@ use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
 use crate::extract::DeformStats;
 use crate::film::FilterMode;
 use crate::frame::Engine;
-use crate::game::Input;
+use crate::game::{Action, Input};
 use crate::profile::StageTimes;
 use crate::profile::{Profile, overlay};
 use crate::render::RenderSettings;
@@ -289,6 +290,7 @@ impl App {
             focused: false,
             gamepad,
             device: hints::Device::Keyboard,
+            keys_held: HashSet::new(),
         };
         app.apply_target();
         app
@@ -534,6 +536,9 @@ pub(crate) struct App {
     gamepad: gamepad::Gamepad,
     /// The device the player last used: the prompts name its controls.
     device: hints::Device,
+    /// The actions whose keys are down, so a pad letting go of one the keyboard also holds
+    /// (or a key the pad also holds) does not let it go.
+    keys_held: HashSet<Action>,
 }
 
 /// How long a notice stays on screen.
@@ -868,12 +873,18 @@ impl App {
             if self.options.watch.is_some() {
                 return;
             }
+            if pressed {
+                self.keys_held.insert(action);
+            } else {
+                self.keys_held.remove(&action);
+            }
             let Some(game) = &mut self.game else { return };
             let mut input = game.engine.world.resource_mut::<Input>();
             if pressed {
                 input.held.insert(action);
                 input.pressed.insert(action);
-            } else {
+            } else if !self.gamepad.held.contains(&action) {
+                // A pad still holding it keeps it held.
                 input.held.remove(&action);
             }
             return;
@@ -933,13 +944,7 @@ impl App {
         let Some(game) = &mut self.game else { return };
         let now = gamepad::held_actions(&self.gamepad.state, &self.context.settings.pad);
         let mut input = game.engine.world.resource_mut::<Input>();
-        for &action in now.difference(&self.gamepad.held) {
-            input.held.insert(action);
-            input.pressed.insert(action);
-        }
-        for action in self.gamepad.held.difference(&now) {
-            input.held.remove(action);
-        }
+        gamepad::hand_over(&mut input, &self.gamepad.held, &now, &self.keys_held);
         let pitch = if self.context.settings.invert_y {
             -1.0
         } else {
@@ -992,6 +997,9 @@ impl App {
         if let Some(game) = &mut self.game {
             game.engine.world.resource_mut::<Input>().held.clear();
         }
+        // Key releases may never come while the window is elsewhere (losing the focus
+        // pauses): keys count again from their next press.
+        self.keys_held.clear();
         self.menu = Some(Menu::new(Page::Paused));
         self.set_capture(false);
     }
@@ -1198,7 +1206,7 @@ impl App {
                 &mut game.engine,
                 &self.caught,
                 self.options.watch.is_some(),
-                &controls.label(crate::game::Action::Interact),
+                &controls.label(Action::Interact),
             );
             if game.scene.level.campaign == Some(1)
                 && let Some(moment) = hint_moment(&mut game.engine)
