@@ -1,71 +1,290 @@
-//! Frame step `present`: the heads-up display drawn into the frame buffer: text, with the
-//! Noto Sans Mono bitmap font (crate noto-sans-mono-bitmap, SIL Open Font License; no font
-//! file), and the light gem.
+//! Frame step `present`: the heads-up display over the level being played, drawn by the
+//! `interface` layer at the window's resolution: the light gem, each warden's state mark
+//! over its head, noise rings, the lamp prompt, the first level's hints, the captions, the
+//! caught banner, the shards, and in the corner the frame rate and notices.
+//!
+//! Two halves: `HudView::gather` reads what the HUD shows from the level's world (film
+//! pixels for what is placed in the scene), and `paint` lays it out in points, so the
+//! layout is tested without a window.
 
-pub use crate::profile::chart::{GLYPH_WIDTH, draw_text};
+use bevy_ecs::query::With;
+use bevy_ecs::world::World;
+use egui::{Align2, Color32, FontId, Painter, Pos2, Rect, Stroke, pos2, vec2};
 
-use crate::game::WardenState;
+use super::hints;
+use super::interface::Screen;
+use crate::frame::Engine;
 use crate::game::exposure::curve::{GEM_STEPS, gem_cells};
+use crate::game::{self, WardenState};
 
-/// The light gem, bottom centre: `GEM_STEPS` cells lit up to `value` (0..1), dim grey to
-/// warm white as they fill, in a dark frame.
-pub fn draw_gem(frame: &mut [u8], width: u32, height: u32, value: f32) {
-    let cell = (width / 40).max(4);
-    let gap = (cell / 4).max(1);
-    let total = GEM_STEPS as u32 * (cell + gap) + gap;
-    if total + 4 > width || cell * 2 > height {
-        return;
-    }
-    let left = (width - total) / 2;
-    let top = height - cell - 3 * gap;
-    let lit = gem_cells(value);
-    let mut fill = |x0: u32, y0: u32, w: u32, h: u32, rgb: [u8; 3]| {
-        for y in y0..(y0 + h).min(height) {
-            for x in x0..(x0 + w).min(width) {
-                let at = ((y * width + x) * 4) as usize;
-                frame[at..at + 3].copy_from_slice(&rgb);
-            }
-        }
-    };
-    fill(
-        left - gap,
-        top - gap,
-        total + 2 * gap,
-        cell + 2 * gap,
-        [12, 12, 16],
-    );
-    for step in 0..GEM_STEPS {
-        let x = left + gap + step as u32 * (cell + gap);
-        let rgb = if step < lit {
-            let warmth = (step + 1) as f32 / GEM_STEPS as f32;
-            [
-                (120.0 + 135.0 * warmth) as u8,
-                (110.0 + 120.0 * warmth) as u8,
-                (90.0 + 80.0 * warmth) as u8,
-            ]
-        } else {
-            [40, 40, 46]
-        };
-        fill(x, top, cell, cell, rgb);
-    }
-}
+/// Text sizes, points (`interface::REFERENCE_WINDOW` has 540 of them top to bottom).
+pub const BODY_TEXT: f32 = 17.0;
+pub const CORNER_TEXT: f32 = 13.0;
+const MARK_TEXT: f32 = 22.0;
+/// Space kept between the HUD and the window's edges, points.
+pub const MARGIN: f32 = 12.0;
+/// How far apart lines of body text are, points.
+pub const LINE: f32 = 22.0;
+
+/// The HUD's colours: warm white text on a dark shadow, readable over a lamp's pool and
+/// over the dark.
+pub const TEXT: Color32 = Color32::from_rgb(236, 230, 214);
+const SHADOW: Color32 = Color32::from_rgba_premultiplied(0, 0, 0, 210);
+const ALERT: Color32 = Color32::from_rgb(230, 50, 40);
+const SUSPICION: Color32 = Color32::from_rgb(235, 200, 60);
 
 /// How far above a warden's feet its state mark floats (metres), and the farthest a
 /// mark is drawn from.
 pub const MARK_HEIGHT: f32 = 2.15;
 pub const MARK_RANGE: f32 = 30.0;
+/// How many points a noise ring is drawn with.
+pub const RING_POINTS: usize = 96;
 
-/// A warden's state mark at film point `at`: `?` while suspicious or searching, `!` when
-/// alert, `X` when it caught the player, over a bar filled to its suspicion (yellow, red
-/// when alert). A patrolling warden with no suspicion shows nothing.
-pub fn draw_warden_mark(
-    frame: &mut [u8],
-    width: u32,
-    height: u32,
-    at: (f32, f32),
-    state: WardenState,
-    suspicion: f32,
-) {
+/// A warden's state mark: where its head is on the film, what it knows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mark {
+    pub at: (f32, f32),
+    pub state: WardenState,
+    pub suspicion: f32,
+}
+
+/// A noise the player made: its ring of reach on the floor, as film points (None behind
+/// the camera), and how much of it is left (1 new, fading to 0).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ring {
+    pub points: Vec<Option<(f32, f32)>>,
+    pub strength: f32,
+}
+
+/// What the HUD shows this frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct HudView {
+    /// The light gem's value, 0..1 (None: no player).
+    pub gem: Option<f32>,
+    pub marks: Vec<Mark>,
+    pub rings: Vec<Ring>,
+    /// What the interact control would do to the lamp aimed at: "E  douse the lamp".
+    pub prompt: Option<String>,
+    /// The first level's hint of the moment, a quarter down the screen.
+    pub hint: Option<String>,
+    /// "Caught by ...", a third down the screen.
+    pub banner: Option<String>,
+    /// Lines at the bottom left, the lowest first: the shards, a free walk's notice.
+    pub progress: Vec<String>,
+    /// Sounds heard lately, the oldest first.
+    pub captions: Vec<String>,
+}
+
+/// The corner's lines, top left: the frame rate, a notice, a level file's problems.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Corner {
+    pub status: Option<String>,
+    pub notice: Option<String>,
+    pub file_error: Option<String>,
+}
+
+impl HudView {
+    /// Reads the HUD of the level in `engine`, seen through a `film` (width, height)
+    /// camera. `caught`: the warden that caught the player, while the banner shows;
+    /// `watching`: a recording is being watched (its caught attempt stays on screen);
+    /// `interact`: the label of the control that douses a lamp.
+    pub fn gather(
+        engine: &mut Engine,
+        film: (u32, u32),
+        caught: Option<&str>,
+        watching: bool,
+        interact: &str,
+    ) -> HudView {
+        let world = &mut engine.world;
+        let mut view = HudView {
+            gem: world
+                .query::<&game::Exposure>()
+                .iter(world)
+                .next()
+                .map(|exposure| exposure.gem),
+            ..HudView::default()
+        };
+        // Each warden's state above its head: what it knows, the player knows.
+        let projection = engine.view_camera(film.0, film.1).projection();
+        let world = &mut engine.world;
+        let mut wardens = world.query::<(&game::Warden, &game::GlobalTransform)>();
+        for (warden, placed) in wardens.iter(world) {
+            let head = placed.0.translation + glam::Vec3A::Y * MARK_HEIGHT;
+            let seen = projection.project_lanes(head);
+            if seen.in_front && seen.distance < MARK_RANGE {
+                view.marks.push(Mark {
+                    at: (seen.x, seen.y),
+                    state: warden.state,
+                    suspicion: warden.suspicion,
+                });
+            }
+        }
+        if let Some(noises) = world.get_resource::<game::Noises>() {
+            for noise in &noises.0 {
+                let points = (0..RING_POINTS)
+                    .map(|i| {
+                        let angle = i as f32 / RING_POINTS as f32 * std::f32::consts::TAU;
+                        let at = noise.at
+                            + glam::Vec3::new(
+                                angle.cos() * noise.radius,
+                                0.05,
+                                angle.sin() * noise.radius,
+                            );
+                        let seen = projection.project_lanes(at.into());
+                        seen.in_front.then_some((seen.x, seen.y))
+                    })
+                    .collect();
+                let strength = 1.0 - noise.age / game::noise::tuning::RING_SECONDS;
+                view.rings.push(Ring { points, strength });
+            }
+        }
+        view.prompt = lamp_prompt(world).map(|verb| format!("{interact}  {verb}"));
+        view.banner = caught.map(|by| format!("Caught by {by}. The level starts again."));
+        if let Some(progress) = world.get_resource::<game::Progress>() {
+            let progress = progress.clone();
+            let left = (world.query_filtered::<(), With<game::Shard>>().iter(world)).count();
+            let total = progress.shards_taken + left as u32;
+            if total > 0 {
+                view.progress
+                    .push(format!("shards {}/{total}", progress.shards_taken));
+            }
+            // A level with a player and no way out is a free walk (a scene without a
+            // player is only a view).
+            let exits = (world.query_filtered::<(), With<game::Exit>>().iter(world)).count();
+            let players = (world.query_filtered::<(), With<game::Player>>().iter(world)).count();
+            if exits == 0 && players > 0 {
+                view.progress
+                    .push("free walk: this level has no way out".to_string());
+            }
+            if progress.outcome == game::Outcome::Caught && watching {
+                // Only a watched recording shows this: in play the level has restarted.
+                view.banner = Some(format!("Caught by {}.  Esc: menu", caught_by(world)));
+            }
+        }
+        view
+    }
+}
+
+/// "douse the lamp" or "light the lamp" when a lamp is within reach of the player's aim
+/// (`game::lamps::aimed_lamp`, the question the interact key's press asks).
+fn lamp_prompt(world: &mut World) -> Option<&'static str> {
+    use crate::game::{
+        GlobalTransform, LevelEntity, Player, PlayerEye, PunctualLight, SwitchedOff, WorldGeometry,
+    };
+    let (player, eye) = {
+        let mut players = world.query::<&Player>();
+        let player = players.iter(world).next()?.clone();
+        let mut eyes = world.query_filtered::<&GlobalTransform, With<PlayerEye>>();
+        let eye: glam::Vec3 = eyes.iter(world).next()?.0.translation.into();
+        (player, eye)
+    };
+    let mut lamps = world.query_filtered::<(
+        bevy_ecs::entity::Entity,
+        &GlobalTransform,
+        bevy_ecs::query::Has<SwitchedOff>,
+    ), (With<PunctualLight>, With<LevelEntity>)>();
+    let candidates: Vec<_> = lamps
+        .iter(world)
+        .map(|(lamp, placed, doused)| (lamp, placed.0.translation.into(), doused))
+        .collect();
+    let geometry = world.get_resource::<WorldGeometry>()?;
+    let view = crate::game::lamps::view(&player);
+    let (_, doused) =
+        crate::game::lamps::aimed_lamp(&*geometry.0, eye, view, candidates.into_iter())?;
+    Some(if doused {
+        "light the lamp"
+    } else {
+        "douse the lamp"
+    })
+}
+
+/// What the first level's hints read of the attempt: its clock, the light gem, the crouch,
+/// the shards in all.
+pub fn hint_moment(engine: &mut Engine) -> Option<hints::Moment> {
+    let world = &mut engine.world;
+    let progress = world.get_resource::<game::Progress>()?.clone();
+    let gem = world.query::<&game::Exposure>().iter(world).next()?.gem;
+    let crouched = world.query::<&game::Player>().iter(world).next()?.crouched;
+    let left = (world.query_filtered::<(), With<game::Shard>>().iter(world)).count() as u32;
+    Some(hints::Moment {
+        seconds: (progress.steps as f64 / game::SIMULATION_HZ) as f32,
+        gem,
+        crouched,
+        shards: progress.shards_taken + left,
+    })
+}
+
+/// The name of the warden that caught the player.
+pub fn caught_by(world: &mut World) -> String {
+    let mut wardens = world.query::<(&game::Warden, &bevy_ecs::name::Name)>();
+    wardens
+        .iter(world)
+        .find(|(warden, _)| warden.state == WardenState::Caught)
+        .map_or_else(|| "a warden".to_string(), |(_, name)| name.to_string())
+}
+
+/// Draws `line` with its `anchor` at `at` over a soft shadow; returns the rectangle it
+/// covers.
+pub fn text(
+    painter: &Painter,
+    at: Pos2,
+    anchor: Align2,
+    line: &str,
+    font: FontId,
+    colour: Color32,
+) -> Rect {
+    let galley = painter.layout_no_wrap(line.to_string(), font, colour);
+    let rect = anchor.anchor_size(at, galley.size());
+    // A one-point shadow down and right: enough to read white text over a lit wall.
+    let shadow = (rect.min + vec2(1.0, 1.0)).round();
+    painter.galley_with_override_text_color(shadow, galley.clone(), SHADOW);
+    painter.galley(rect.min.round(), galley, colour);
+    rect
+}
+
+fn body(size: f32) -> FontId {
+    FontId::proportional(size)
+}
+
+/// The light gem, bottom centre: `GEM_STEPS` cells lit up to `value` (0..1), dim grey to
+/// warm white as they fill, in a dark frame. Returns the frame's rectangle.
+pub fn paint_gem(painter: &Painter, screen: &Screen, value: f32) -> Rect {
+    const CELL: f32 = 18.0;
+    const GAP: f32 = 4.0;
+    let total = GEM_STEPS as f32 * (CELL + GAP) + GAP;
+    let frame = Rect::from_min_size(
+        pos2(
+            screen.rect.center().x - total / 2.0,
+            screen.rect.bottom() - MARGIN - CELL - 2.0 * GAP,
+        ),
+        vec2(total, CELL + 2.0 * GAP),
+    );
+    painter.rect_filled(frame, 3.0, Color32::from_rgba_unmultiplied(12, 12, 16, 220));
+    let lit = gem_cells(value);
+    for step in 0..GEM_STEPS {
+        let cell = Rect::from_min_size(
+            frame.min + vec2(GAP + step as f32 * (CELL + GAP), GAP),
+            vec2(CELL, CELL),
+        );
+        let colour = if step < lit {
+            let warmth = (step + 1) as f32 / GEM_STEPS as f32;
+            Color32::from_rgb(
+                (120.0 + 135.0 * warmth) as u8,
+                (110.0 + 120.0 * warmth) as u8,
+                (90.0 + 80.0 * warmth) as u8,
+            )
+        } else {
+            Color32::from_rgb(40, 40, 46)
+        };
+        painter.rect_filled(cell, 2.0, colour);
+    }
+    frame
+}
+
+/// A warden's state mark at `at`: `?` while suspicious or searching, `!` when alert, `X`
+/// when it caught the player, over a bar filled to its suspicion (yellow, red when alert).
+/// A patrolling warden with no suspicion shows nothing.
+pub fn paint_mark(painter: &Painter, at: Pos2, state: WardenState, suspicion: f32) {
     let glyph = match state {
         WardenState::Patrol if suspicion <= 0.0 => return,
         WardenState::Patrol => "",
@@ -73,96 +292,280 @@ pub fn draw_warden_mark(
         WardenState::Alert => "!",
         WardenState::Caught => "X",
     };
-    let (x, y) = (at.0.round() as i64, at.1.round() as i64);
-    let bar = 24i64;
-    let (left, top) = (x - bar / 2, y);
     let colour = if matches!(state, WardenState::Alert | WardenState::Caught) {
-        [230, 50, 40]
+        ALERT
     } else {
-        [235, 200, 60]
+        SUSPICION
     };
-    let filled = (suspicion.clamp(0.0, 1.0) * bar as f32).round() as i64;
-    for row in top..top + 4 {
-        for column in left - 1..left + bar + 1 {
-            if row < 0 || column < 0 || row >= height as i64 || column >= width as i64 {
-                continue;
-            }
-            let i = ((row as u32 * width + column as u32) * 4) as usize;
-            let inside = column >= left && column < left + filled && row > top && row < top + 3;
-            let rgb = if inside { colour } else { [20, 20, 24] };
-            frame[i..i + 3].copy_from_slice(&rgb);
-        }
-    }
-    if !glyph.is_empty() && x >= 4 && y >= 20 {
-        draw_text(frame, width, height, x as u32 - 4, y as u32 - 18, glyph);
+    let bar = Rect::from_center_size(at, vec2(30.0, 6.0));
+    painter.rect_filled(bar.expand(1.0), 1.0, Color32::from_rgb(20, 20, 24));
+    let filled = bar.width() * suspicion.clamp(0.0, 1.0);
+    painter.rect_filled(
+        Rect::from_min_size(bar.min, vec2(filled, bar.height())),
+        0.0,
+        colour,
+    );
+    if !glyph.is_empty() {
+        let font = FontId::proportional(MARK_TEXT);
+        text(
+            painter,
+            bar.center_top(),
+            Align2::CENTER_BOTTOM,
+            glyph,
+            font,
+            colour,
+        );
     }
 }
 
-/// How many points a noise ring is drawn with.
-pub const RING_POINTS: usize = 96;
-
-/// Points on a noise ring (film points, None behind the camera) drawn as small dots
-/// blended towards white by `strength` (1 new, fading to 0).
-pub fn draw_noise_ring(
-    frame: &mut [u8],
-    width: u32,
-    height: u32,
-    points: impl Iterator<Item = Option<(f32, f32)>>,
-    strength: f32,
-) {
-    let strength = strength.clamp(0.0, 1.0);
-    for (x, y) in points.flatten() {
-        let (x, y) = (x.round() as i64, y.round() as i64);
-        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-            let (px, py) = (x + dx, y + dy);
-            if px < 0 || py < 0 || px >= width as i64 || py >= height as i64 {
-                continue;
+/// A noise ring: its points joined where they are in front of the camera, white fading
+/// with `strength`.
+fn paint_ring(painter: &Painter, points: impl Iterator<Item = Option<Pos2>>, strength: f32) {
+    let alpha = (strength.clamp(0.0, 1.0) * 230.0) as u8;
+    let stroke = Stroke::new(2.0, Color32::from_white_alpha(alpha));
+    let mut run: Vec<Pos2> = Vec::new();
+    for point in points.chain(std::iter::once(None)) {
+        match point {
+            Some(point) => run.push(point),
+            None if run.len() > 1 => {
+                painter.add(egui::Shape::line(std::mem::take(&mut run), stroke));
             }
-            let i = ((py as u32 * width + px as u32) * 4) as usize;
-            for channel in &mut frame[i..i + 3] {
-                *channel = (*channel as f32 + (235.0 - *channel as f32) * strength) as u8;
-            }
+            None => run.clear(),
         }
+    }
+}
+
+/// Paints `view` over `screen`.
+pub fn paint(painter: &Painter, screen: &Screen, view: &HudView) {
+    let film = |at: (f32, f32)| screen.film_point(at);
+    for ring in &view.rings {
+        let points = ring.points.iter().map(|point| point.map(film));
+        // Closed: the last point joins the first.
+        let closed = points
+            .clone()
+            .chain(ring.points.first().map(|p| p.map(film)));
+        paint_ring(painter, closed, ring.strength);
+    }
+    for mark in &view.marks {
+        paint_mark(painter, film(mark.at), mark.state, mark.suspicion);
+    }
+    let centre = screen.rect.center();
+    let bottom = match view.gem {
+        Some(gem) => paint_gem(painter, screen, gem).top(),
+        None => screen.rect.bottom() - MARGIN,
+    };
+    // Under the aim point, clear of the captions along the bottom.
+    if let Some(prompt) = &view.prompt {
+        let at = centre + vec2(0.0, 2.0 * LINE);
+        text(
+            painter,
+            at,
+            Align2::CENTER_TOP,
+            prompt,
+            body(BODY_TEXT),
+            TEXT,
+        );
+    }
+    if let Some(hint) = &view.hint {
+        let at = pos2(centre.x, screen.rect.height() / 4.0);
+        text(painter, at, Align2::CENTER_TOP, hint, body(BODY_TEXT), TEXT);
+    }
+    if let Some(banner) = &view.banner {
+        let at = pos2(centre.x, screen.rect.height() / 3.0);
+        text(
+            painter,
+            at,
+            Align2::CENTER_TOP,
+            banner,
+            body(BODY_TEXT + 3.0),
+            TEXT,
+        );
+    }
+    // Captions centred above the gem, the newest lowest.
+    for (row, line) in view.captions.iter().rev().enumerate() {
+        let at = pos2(centre.x, bottom - 8.0 - row as f32 * LINE);
+        text(
+            painter,
+            at,
+            Align2::CENTER_BOTTOM,
+            line,
+            body(BODY_TEXT),
+            TEXT,
+        );
+    }
+    for (row, line) in view.progress.iter().enumerate() {
+        let at = pos2(MARGIN, screen.rect.bottom() - MARGIN - row as f32 * LINE);
+        text(
+            painter,
+            at,
+            Align2::LEFT_BOTTOM,
+            line,
+            body(BODY_TEXT),
+            TEXT,
+        );
+    }
+}
+
+/// The most lines of a level file's problems shown.
+const ERROR_LINES: usize = 6;
+
+/// Paints the corner's lines, top left: the status in a fixed-width face (its numbers
+/// change every frame and must not dance), then the notice, then a file's problems wrapped
+/// to the window.
+pub fn paint_corner(painter: &Painter, screen: &Screen, corner: &Corner) {
+    let mut at = pos2(MARGIN, MARGIN);
+    if let Some(status) = &corner.status {
+        let font = FontId::monospace(CORNER_TEXT);
+        at.y = text(painter, at, Align2::LEFT_TOP, status, font, TEXT).bottom() + 4.0;
+    }
+    if let Some(notice) = &corner.notice {
+        at.y = text(painter, at, Align2::LEFT_TOP, notice, body(BODY_TEXT), TEXT).bottom() + 4.0;
+    }
+    if let Some(error) = &corner.file_error {
+        let shown: Vec<&str> = error.lines().take(ERROR_LINES).collect();
+        let wrap = (screen.rect.width() - 2.0 * MARGIN).max(40.0);
+        let font = FontId::monospace(CORNER_TEXT);
+        let galley = painter.layout(shown.join("\n"), font, TEXT, wrap);
+        let back = Rect::from_min_size(at, galley.size()).expand(4.0);
+        painter.rect_filled(back, 2.0, Color32::from_black_alpha(190));
+        painter.galley(at, galley, TEXT);
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::app::interface::pixels_per_point;
 
-    #[test]
-    fn the_gem_lights_as_many_cells_as_its_value_asks() {
-        let (width, height) = (320, 180);
-        let lit_cells = |value: f32| {
-            let mut frame = vec![0u8; (width * height * 4) as usize];
-            draw_gem(&mut frame, width, height, value);
-            // Count bright pixels on the cells' row, in cell-sized runs.
-            let row = (height - 10) as usize; // through the cells (top = height - 14)
-            let bright = (0..width as usize)
-                .filter(|x| frame[(row * width as usize + x) * 4] > 100)
-                .count();
-            bright / (width / 40) as usize
-        };
-        assert_eq!(lit_cells(0.0), 0);
-        assert_eq!(lit_cells(0.4), 2);
-        assert_eq!(lit_cells(1.0), GEM_STEPS);
+    /// Runs one egui pass of `draw` over a `window` (physical pixels) and returns each
+    /// text it drew with its line box in physical pixels.
+    pub(crate) fn texts_drawn(
+        window: (u32, u32),
+        draw: impl FnOnce(&Painter, &Screen),
+    ) -> Vec<(String, Rect)> {
+        let buffer = (480, 270);
+        let screen = Screen::new(window, (0, 0, window.0, window.1), buffer, 1.0);
+        let context = egui::Context::default();
+        let mut draw = Some(draw);
+        let output = context.run_ui(screen.input(), |ui| {
+            if let Some(draw) = draw.take() {
+                draw(ui.painter(), &screen);
+            }
+        });
+        let scale = pixels_per_point(window, 1.0);
+        output
+            .shapes
+            .iter()
+            .filter_map(|clipped| match &clipped.shape {
+                egui::Shape::Text(shape)
+                    if shape.override_text_color.is_none() && !shape.galley.is_empty() =>
+                {
+                    // The line's box (its font's height), not the glyphs' ink.
+                    let rect = Rect::from_min_size(shape.pos, shape.galley.size());
+                    let physical = Rect::from_min_max(rect.min * scale, rect.max * scale);
+                    Some((shape.galley.text().to_string(), physical))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn busy_view() -> HudView {
+        HudView {
+            gem: Some(0.6),
+            marks: vec![Mark {
+                at: (240.0, 100.0),
+                state: WardenState::Alert,
+                suspicion: 0.8,
+            }],
+            rings: Vec::new(),
+            prompt: Some("E  douse the lamp".to_string()),
+            hint: Some("Take the three shards, then find the way out.".to_string()),
+            banner: Some("Caught by Aldous. The level starts again.".to_string()),
+            progress: vec!["shards 1/3".to_string()],
+            captions: vec![
+                "a warden's footsteps, behind you".to_string(),
+                "a lamp goes out, close by".to_string(),
+                "a door creaks, left".to_string(),
+            ],
+        }
     }
 
     #[test]
-    fn text_lights_pixels_inside_its_box_and_clips_outside() {
-        let (width, height) = (64, 20);
-        let mut frame = vec![100u8; (width * height * 4) as usize];
-        draw_text(
-            &mut frame,
-            width,
-            height,
-            2,
-            2,
-            "fps 60 and far too long to fit",
-        );
-        let lit = frame.chunks_exact(4).filter(|p| p[0] > 200).count();
-        assert!(lit > 20, "glyphs drew {lit} bright pixels");
-        // Outside the text box the frame is untouched.
-        assert_eq!(&frame[0..4], &[100, 100, 100, 100]);
+    fn the_hud_reads_at_960x540_and_is_sharper_not_smaller_at_1920x1080() {
+        for (window, least_height) in [((960, 540), 14.0), ((1920, 1080), 28.0)] {
+            let drawn = texts_drawn(window, |painter, screen| {
+                paint(painter, screen, &busy_view())
+            });
+            let lines = [
+                "E  douse the lamp",
+                "shards 1/3",
+                "a door creaks, left",
+                "!",
+            ];
+            for line in lines {
+                let (_, rect) = drawn
+                    .iter()
+                    .find(|(text, _)| text == line)
+                    .unwrap_or_else(|| panic!("{line:?} was not drawn at {window:?}"));
+                assert!(
+                    rect.height() >= least_height,
+                    "{line:?} is {} px tall at {window:?}",
+                    rect.height()
+                );
+                let inside =
+                    Rect::from_min_size(Pos2::ZERO, vec2(window.0 as f32, window.1 as f32));
+                assert!(
+                    inside.contains_rect(*rect),
+                    "{line:?} at {rect:?} leaves {window:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn no_two_lines_of_the_hud_overlap() {
+        for window in [(960, 540), (1920, 1080), (640, 360)] {
+            let drawn = texts_drawn(window, |painter, screen| {
+                paint(painter, screen, &busy_view());
+                let corner = Corner {
+                    status: Some("60.0 fps 16.6 ms 480x270 (100%) temporal".to_string()),
+                    notice: Some("screenshot saved".to_string()),
+                    file_error: None,
+                };
+                paint_corner(painter, screen, &corner);
+            });
+            // The warden's mark floats over the scene, where it may meet anything.
+            let lines: Vec<_> = drawn.iter().filter(|(text, _)| text != "!").collect();
+            for (i, (a, first)) in lines.iter().enumerate() {
+                for (b, second) in &lines[i + 1..] {
+                    assert!(
+                        !first.intersects(*second),
+                        "{a:?} {first:?} overlaps {b:?} {second:?} at {window:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_gem_lights_as_many_cells_as_its_value_asks() {
+        let context = egui::Context::default();
+        let lit = |value: f32| {
+            let output = context.run_ui(egui::RawInput::default(), |ui| {
+                let screen = Screen::new((960, 540), (0, 0, 960, 540), (480, 270), 1.0);
+                paint_gem(ui.painter(), &screen, value);
+            });
+            // Dark frame, unlit cells (40, 40, 46), lit cells warmer and brighter.
+            (output.shapes.iter())
+                .filter(|clipped| match &clipped.shape {
+                    egui::Shape::Rect(rect) => rect.fill.r() > 100,
+                    _ => false,
+                })
+                .count()
+        };
+        assert_eq!(lit(0.0), 0);
+        assert_eq!(lit(0.4), 2);
+        assert_eq!(lit(1.0), GEM_STEPS);
     }
 }

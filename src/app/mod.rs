@@ -9,9 +9,9 @@
 //! 3. present: the film's image (with the filters on, upscaled by the film from a lowered
 //!    internal resolution to the configured one) is tone mapped (the film's tone mapper,
 //!    scaled by the brightness setting) into pixels' frame buffer at the configured
-//!    resolution, the HUD is drawn over it (the light gem, the shards, each warden's state
-//!    mark projected over its head), or the open menu over the darkened image, and pixels
-//!    scales it to the window;
+//!    resolution and pixels scales it to the window; over it, at the window's own
+//!    resolution (`interface`), the HUD (`hud`: the light gem, the shards, each warden's
+//!    state mark projected over its head, captions, prompts) or the open menu (`menu`);
 //! 4. when a warden has caught the player, the level starts again at once from the loaded
 //!    `Scene`; when the player gets out, the best time is kept and the end page opens (a
 //!    watched recording stays on its last frame instead);
@@ -37,6 +37,7 @@ pub mod editor;
 pub mod gamepad;
 pub mod hints;
 mod hud;
+pub(crate) mod interface;
 pub mod menu;
 pub mod resolution;
 pub mod screenshot;
@@ -275,6 +276,7 @@ impl App {
             options,
             window: None,
             pixels: None,
+            interface: None,
             last_frame: Instant::now(),
             frame_ms: Vec::new(),
             vsync: player_settings_vsync,
@@ -398,76 +400,6 @@ fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// "douse the lamp" or "light the lamp" when a lamp is within reach of the player's aim
-/// (`game::lamps::aimed_lamp`, the question the interact key's press asks).
-fn lamp_prompt(world: &mut bevy_ecs::world::World) -> Option<&'static str> {
-    use crate::game::{
-        GlobalTransform, LevelEntity, Player, PlayerEye, PunctualLight, SwitchedOff, WorldGeometry,
-    };
-    use bevy_ecs::query::With;
-    let (player, eye) = {
-        let mut players = world.query::<&Player>();
-        let player = players.iter(world).next()?.clone();
-        let mut eyes = world.query_filtered::<&GlobalTransform, With<PlayerEye>>();
-        let eye: glam::Vec3 = eyes.iter(world).next()?.0.translation.into();
-        (player, eye)
-    };
-    let mut lamps = world.query_filtered::<(
-        bevy_ecs::entity::Entity,
-        &GlobalTransform,
-        bevy_ecs::query::Has<SwitchedOff>,
-    ), (With<PunctualLight>, With<LevelEntity>)>();
-    let candidates: Vec<_> = lamps
-        .iter(world)
-        .map(|(lamp, placed, doused)| (lamp, placed.0.translation.into(), doused))
-        .collect();
-    let geometry = world.get_resource::<WorldGeometry>()?;
-    let view = crate::game::lamps::view(&player);
-    let (_, doused) =
-        crate::game::lamps::aimed_lamp(&*geometry.0, eye, view, candidates.into_iter())?;
-    Some(if doused {
-        "light the lamp"
-    } else {
-        "douse the lamp"
-    })
-}
-
-/// What the first level's hints read of the attempt: its clock, the light gem, the crouch,
-/// the shards in all.
-fn hint_moment(engine: &mut Engine) -> Option<hints::Moment> {
-    let world = &mut engine.world;
-    let progress = world.get_resource::<crate::game::Progress>()?.clone();
-    let gem = world
-        .query::<&crate::game::Exposure>()
-        .iter(world)
-        .next()?
-        .gem;
-    let crouched = world
-        .query::<&crate::game::Player>()
-        .iter(world)
-        .next()?
-        .crouched;
-    let left = world
-        .query_filtered::<(), bevy_ecs::query::With<crate::game::Shard>>()
-        .iter(world)
-        .count() as u32;
-    Some(hints::Moment {
-        seconds: (progress.steps as f64 / crate::game::SIMULATION_HZ) as f32,
-        gem,
-        crouched,
-        shards: progress.shards_taken + left,
-    })
-}
-
-/// The name of the warden that caught the player.
-fn caught_by(world: &mut bevy_ecs::world::World) -> String {
-    let mut wardens = world.query::<(&crate::game::Warden, &bevy_ecs::name::Name)>();
-    wardens
-        .iter(world)
-        .find(|(warden, _)| warden.state == crate::game::WardenState::Caught)
-        .map_or_else(|| "a warden".to_string(), |(_, name)| name.to_string())
-}
-
 /// A level being played.
 struct Game {
     engine: Engine,
@@ -496,8 +428,8 @@ pub(crate) struct App {
     /// The level or an asset changed on disk and no longer loads: its problems, shown
     /// until a version that loads replaces it (the level plays on meanwhile).
     file_error: Option<String>,
-    /// The mouse pointer in frame pixels, while over the window.
-    pointer: Option<(u32, u32)>,
+    /// The mouse pointer in the interface's points, while over the window.
+    pointer: Option<egui::Pos2>,
     /// When the player was last caught, and by whom (shown over the new attempt).
     caught: Option<(Instant, String)>,
     /// Captions of the sounds heard lately (`captions`).
@@ -509,6 +441,8 @@ pub(crate) struct App {
     options: PlayOptions,
     window: Option<Arc<Window>>,
     pixels: Option<Pixels<'static>>,
+    /// The HUD and the menus, drawn over the scaled frame (`interface`).
+    interface: Option<interface::Interface>,
     last_frame: Instant,
     /// Recent frame times for the HUD.
     frame_ms: Vec<f32>,
@@ -543,6 +477,8 @@ pub(crate) struct App {
 
 /// How long a notice stays on screen.
 const NOTICE_SECONDS: f32 = 8.0;
+/// How long "Caught by ..." stays over the attempt that starts again.
+const CAUGHT_BANNER_SECONDS: f32 = 3.0;
 
 impl App {
     fn fail(&mut self, event_loop: &ActiveEventLoop, error: anyhow::Error) {
@@ -772,7 +708,7 @@ impl App {
     fn restart_caught(&mut self) {
         let Some(game) = self.game.take() else { return };
         let mut engine = game.engine;
-        let by = caught_by(&mut engine.world);
+        let by = hud::caught_by(&mut engine.world);
         let internal = (engine.film.settings.width, engine.film.settings.height);
         self.start(game.scene, game.level);
         if let Some(game) = &mut self.game {
@@ -1057,10 +993,17 @@ impl App {
     /// Writes the frame just composed (and the film under it) to the screenshot folder, and
     /// says where, or why not.
     fn save_screenshot(&mut self) {
-        let (width, height) = (self.options.width, self.options.height);
-        let Some(pixels) = &self.pixels else {
+        let (Some(pixels), Some(interface), Some(window)) =
+            (&self.pixels, &mut self.interface, &self.window)
+        else {
             return;
         };
+        let size = window.inner_size();
+        let size = (size.width, size.height);
+        let shown = screenshot::capture(pixels, size, |encoder, target, context| {
+            context.scaling_renderer.render(encoder, target);
+            interface.paint(encoder, target, context);
+        });
         let stem = match &self.game {
             Some(game) => game
                 .level
@@ -1077,15 +1020,7 @@ impl App {
         let film = film.map(|engine| engine.film.image());
         let result = settings::screenshot_dir()
             .context("no pictures or data folder (is $HOME set?)")
-            .and_then(|folder| {
-                screenshot::save(
-                    &folder,
-                    &stem,
-                    pixels.frame(),
-                    (width, height),
-                    film.as_ref(),
-                )
-            });
+            .and_then(|folder| screenshot::save(&folder, &stem, &shown?, size, film.as_ref()));
         match result {
             Ok(written) => {
                 let exr = match &written.exr {
@@ -1100,6 +1035,43 @@ impl App {
             }
             Err(error) => self.notify(format!("screenshot not saved: {error:#}")),
         }
+    }
+
+    /// The window as the interface lays it out (None before it opens).
+    fn screen(&self) -> Option<interface::Screen> {
+        let (window, pixels) = (self.window.as_ref()?, self.pixels.as_ref()?);
+        let size = window.inner_size();
+        Some(interface::Screen::new(
+            (size.width, size.height),
+            pixels.context().scaling_renderer.clip_rect(),
+            (self.options.width, self.options.height),
+            self.context.settings.ui_scale,
+        ))
+    }
+
+    /// The corner's frame rate, internal resolution and film mode, while playing (and
+    /// under a menu while the profiler overlay is up).
+    fn status_line(&mut self) -> Option<String> {
+        if self.menu.is_some() && !self.overlay {
+            return None;
+        }
+        let film = &self.engine_mut()?.film;
+        let (internal_width, internal_height) = (film.settings.width, film.settings.height);
+        let film = match film.filter.mode {
+            FilterMode::Off => format!("{} spp", film.frames),
+            mode => mode.name().to_string(),
+        };
+        let mean_ms = self.frame_ms.iter().sum::<f32>() / self.frame_ms.len().max(1) as f32;
+        Some(format!(
+            "{:.1} fps {:.1} ms {internal_width}x{internal_height}{} {film}{}",
+            1000.0 / mean_ms.max(1e-3),
+            mean_ms,
+            match &self.resolution {
+                Some(controller) => format!(" ({:.0}%)", controller.scale() * 100.0),
+                None => String::new(),
+            },
+            if self.vsync { "" } else { " novsync" }
+        ))
     }
 
     fn redraw(&mut self, event_loop: &ActiveEventLoop) {
@@ -1193,70 +1165,34 @@ impl App {
                 }
             }
         }
-        if let Some(game) = &mut self.game {
+        let menu_open = self.menu.is_some();
+        let hud = self.game.as_mut().filter(|_| !menu_open).map(|game| {
             let settings = &self.context.settings;
             let controls = hints::Controls {
                 keys: &settings.keys,
                 pad: &settings.pad,
                 device: self.device,
             };
-            draw_hud(
-                frame,
-                (width, height),
+            let caught = (self.caught.as_ref())
+                .filter(|(at, _)| at.elapsed().as_secs_f32() < CAUGHT_BANNER_SECONDS)
+                .map(|(_, by)| by.as_str());
+            let watching = self.options.watch.is_some();
+            let interact = controls.label(Action::Interact);
+            let mut view = hud::HudView::gather(
                 &mut game.engine,
-                &self.caught,
-                self.options.watch.is_some(),
-                &controls.label(Action::Interact),
+                (width, height),
+                caught,
+                watching,
+                &interact,
             );
-            if game.scene.level.campaign == Some(1)
-                && let Some(moment) = hint_moment(&mut game.engine)
-                && let Some(line) = game.hints.line(moment, &controls)
-            {
-                let wide = line.chars().count() as u32 * hud::GLYPH_WIDTH;
-                let x = width.saturating_sub(wide) / 2;
-                hud::draw_text(frame, width, height, x, height / 4, &line);
+            if game.scene.level.campaign == Some(1) {
+                view.hint = hud::hint_moment(&mut game.engine)
+                    .and_then(|moment| game.hints.line(moment, &controls));
             }
-            // Captions centred above the bottom line, the newest lowest.
-            let lines: Vec<&str> = self.captions.lines().collect();
-            for (row, line) in lines.iter().rev().enumerate() {
-                let wide = line.chars().count() as u32 * hud::GLYPH_WIDTH;
-                let x = width.saturating_sub(wide) / 2;
-                let y = height.saturating_sub(40 + 18 * row as u32);
-                hud::draw_text(frame, width, height, x, y, line);
-            }
-        }
-        let internal = self.engine_mut().map(|engine| {
-            (
-                engine.film.settings.width,
-                engine.film.settings.height,
-                engine.film.filter.mode,
-                engine.film.frames,
-            )
+            view.captions = self.captions.lines().map(str::to_string).collect();
+            view
         });
-        let frame = match &mut self.pixels {
-            Some(pixels) => pixels.frame_mut(),
-            None => return,
-        };
-        if let Some((internal_width, internal_height, mode, frames)) = internal
-            && (self.menu.is_none() || self.overlay)
-        {
-            let mean_ms = self.frame_ms.iter().sum::<f32>() / self.frame_ms.len().max(1) as f32;
-            let film = match mode {
-                FilterMode::Off => format!("{frames} spp"),
-                mode => mode.name().to_string(),
-            };
-            let status = format!(
-                "{:.1} fps {:.1} ms {internal_width}x{internal_height}{} {film}{}",
-                1000.0 / mean_ms.max(1e-3),
-                mean_ms,
-                match &self.resolution {
-                    Some(controller) => format!(" ({:.0}%)", controller.scale() * 100.0),
-                    None => String::new(),
-                },
-                if self.vsync { "" } else { " novsync" }
-            );
-            hud::draw_text(frame, width, height, 2, 2, &status);
-        }
+        let status = self.status_line();
         if self.overlay {
             let frames = &self.log.profile.frames;
             let recent = &frames[frames.len().saturating_sub(overlay::HISTORY)..];
@@ -1264,47 +1200,46 @@ impl App {
                 let deform = game.engine.deform_stats();
                 (deform.refits, deform.rebuilds)
             });
-            overlay::draw(frame, width, height, recent, refits, rebuilds);
+            let Some(pixels) = &mut self.pixels else {
+                return;
+            };
+            overlay::draw(pixels.frame_mut(), width, height, recent, refits, rebuilds);
         }
-        if let Some(menu) = &self.menu {
-            let view = menu.view(&self.context);
-            menu::draw(frame, width, height, &view);
-        }
+        let page = self.menu.as_ref().map(|menu| menu.view(&self.context));
         // The screenshot is what the player saw, without the notice that reports it.
-        if std::mem::take(&mut self.screenshot) {
-            self.save_screenshot();
-        }
-        let Some(pixels) = &mut self.pixels else {
+        let screenshot = std::mem::take(&mut self.screenshot);
+        let corner = hud::Corner {
+            status,
+            notice: (self.notice.as_ref())
+                .filter(|(at, _)| !screenshot && at.elapsed().as_secs_f32() < NOTICE_SECONDS)
+                .map(|(_, line)| line.clone()),
+            file_error: self.file_error.clone(),
+        };
+        let (Some(screen), Some(interface)) = (self.screen(), &mut self.interface) else {
             return;
         };
-        if let Some((at, line)) = &self.notice {
-            if at.elapsed().as_secs_f32() < NOTICE_SECONDS {
-                hud::draw_text(pixels.frame_mut(), width, height, 2, 20, line);
+        interface.draw(&screen, |painter| {
+            // A menu holds the level: the HUD waits under it.
+            match (&page, &hud) {
+                (Some(page), _) => menu::paint(painter, screen.rect, page),
+                (None, Some(hud)) => hud::paint(painter, &screen, hud),
+                (None, None) => {}
             }
-        }
-        if let Some(error) = &self.file_error {
-            // Wrapped to the frame: the HUD's glyphs are 8 pixels wide.
-            let columns = (width as usize / 8).saturating_sub(1).max(8);
-            let rows = error.lines().flat_map(|line| {
-                let chars: Vec<char> = line.chars().collect();
-                chars
-                    .chunks(columns)
-                    .map(|chunk| chunk.iter().collect::<String>())
-                    .collect::<Vec<_>>()
-            });
-            for (row, line) in rows.take(6).enumerate() {
-                hud::draw_text(
-                    pixels.frame_mut(),
-                    width,
-                    height,
-                    2,
-                    38 + 16 * row as u32,
-                    &line,
-                );
-            }
-        }
-        if let Err(error) = pixels.render() {
+            hud::paint_corner(painter, &screen, &corner);
+        });
+        let Some(pixels) = &self.pixels else {
+            return;
+        };
+        let presented = pixels.render_with(|encoder, target, context| {
+            context.scaling_renderer.render(encoder, target);
+            interface.paint(encoder, target, context);
+            Ok(())
+        });
+        if let Err(error) = presented {
             return self.fail(event_loop, anyhow!("presenting the frame: {error}"));
+        }
+        if screenshot {
+            self.save_screenshot();
         }
         if advanced && let Some(engine) = self.engine_mut() {
             let times = engine.stage_times();
@@ -1366,110 +1301,6 @@ fn resize_surface(
     }
 }
 
-/// The HUD over the level being played: the light gem, each warden's state mark, the lamp
-/// prompt, noise rings, the caught banner, the shards.
-fn draw_hud(
-    frame: &mut [u8],
-    (width, height): (u32, u32),
-    engine: &mut Engine,
-    caught: &Option<(Instant, String)>,
-    watching: bool,
-    interact_key: &str,
-) {
-    let gem = engine
-        .world
-        .query::<&crate::game::Exposure>()
-        .iter(&engine.world)
-        .next()
-        .map(|exposure| exposure.gem);
-    if let Some(gem) = gem {
-        hud::draw_gem(frame, width, height, gem);
-    }
-    // Each warden's state above its head: what it knows, the player knows.
-    let projection = engine.view_camera(width, height).projection();
-    let mut wardens = engine
-        .world
-        .query::<(&crate::game::Warden, &crate::game::GlobalTransform)>();
-    for (warden, placed) in wardens.iter(&engine.world) {
-        let head = placed.0.translation + glam::Vec3A::Y * hud::MARK_HEIGHT;
-        let seen = projection.project_lanes(head);
-        if seen.in_front && seen.distance < hud::MARK_RANGE {
-            hud::draw_warden_mark(
-                frame,
-                width,
-                height,
-                (seen.x, seen.y),
-                warden.state,
-                warden.suspicion,
-            );
-        }
-    }
-    // The lamp within reach of the player's aim, and what the interact key would do to it:
-    // under the aim point, clear of the captions along the bottom.
-    if let Some(verb) = lamp_prompt(&mut engine.world) {
-        let prompt = format!("{interact_key}  {verb}");
-        let x = (width / 2).saturating_sub(prompt.len() as u32 * 4);
-        hud::draw_text(frame, width, height, x, height / 2 + 20, &prompt);
-    }
-    // Each noise the player made, as a ring of its reach on the floor, fading.
-    if let Some(noises) = engine.world.get_resource::<crate::game::Noises>() {
-        for noise in &noises.0 {
-            let points = (0..hud::RING_POINTS).map(|i| {
-                let angle = i as f32 / hud::RING_POINTS as f32 * std::f32::consts::TAU;
-                let at = noise.at
-                    + glam::Vec3::new(angle.cos() * noise.radius, 0.05, angle.sin() * noise.radius);
-                let seen = projection.project_lanes(at.into());
-                seen.in_front.then_some((seen.x, seen.y))
-            });
-            let fade = 1.0 - noise.age / crate::game::noise::tuning::RING_SECONDS;
-            hud::draw_noise_ring(frame, width, height, points, fade);
-        }
-    }
-    if let Some((at, by)) = caught
-        && at.elapsed().as_secs_f32() < 3.0
-    {
-        let line = format!("Caught by {by}. The level starts again.");
-        let x = (width / 2).saturating_sub(line.len() as u32 * 4);
-        hud::draw_text(frame, width, height, x, height / 3, &line);
-    }
-    // The goal: shards so far.
-    if let Some(progress) = engine.world.get_resource::<crate::game::Progress>() {
-        let progress = progress.clone();
-        let left = engine
-            .world
-            .query_filtered::<(), bevy_ecs::query::With<crate::game::Shard>>()
-            .iter(&engine.world)
-            .count() as u32;
-        let total = progress.shards_taken + left;
-        if total > 0 {
-            let line = format!("shards {}/{total}", progress.shards_taken);
-            hud::draw_text(frame, width, height, 2, height.saturating_sub(18), &line);
-        }
-        // A level with a player and no way out is a free walk (a scene without a player
-        // is only a view).
-        let exits = engine
-            .world
-            .query_filtered::<(), bevy_ecs::query::With<crate::game::Exit>>()
-            .iter(&engine.world)
-            .count();
-        let players = engine
-            .world
-            .query_filtered::<(), bevy_ecs::query::With<crate::game::Player>>()
-            .iter(&engine.world)
-            .count();
-        if exits == 0 && players > 0 {
-            let line = "free walk: this level has no way out";
-            hud::draw_text(frame, width, height, 2, height.saturating_sub(30), line);
-        }
-        if progress.outcome == crate::game::Outcome::Caught && watching {
-            // Only a watched recording shows this: in play the level has restarted.
-            let line = format!("Caught by {}.  Esc: menu", caught_by(&mut engine.world));
-            let x = (width / 2).saturating_sub(line.len() as u32 * 4);
-            hud::draw_text(frame, width, height, x, height / 3, &line);
-        }
-    }
-}
-
 impl ApplicationHandler for App {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.window.is_some() {
@@ -1489,6 +1320,7 @@ impl ApplicationHandler for App {
                 if self.context.settings.fullscreen {
                     window.set_fullscreen(Some(Fullscreen::Borderless(None)));
                 }
+                self.interface = Some(interface::Interface::new(&pixels));
                 self.pixels = Some(pixels);
                 self.window = Some(window);
             }
@@ -1530,20 +1362,16 @@ impl ApplicationHandler for App {
                 }
             }
             WindowEvent::CursorMoved { position, .. } => {
-                let Some(pixels) = &self.pixels else { return };
+                let Some(screen) = self.screen() else { return };
                 let before = self.pointer;
-                self.pointer = pixels
-                    .window_pos_to_pixel((position.x as f32, position.y as f32))
-                    .ok()
-                    .map(|(x, y)| (x as u32, y as u32));
+                self.pointer = Some(screen.window_point((position.x, position.y)));
                 // A window that opens under a resting pointer is told where it is, as if it
                 // had moved there: only a move from a known place points at a row, or a
                 // pointer left where Quit appears would choose Quit for the keyboard.
                 let moved = before.is_some() && before != self.pointer;
-                if moved && let (Some(menu), Some((x, y))) = (&self.menu, self.pointer) {
+                if moved && let (Some(menu), Some(at)) = (&self.menu, self.pointer) {
                     let view = menu.view(&self.context);
-                    let (width, height) = (self.options.width, self.options.height);
-                    if let Some(row) = menu::row_at(&view, width, height, x, y) {
+                    if let Some(row) = menu::row_at(&view, screen.rect, at) {
                         self.menu_input(event_loop, MenuInput::Point(row));
                     }
                 }
@@ -1557,9 +1385,8 @@ impl ApplicationHandler for App {
                 if let Some(menu) = &self.menu {
                     // A click chooses the row under the pointer.
                     let view = menu.view(&self.context);
-                    let (width, height) = (self.options.width, self.options.height);
-                    if let Some((x, y)) = self.pointer
-                        && let Some(row) = menu::row_at(&view, width, height, x, y)
+                    if let (Some(at), Some(screen)) = (self.pointer, self.screen())
+                        && let Some(row) = menu::row_at(&view, screen.rect, at)
                     {
                         self.menu_input(event_loop, MenuInput::Point(row));
                         self.menu_input(event_loop, MenuInput::Activate);

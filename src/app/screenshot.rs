@@ -1,11 +1,14 @@
-//! App step, on F12: writes what the window shows (a PNG, HUD and menus included, as the
-//! player saw it) and the linear film under it (an EXR of radiance at the internal
+//! App step, on F12: writes what the window shows (a PNG at the window's size, HUD and
+//! menus included, as the player saw it: `capture` draws the frame once more into a texture
+//! it can read back) and the linear film under it (an EXR of radiance at the internal
 //! resolution, for comparing lighting without the tone mapping), side by side and numbered
 //! per level: `first-light-001.png` and `first-light-001.exr`.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
+
+use pixels::{Pixels, PixelsContext, wgpu};
 
 use crate::render::film::Film;
 use crate::scene::files::write_atomically;
@@ -56,6 +59,88 @@ pub fn save(
         None => None,
     };
     Ok(Written { png, exr })
+}
+
+/// Draws a frame with `draw` (given an encoder, a target the size of the window's surface,
+/// and pixels' context) into a texture of `size`, reads it back and returns it as RGBA8.
+/// `draw` is what presenting does: pixels' scaling pass, then the interface over it.
+pub fn capture(
+    pixels: &Pixels<'_>,
+    (width, height): (u32, u32),
+    draw: impl FnOnce(&mut wgpu::CommandEncoder, &wgpu::TextureView, &PixelsContext),
+) -> anyhow::Result<Vec<u8>> {
+    let format = pixels.render_texture_format();
+    let bgra = match format {
+        wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb => true,
+        wgpu::TextureFormat::Rgba8Unorm | wgpu::TextureFormat::Rgba8UnormSrgb => false,
+        other => anyhow::bail!("the window's format {other:?} is not one a PNG can take"),
+    };
+    let device = pixels.device();
+    let size = wgpu::Extent3d {
+        width: width.max(1),
+        height: height.max(1),
+        depth_or_array_layers: 1,
+    };
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("screenshot"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    // Rows of a texture copy start on 256-byte boundaries.
+    let row = (size.width * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+        * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("screenshot"),
+        size: u64::from(row) * u64::from(size.height),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+        label: Some("screenshot"),
+    });
+    let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+    draw(&mut encoder, &view, pixels.context());
+    encoder.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(size.height),
+            },
+        },
+        size,
+    );
+    pixels.queue().submit(Some(encoder.finish()));
+    let slice = buffer.slice(..);
+    let (sender, receiver) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |mapped| {
+        let _ = sender.send(mapped);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .context("waiting for the screenshot's copy")?;
+    receiver
+        .recv()
+        .context("the screenshot's copy never finished")?
+        .context("reading the screenshot back")?;
+    let mapped = slice.get_mapped_range();
+    let mut rgba = Vec::with_capacity((size.width * size.height * 4) as usize);
+    for line in mapped.chunks_exact(row as usize) {
+        for texel in line[..(size.width * 4) as usize].chunks_exact(4) {
+            match bgra {
+                true => rgba.extend_from_slice(&[texel[2], texel[1], texel[0], 255]),
+                false => rgba.extend_from_slice(&[texel[0], texel[1], texel[2], 255]),
+            }
+        }
+    }
+    Ok(rgba)
 }
 
 #[cfg(test)]

@@ -1,6 +1,6 @@
 //! The player's own files, read when the window opens and written when they change: the
-//! settings (mouse, view, brightness, frame-time target, keys, gamepad buttons, captions,
-//! volumes) and the best time of each
+//! settings (mouse, view, brightness, frame-time target, interface size, keys, gamepad
+//! buttons, captions, volumes) and the best time of each
 //! level, both RON in the user's config folder (`$GLOAM_CONFIG_DIR`, else
 //! `$XDG_CONFIG_HOME/gloam`, `~/.config/gloam`, `%APPDATA%\gloam` or
 //! `~/Library/Application Support/gloam`).
@@ -52,6 +52,9 @@ pub struct Settings {
     /// The gamepad's buttons bound to each game action (the left stick always moves, the
     /// right stick always looks, Start always pauses).
     pub pad: PadBindings,
+    /// The size of the HUD's and the menus' text and marks, times their size for the
+    /// window (1.0: 17-point text in a 960 x 540 window, twice that at 1920 x 1080).
+    pub ui_scale: f32,
 }
 
 impl Default for Settings {
@@ -68,6 +71,7 @@ impl Default for Settings {
             fullscreen: false,
             vsync: true,
             pad: PadBindings::default(),
+            ui_scale: 1.0,
         }
     }
 }
@@ -77,6 +81,7 @@ pub mod ranges {
     pub const MOUSE_SENSITIVITY: (f32, f32, f32) = (0.1, 5.0, 0.1);
     pub const FIELD_OF_VIEW: (f32, f32, f32) = (50.0, 110.0, 5.0);
     pub const BRIGHTNESS: (f32, f32, f32) = (0.25, 4.0, 0.25);
+    pub const UI_SCALE: (f32, f32, f32) = (0.5, 2.0, 0.1);
     /// Each volume, as a share of full.
     pub const VOLUME: (f32, f32, f32) = (0.0, 1.0, 0.1);
     /// The frame-time targets offered, milliseconds (None: fixed resolution).
@@ -109,6 +114,7 @@ impl Settings {
         );
         within("field_of_view", self.field_of_view, ranges::FIELD_OF_VIEW);
         within("brightness", self.brightness, ranges::BRIGHTNESS);
+        within("ui_scale", self.ui_scale, ranges::UI_SCALE);
         let volume = &self.volume;
         for (field, value) in [
             ("volume.master", volume.master),
@@ -684,6 +690,7 @@ mod tests {
             frame_time_target_ms: None,
             fullscreen: true,
             vsync: false,
+            ui_scale: 1.3,
             ..Settings::default()
         };
         assert!(settings.keys.bind(Action::Sprint, KeyCode::AltLeft));
@@ -740,6 +747,7 @@ mod tests {
                 "field_of_view 300 is outside 50..=110",
             ),
             ("(brightness: -1.0)", "brightness -1 is outside"),
+            ("(ui_scale: 0.1)", "ui_scale 0.1 is outside 0.5..=2"),
             ("(keys: (forward: [\"KeyWW\"]))", "unknown key 'KeyWW'"),
             (
                 "(keys: (jump: [\"Escape\"]))",

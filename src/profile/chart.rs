@@ -1,4 +1,4 @@
-//! The bench chart (a PNG) and the bitmap text both it and the in-game HUD draw with.
+//! The bench chart (a PNG) and the bitmap text it and the profiler overlay draw with.
 //!
 //! Top: each frame a column, its stages stacked bottom-up in `STAGES` order and the stages
 //! timed in phases (gameplay, render, film) split into their phases in shades of the

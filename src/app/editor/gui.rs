@@ -3,20 +3,18 @@
 //! egui's renderer and drawn as an image in the central panel, so the view keeps its aspect
 //! beside the side panels and a pointer position maps straight to a film pixel.
 
-use egui::{ClippedPrimitive, Context, TextureId, TexturesDelta, ViewportId};
-use egui_wgpu::{Renderer, RendererOptions, ScreenDescriptor};
+use egui::{Context, TextureId, ViewportId};
 use pixels::{Pixels, PixelsContext, wgpu};
 use winit::event::WindowEvent;
 use winit::event_loop::ActiveEventLoop;
 use winit::window::Window;
 
+use crate::app::interface::EguiPaint;
+
 pub struct Gui {
     pub context: Context,
     state: egui_winit::State,
-    screen: ScreenDescriptor,
-    renderer: Renderer,
-    paint_jobs: Vec<ClippedPrimitive>,
-    textures: TexturesDelta,
+    paint: EguiPaint,
     /// pixels' frame texture, as egui knows it.
     pub view: TextureId,
     /// egui asked for the next frame at once (an animation, a tooltip on its way).
@@ -37,13 +35,9 @@ impl Gui {
             None,
             Some(max_texture),
         );
-        let mut renderer = Renderer::new(
-            pixels.device(),
-            pixels.render_texture_format(),
-            RendererOptions::default(),
-        );
+        let mut paint = EguiPaint::new(pixels, (size.width, size.height), scale);
         let texture = &pixels.context().texture;
-        let view = renderer.register_native_texture(
+        let view = paint.renderer_mut().register_native_texture(
             pixels.device(),
             &texture.create_view(&wgpu::TextureViewDescriptor::default()),
             // The film's pixels stay sharp when the view is drawn larger than it.
@@ -52,13 +46,7 @@ impl Gui {
         Gui {
             context,
             state,
-            screen: ScreenDescriptor {
-                size_in_pixels: [size.width.max(1), size.height.max(1)],
-                pixels_per_point: scale,
-            },
-            renderer,
-            paint_jobs: Vec::new(),
-            textures: TexturesDelta::default(),
+            paint,
             view,
             wants_repaint: true,
         }
@@ -69,10 +57,12 @@ impl Gui {
     pub fn on_event(&mut self, window: &Window, event: &WindowEvent) -> bool {
         match event {
             WindowEvent::Resized(size) if size.width > 0 && size.height > 0 => {
-                self.screen.size_in_pixels = [size.width, size.height];
+                let scale = window.scale_factor() as f32;
+                self.paint.set_screen((size.width, size.height), scale);
             }
             WindowEvent::ScaleFactorChanged { scale_factor, .. } => {
-                self.screen.pixels_per_point = *scale_factor as f32;
+                let [width, height] = self.paint.size_in_pixels();
+                self.paint.set_screen((width, height), *scale_factor as f32);
             }
             _ => {}
         }
@@ -87,12 +77,10 @@ impl Gui {
             .viewport_output
             .get(&ViewportId::ROOT)
             .is_none_or(|viewport| viewport.repaint_delay.is_zero());
-        self.textures.append(output.textures_delta);
         self.state
             .handle_platform_output(window, output.platform_output);
-        self.paint_jobs = self
-            .context
-            .tessellate(output.shapes, self.screen.pixels_per_point);
+        self.paint
+            .take(&self.context, output.shapes, output.textures_delta);
     }
 
     /// Draws the last frame's interface into `target` (the view is part of it).
@@ -102,41 +90,7 @@ impl Gui {
         target: &wgpu::TextureView,
         context: &PixelsContext,
     ) {
-        for (id, delta) in &self.textures.set {
-            self.renderer
-                .update_texture(&context.device, &context.queue, *id, delta);
-        }
-        self.renderer.update_buffers(
-            &context.device,
-            &context.queue,
-            encoder,
-            &self.paint_jobs,
-            &self.screen,
-        );
-        {
-            let mut pass = encoder
-                .begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("editor interface"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: target,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
-                            store: wgpu::StoreOp::Store,
-                        },
-                        depth_slice: None,
-                    })],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                })
-                .forget_lifetime();
-            self.renderer
-                .render(&mut pass, &self.paint_jobs, &self.screen);
-        }
-        for id in &std::mem::take(&mut self.textures).free {
-            self.renderer.free_texture(id);
-        }
+        self.paint
+            .paint(encoder, target, context, Some(wgpu::Color::BLACK));
     }
 }
