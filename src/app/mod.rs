@@ -19,6 +19,9 @@
 //!    (`scene::watch`), the level starts again from the files; one that does not load
 //!    leaves the level playing with its `file:line:column: message` on screen until fixed.
 //!
+//! The first run (no settings file yet) times its first frames at the full resolution and
+//! keeps the frame-time target they choose (`resolution::first_run_target`).
+//!
 //! With no level named, the window opens on the main menu over the first level seen from
 //! its own camera, its wardens walking their beats. Keys in play (the defaults; the keys
 //! page rebinds them): W A S D walk, Shift sprints, Space jumps, C or Ctrl crouches, E
@@ -221,6 +224,14 @@ impl App {
     fn new(options: PlayOptions) -> App {
         let mut notices = Vec::new();
         let config = settings::config_dir();
+        // No settings file yet: the first frames choose the frame-time target, unless the
+        // command line chose the resolution or runs a script of frames.
+        let first_run = config
+            .as_ref()
+            .is_some_and(|dir| !dir.join(settings::SETTINGS_FILE).exists())
+            && options.target_ms.is_none()
+            && options.frames.is_none()
+            && options.watch.is_none();
         let (player_settings, best) = match &config {
             Some(dir) => {
                 let loaded = settings::load::<Settings>(&dir.join(settings::SETTINGS_FILE));
@@ -255,6 +266,7 @@ impl App {
         let player_settings_vsync = player_settings.vsync;
         let mut app = App {
             resolution: None,
+            probe: first_run.then(resolution::FirstRunProbe::default),
             game: None,
             backdrop: None,
             menu: None,
@@ -438,6 +450,9 @@ pub(crate) struct App {
     sound: sound::GameSound,
     /// Adaptive internal resolution (None: fixed).
     resolution: Option<ResolutionController>,
+    /// The first run's frames being timed at the full resolution, to choose the frame-time
+    /// target (`resolution::first_run_target`); the resolution is fixed meanwhile.
+    probe: Option<resolution::FirstRunProbe>,
     options: PlayOptions,
     window: Option<Arc<Window>>,
     pixels: Option<Pixels<'static>>,
@@ -625,10 +640,10 @@ impl App {
 
     /// The adaptive resolution as the command line or the settings ask.
     fn apply_target(&mut self) {
-        let target = self
-            .options
-            .target_ms
-            .unwrap_or(self.context.settings.frame_time_target_ms);
+        let target = match self.probe {
+            Some(_) => None,
+            None => (self.options.target_ms).unwrap_or(self.context.settings.frame_time_target_ms),
+        };
         if self.resolution.as_ref().map(|c| c.target_ms) == target {
             return;
         }
@@ -1037,6 +1052,25 @@ impl App {
         }
     }
 
+    /// Times a first run's frame; once the probe has its answer, keeps the target it
+    /// chooses in the settings and says so.
+    fn time_first_run(&mut self, frame_ms: f64) {
+        let Some(full_ms) = self
+            .probe
+            .as_mut()
+            .and_then(|probe| probe.observe(frame_ms))
+        else {
+            return;
+        };
+        self.probe = None;
+        let target = resolution::first_run_target(full_ms);
+        self.context.settings.frame_time_target_ms = Some(target);
+        self.settings_changed();
+        self.notify(format!(
+            "frame-time target {target} ms, from this machine's first frames ({full_ms:.1} ms at full resolution); Settings changes it"
+        ));
+    }
+
     /// The window as the interface lays it out (None before it opens).
     fn screen(&self) -> Option<interface::Screen> {
         let (window, pixels) = (self.window.as_ref()?, self.pixels.as_ref()?);
@@ -1098,6 +1132,7 @@ impl App {
             };
             adapt_resolution(resolution, engine, options, elapsed.as_secs_f64() * 1e3);
             engine.advance(elapsed.as_secs_f64());
+            self.time_first_run(elapsed.as_secs_f64() * 1e3);
             self.hear_captions();
             if let Some(game) = &self.game {
                 // A recording holds one attempt: it ends when the attempt does.

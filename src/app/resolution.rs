@@ -4,6 +4,13 @@
 //! step above, would still fit with room to spare. The gap between the two thresholds and
 //! a cool-down after every change are the hysteresis: a frame time between them changes
 //! nothing, so the resolution does not flicker.
+//!
+//! On the first run (no settings file yet) the target itself is chosen from a short
+//! measurement (`FirstRunProbe`, `first_run_target`): the first frames are rendered at the
+//! full configured resolution and timed, and the target is the shortest this machine holds
+//! without giving up much of the image.
+
+use super::settings::{DEFAULT_TARGET_MS, ranges::FRAME_TIME_TARGETS};
 
 /// The ladder of scales (per axis) of the configured resolution.
 pub const SCALES: [f32; 6] = [1.0, 0.85, 0.7, 0.6, 0.5, 0.4];
@@ -68,6 +75,53 @@ impl ResolutionController {
     }
 }
 
+/// The share of the configured resolution, each way, a first-run target must hold for the
+/// image's sake (the ladder's second step), and the least it may fall to before the default
+/// target gives way to the longest.
+const FIRST_RUN_KEEPS: f32 = 0.85;
+const FIRST_RUN_FLOOR: f32 = 0.5;
+
+/// The frame-time target for a machine whose frames take `full_ms` (median) at the full
+/// configured resolution: the shortest target offered, up to the default, that it holds at
+/// `FIRST_RUN_KEEPS` of the resolution (frame time scales with the pixels); else the
+/// default if it holds that at `FIRST_RUN_FLOOR` or more (a slow machine trades pixels
+/// before smoothness); else the longest offered.
+pub fn first_run_target(full_ms: f64) -> f64 {
+    let offered = FRAME_TIME_TARGETS.iter().flatten().copied();
+    let at = |scale: f32| full_ms * f64::from(scale * scale);
+    offered
+        .clone()
+        .filter(|&target| target <= DEFAULT_TARGET_MS)
+        .find(|&target| at(FIRST_RUN_KEEPS) <= target)
+        .or((at(FIRST_RUN_FLOOR) <= DEFAULT_TARGET_MS).then_some(DEFAULT_TARGET_MS))
+        .unwrap_or_else(|| offered.fold(DEFAULT_TARGET_MS, f64::max))
+}
+
+/// Times the first frames of a first run at the full resolution: the first
+/// `FirstRunProbe::WARM_UP` (caches filling, the first BVH refits) are left out, the median
+/// of the next `FirstRunProbe::MEASURED` is the answer.
+#[derive(Clone, Debug, Default)]
+pub struct FirstRunProbe {
+    frames: Vec<f64>,
+}
+
+impl FirstRunProbe {
+    pub const WARM_UP: usize = 10;
+    pub const MEASURED: usize = 21;
+
+    /// Takes one frame's time; Some(the median) once enough frames are in.
+    pub fn observe(&mut self, frame_ms: f64) -> Option<f64> {
+        self.frames.push(frame_ms);
+        if self.frames.len() < Self::WARM_UP + Self::MEASURED {
+            return None;
+        }
+        let mut measured = self.frames.split_off(Self::WARM_UP);
+        self.frames.clear();
+        measured.sort_by(f64::total_cmp);
+        Some(measured[measured.len() / 2])
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -115,5 +169,41 @@ mod tests {
             let ms = if frame == 3 { 500.0 } else { 20.0 };
             assert_eq!(controller.observe(ms), None);
         }
+    }
+
+    #[test]
+    fn the_first_run_target_is_the_shortest_held_with_most_of_the_image() {
+        // A fast machine: 60 fps at 85% or more.
+        assert_eq!(first_run_target(8.0), 16.7);
+        assert_eq!(first_run_target(23.0), 16.7);
+        // 30 ms at full resolution (this 2-core machine's menu): 40 fps at 85%.
+        assert_eq!(first_run_target(30.0), 25.0);
+        assert_eq!(first_run_target(45.0), DEFAULT_TARGET_MS);
+        // Slower: the default still, at a lower resolution, rather than 20 fps...
+        assert_eq!(first_run_target(120.0), DEFAULT_TARGET_MS);
+        // ...until even half the resolution cannot hold it.
+        assert_eq!(first_run_target(140.0), 50.0);
+        // Every answer is a target the settings offer.
+        for ms in [0.5, 5.0, 17.0, 29.0, 60.0, 1000.0, f64::INFINITY] {
+            assert!(
+                FRAME_TIME_TARGETS.contains(&Some(first_run_target(ms))),
+                "{ms}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_probe_answers_the_median_of_its_measured_frames_after_the_warm_up() {
+        let mut probe = FirstRunProbe::default();
+        for frame in 0..FirstRunProbe::WARM_UP {
+            // Slow first frames are not counted.
+            assert_eq!(probe.observe(500.0 + frame as f64), None);
+        }
+        let mut answer = None;
+        for frame in 0..FirstRunProbe::MEASURED {
+            assert_eq!(answer, None);
+            answer = probe.observe(if frame % 5 == 0 { 90.0 } else { 20.0 });
+        }
+        assert_eq!(answer, Some(20.0));
     }
 }

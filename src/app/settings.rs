@@ -37,7 +37,8 @@ pub struct Settings {
     /// Multiplies the image's radiance before tone mapping.
     pub brightness: f32,
     /// The frame time the internal resolution adapts to hold, milliseconds; None keeps the
-    /// resolution fixed.
+    /// resolution fixed. A first run chooses it from its first frames
+    /// (`resolution::first_run_target`).
     pub frame_time_target_ms: Option<f64>,
     pub keys: KeyBindings,
     /// Captions for the sounds that matter to play, with where they come from.
