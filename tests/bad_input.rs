@@ -250,6 +250,27 @@ fn undecodable_image_is_reported() {
 }
 
 #[test]
+fn an_image_without_its_data_or_its_type_is_reported_not_a_panic() {
+    let dir = common::scratch_dir("image-source");
+    for (name, image, expected) in [
+        (
+            "nothing.gltf",
+            serde_json::json!({"mimeType": "image/png"}),
+            "an image needs a \"uri\" or a \"bufferView\"",
+        ),
+        (
+            "untyped.gltf",
+            serde_json::json!({"bufferView": 0}),
+            "an image in a \"bufferView\" needs a \"mimeType\"",
+        ),
+    ] {
+        let text = triangle_gltf(|json| json["images"] = serde_json::json!([image]));
+        let path = common::write(&dir, name, &text);
+        assert_reported(&path, name, None, &["/images/0", expected]);
+    }
+}
+
+#[test]
 fn truncated_and_garbage_glb_are_reported() {
     let dir = common::scratch_dir("glb");
     let mut glb = b"glTF".to_vec();

@@ -210,6 +210,24 @@ fn validate_root(path: &Path, json_text: &str, root: &gltf::json::Root) -> Vec<D
             }
         }
     }
+    // Guard: the gltf crate's `Image::source` unwraps a `uri` when an image has no
+    // `bufferView`, and a `mimeType` when it has one; glTF requires both of them there.
+    for (index, image) in root.images.iter().enumerate() {
+        let pointer = Pointer::root().key("images").index(index);
+        let missing = match (&image.buffer_view, &image.uri, &image.mime_type) {
+            (None, None, _) => Some("an image needs a \"uri\" or a \"bufferView\""),
+            (Some(_), _, None) => Some("an image in a \"bufferView\" needs a \"mimeType\""),
+            _ => None,
+        };
+        if let Some(message) = missing {
+            diagnostics.push(Diagnostic::at_pointer(
+                path,
+                json_text,
+                &pointer,
+                format!("required value missing: {message}"),
+            ));
+        }
+    }
     if !diagnostics.is_empty() {
         return diagnostics;
     }
