@@ -105,7 +105,7 @@ impl MaterialTable {
     }
 
     fn material(&mut self, asset: &Arc<Asset>, material: &Material) -> RenderMaterial {
-        RenderMaterial {
+        let mut made = RenderMaterial {
             base_color: material.base_color,
             base_color_texture: self.slot(asset, &material.base_color_texture),
             metallic: material.metallic,
@@ -119,6 +119,9 @@ impl MaterialTable {
             ior: material.ior,
             alpha_mode: material.alpha_mode,
             double_sided: material.double_sided,
-        }
+            paired_tap: false,
+        };
+        made.paired_tap = made.pairs_taps(&self.textures);
+        made
     }
 }
