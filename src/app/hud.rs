@@ -322,7 +322,7 @@ pub fn paint_mark(painter: &Painter, at: Pos2, state: WardenState, suspicion: f3
 /// with `strength`.
 fn paint_ring(painter: &Painter, points: impl Iterator<Item = Option<Pos2>>, strength: f32) {
     let alpha = (strength.clamp(0.0, 1.0) * 230.0) as u8;
-    let stroke = Stroke::new(2.0, Color32::from_white_alpha(alpha));
+    let stroke = Stroke::new(2.0_f32, Color32::from_white_alpha(alpha));
     let mut run: Vec<Pos2> = Vec::new();
     for point in points.chain(std::iter::once(None)) {
         match point {

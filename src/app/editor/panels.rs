@@ -789,7 +789,7 @@ impl Panels {
             .collect();
         painter.add(egui::Shape::line(
             route,
-            Stroke::new(2.0, Color32::from_rgb(120, 255, 200)),
+            Stroke::new(2.0_f32, Color32::from_rgb(120, 255, 200)),
         ));
         for &choke in &map.route.chokepoints {
             ring(painter, projection, choke, "lit, no way round", LIT);
@@ -802,7 +802,7 @@ impl Panels {
                 painter.circle_filled(at, 6.0, Color32::from_rgb(230, 60, 60));
                 painter.line_segment(
                     [at, ahead],
-                    Stroke::new(2.0, Color32::from_rgb(230, 60, 60)),
+                    Stroke::new(2.0_f32, Color32::from_rgb(230, 60, 60)),
                 );
             }
         }
@@ -847,7 +847,13 @@ impl Panels {
     fn overlays(&self, painter: &egui::Painter, frame: &FrameInput, projection: &ViewProjection) {
         let highlight = Color32::from_rgb(255, 170, 40);
         for (min, max) in &frame.bounds {
-            draw_box(painter, projection, *min, *max, Stroke::new(1.5, highlight));
+            draw_box(
+                painter,
+                projection,
+                *min,
+                *max,
+                Stroke::new(1.5_f32, highlight),
+            );
         }
         for (place, def) in &frame.defs {
             let selected = frame.selection.contains(place);
@@ -862,7 +868,7 @@ impl Panels {
                     if let (Some(a), Some(b)) =
                         (projection.point(pair[0]), projection.point(pair[1]))
                     {
-                        painter.line_segment([a, b], Stroke::new(1.5, colour));
+                        painter.line_segment([a, b], Stroke::new(1.5_f32, colour));
                     }
                 }
                 for point in &warden.route {
@@ -884,7 +890,7 @@ impl Panels {
             let (colour, label) = marker_style(def);
             painter.circle_filled(at, 5.0, colour);
             if selected {
-                painter.circle_stroke(at, 8.0, Stroke::new(2.0, highlight));
+                painter.circle_stroke(at, 8.0, Stroke::new(2.0_f32, highlight));
             }
             if selected || projection.rect.contains(at) && label != "light" {
                 painter.text(
@@ -1059,7 +1065,7 @@ fn ring(
     colour: Color32,
 ) {
     if let Some(at) = projection.point(at + Vec3::Y * 0.05) {
-        painter.circle_stroke(at, 9.0, Stroke::new(2.5, colour));
+        painter.circle_stroke(at, 9.0, Stroke::new(2.5_f32, colour));
         painter.text(
             at + egui::vec2(10.0, -10.0),
             egui::Align2::LEFT_BOTTOM,
@@ -1094,7 +1100,7 @@ fn play_check_overlay(
         .chain(checked.route.last())
         .filter_map(|&p| projection.point(p + Vec3::Y * 0.05))
         .collect();
-    painter.add(egui::Shape::line(route, Stroke::new(2.0, route_colour)));
+    painter.add(egui::Shape::line(route, Stroke::new(2.0_f32, route_colour)));
     let marked = if stale { grey } else { LIT };
     let edited = if stale { " (before the last edit)" } else { "" };
     if let Some(at) = checked.caught_at() {
@@ -1786,7 +1792,7 @@ fn audibility_overlay(painter: &egui::Painter, map: &Audibility, projection: &Vi
             .collect();
         painter.add(egui::Shape::line(
             reach,
-            Stroke::new(1.0, Color32::from_rgba_unmultiplied(230, 120, 40, 160)),
+            Stroke::new(1.0_f32, Color32::from_rgba_unmultiplied(230, 120, 40, 160)),
         ));
         if let Some(at) = projection.point(*feet + Vec3::Y * 0.05) {
             painter.circle_filled(at, 6.0, Color32::from_rgb(230, 60, 60));
