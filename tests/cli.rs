@@ -51,48 +51,101 @@ fn check_lists_problems_and_exits_1() {
     assert!(!text(&output.stderr).contains("panicked"));
 }
 
+/// A command line clap refuses is a usage error: one line, exit 2 (clap's and sysexits'
+/// convention); a command that runs and finds its input wrong is a failure: exit 1.
 #[test]
-fn bad_flags_are_one_line_and_exit_1() {
-    for args in [
-        &["check"][..],
-        &["--frobnicate"],
-        &["check", "a", "b"],
-        &[
-            "generate",
-            "stress",
-            "--triangles",
-            "many",
-            "--out",
-            "x.glb",
-        ],
-        &[
-            "play",
-            "--replay",
-            "tests/recordings/first-light-won.json",
-            "--record",
-            "x.json",
-        ],
-        &["play", "levels/first-light.ron", "--json", "x.json"],
-        &[
-            "exposure",
-            "levels/first-light.ron",
-            "--cell",
-            "0",
-            "--out",
-            "x.png",
-            "--json",
-            "x.json",
-        ],
-        &["exposure", "levels/first-light.ron", "--out", "x.png"],
-        &["play", "--headless", "--replay", "no-such-replay.json"],
+fn bad_flags_are_one_line_usage_errors_and_failed_runs_exit_1() {
+    for (args, code) in [
+        (&["check"][..], 2),
+        (&["--frobnicate"], 2),
+        (&["check", "a", "b"], 2),
+        (
+            &[
+                "generate",
+                "stress",
+                "--triangles",
+                "many",
+                "--out",
+                "x.glb",
+            ],
+            2,
+        ),
+        (
+            &[
+                "play",
+                "--replay",
+                "tests/recordings/first-light-won.json",
+                "--record",
+                "x.json",
+            ],
+            1,
+        ),
+        (&["play", "levels/first-light.ron", "--json", "x.json"], 1),
+        (
+            &[
+                "exposure",
+                "levels/first-light.ron",
+                "--cell",
+                "0",
+                "--out",
+                "x.png",
+                "--json",
+                "x.json",
+            ],
+            2,
+        ),
+        (&["exposure", "levels/first-light.ron", "--out", "x.png"], 2),
+        (
+            &["play", "--headless", "--replay", "no-such-replay.json"],
+            1,
+        ),
     ] {
         let output = gloam(args);
-        assert_eq!(output.status.code(), Some(1), "{args:?}");
+        assert_eq!(output.status.code(), Some(code), "{args:?}");
         let stderr = text(&output.stderr);
         assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
         assert!(stderr.starts_with("gloam: "), "{stderr}");
     }
     assert!(gloam(&["--help"]).status.success());
+}
+
+#[test]
+fn a_missing_argument_is_named_with_the_help_to_read() {
+    for (args, line) in [
+        (
+            &["render"][..],
+            "gloam: render needs --out and a SCENE (see `gloam render --help`)",
+        ),
+        (
+            &["exposure", "levels/first-light.ron", "--out", "x.png"],
+            "gloam: exposure needs --json (see `gloam exposure --help`)",
+        ),
+        (
+            &["check"],
+            "gloam: check needs a PATH (see `gloam check --help`)",
+        ),
+    ] {
+        let output = gloam(args);
+        assert_eq!(output.status.code(), Some(2), "{args:?}");
+        assert_eq!(text(&output.stderr).trim_end(), line, "{args:?}");
+    }
+    // A bad value names its flag and points to its own command's help.
+    let output = gloam(&[
+        "generate",
+        "stress",
+        "--triangles",
+        "many",
+        "--out",
+        "x.glb",
+    ]);
+    let stderr = text(&output.stderr);
+    assert!(
+        stderr.contains("'--triangles <TRIANGLES>'")
+            && stderr
+                .trim_end()
+                .ends_with("(see `gloam generate stress --help`)"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -133,7 +186,7 @@ fn numbers_out_of_range_name_the_flag_and_the_range() {
         ),
     ] {
         let output = gloam(args);
-        assert_eq!(output.status.code(), Some(1), "{args:?}");
+        assert_eq!(output.status.code(), Some(2), "{args:?}");
         let stderr = text(&output.stderr);
         assert_eq!(stderr.trim_end().lines().count(), 1, "{args:?}: {stderr}");
         assert!(
@@ -146,7 +199,7 @@ fn numbers_out_of_range_name_the_flag_and_the_range() {
 #[test]
 fn a_misspelt_command_is_named_as_neither_a_command_nor_a_level() {
     let output = gloam(&["rendr"]);
-    assert_eq!(output.status.code(), Some(1));
+    assert_eq!(output.status.code(), Some(2));
     let stderr = text(&output.stderr);
     assert_eq!(
         stderr.trim_end(),
@@ -376,12 +429,12 @@ fn raybench_writes_the_documented_json() {
 
 #[test]
 fn raybench_bad_input_is_one_line() {
-    for args in [
-        &["raybench", "levels/nowhere.ron"][..],
-        &["raybench", "levels/cornell.ron", "--size", "0"],
+    for (args, code) in [
+        (&["raybench", "levels/nowhere.ron"][..], 1),
+        (&["raybench", "levels/cornell.ron", "--size", "0"], 2),
     ] {
         let output = gloam(args);
-        assert_eq!(output.status.code(), Some(1), "{args:?}");
+        assert_eq!(output.status.code(), Some(code), "{args:?}");
         let stderr = text(&output.stderr);
         assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
         assert!(!stderr.contains("panicked"));
@@ -502,7 +555,7 @@ fn listen_writes_a_stereo_wav_and_its_report() {
         "--out",
         "x.wav",
     ]);
-    assert_eq!(bad.status.code(), Some(1));
+    assert_eq!(bad.status.code(), Some(2), "a bad value is a usage error");
     let stderr = text(&bad.stderr);
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(

@@ -84,10 +84,11 @@ fn flythrough_filters_bring_one_sample_closer_to_the_reference() {
 
 #[test]
 fn flythrough_and_play_reject_bad_flags_in_one_line() {
-    for (args, expected) in [
+    for (args, expected, code) in [
         (
             vec!["flythrough", "--frames", "10", "--warmup", "10"],
             "leaves no frame to compare",
+            1,
         ),
         (
             vec![
@@ -100,23 +101,28 @@ fn flythrough_and_play_reject_bad_flags_in_one_line() {
                 "1",
             ],
             "no entity named \"nobody\"",
+            1,
         ),
         (
             vec!["play", "--headless", "--target-ms=0"],
             "'--target-ms <TARGET_MS>': must be a number above 0",
+            2,
         ),
         (
             vec!["flythrough", "--alpha-min", "0"],
             "--alpha-min 0: must be in (0, 1]",
+            1,
         ),
         (
             vec!["flythrough", "--sigma-luminance=-1"],
             "'--sigma-luminance <SIGMA_LUMINANCE>': must be a number above 0",
+            2,
         ),
     ] {
+        // A value clap refuses is a usage error (2); one the command refuses, a failure.
         let output = gloam(&args);
         let stderr = String::from_utf8_lossy(&output.stderr);
-        assert_eq!(output.status.code(), Some(1), "{args:?}: {stderr}");
+        assert_eq!(output.status.code(), Some(code), "{args:?}: {stderr}");
         assert!(stderr.contains(expected), "{args:?}: {stderr}");
         assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     }

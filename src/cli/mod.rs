@@ -1,5 +1,7 @@
 //! The `gloam` command line: parses arguments and calls into the library. Outside the frame;
-//! this is where user errors become one line on stderr and exit status 1.
+//! this is where user errors become one line on stderr: a command line clap refuses names
+//! what is missing or wrong and the help to read, and exits 2; a command that runs and
+//! fails exits 1.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -239,6 +241,62 @@ pub enum Generate {
     },
 }
 
+/// The exit status of a command line clap cannot take (clap's and the BSD sysexits'
+/// convention); a command that runs and fails exits 1.
+const USAGE_ERROR: u8 = 2;
+
+/// A command line clap refused, in one line that names what is wrong and where to read
+/// more: `render needs a SCENE (see `gloam render --help`)`, or clap's own first line
+/// (`invalid value 'abc' for '--spp <SPP>': ...`) with the same pointer.
+fn usage_error_line(error: &clap::Error) -> String {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    // "Usage: gloam render [OPTIONS] <SCENE>": the command is the words before the first
+    // option or argument.
+    let usage = match error.get(ContextKind::Usage) {
+        Some(ContextValue::StyledStr(usage)) => usage.to_string(),
+        _ => String::new(),
+    };
+    let command: Vec<&str> = (usage.split_whitespace())
+        .skip_while(|word| *word != "gloam")
+        .take_while(|word| !word.starts_with(['[', '<', '-']))
+        .collect();
+    // Errors about a value carry no usage: the subcommands are the words of the command
+    // line that name one, each inside the one before (`generate stress`).
+    let named = || {
+        let mut at = <Cli as clap::CommandFactory>::command();
+        let mut path = vec!["gloam".to_string()];
+        for word in std::env::args().skip(1) {
+            if let Some(inner) = at.find_subcommand(&word).cloned() {
+                path.push(word);
+                at = inner;
+            }
+        }
+        (path.len() > 1).then(|| path.join(" "))
+    };
+    let command = match command.is_empty() {
+        false => command.join(" "),
+        true => named().unwrap_or_else(|| "gloam".to_string()),
+    };
+    let help = format!("(see `{command} --help`)");
+    if error.kind() == ErrorKind::MissingRequiredArgument
+        && let Some(ContextValue::Strings(missing)) = error.get(ContextKind::InvalidArg)
+    {
+        // "<SCENE>" is a SCENE; "--out <OUT>" is --out.
+        let named: Vec<String> = missing
+            .iter()
+            .map(|arg| match arg.strip_prefix('<') {
+                Some(value) => format!("a {}", value.trim_end_matches('>')),
+                None => arg.split_whitespace().next().unwrap_or(arg).to_string(),
+            })
+            .collect();
+        let verb = command.strip_prefix("gloam ").unwrap_or(&command);
+        return format!("{verb} needs {} {help}", named.join(" and "));
+    }
+    let rendered = error.render().to_string();
+    let first_line = rendered.lines().next().unwrap_or("bad command line");
+    format!("{} {help}", first_line.trim_start_matches("error: "))
+}
+
 /// Runs the command line; the binary's whole `main`.
 pub fn main() -> ExitCode {
     // Output piped into a reader that stops early (`gloam check x.ron | head -1`) ends
@@ -262,13 +320,8 @@ pub fn main() -> ExitCode {
             return ExitCode::SUCCESS;
         }
         Err(error) => {
-            let rendered = error.render().to_string();
-            let first_line = rendered.lines().next().unwrap_or("bad command line");
-            eprintln!(
-                "gloam: {} (see `gloam --help`)",
-                first_line.trim_start_matches("error: ")
-            );
-            return ExitCode::FAILURE;
+            eprintln!("gloam: {}", usage_error_line(&error));
+            return ExitCode::from(USAGE_ERROR);
         }
     };
     // Bare `gloam` is `gloam play` and `gloam LEVEL` is `gloam play LEVEL`, with `play`'s
@@ -283,13 +336,20 @@ pub fn main() -> ExitCode {
                         "gloam: '{}' is neither a command nor a level file (see `gloam --help`)",
                         level.display()
                     );
-                    return ExitCode::FAILURE;
+                    return ExitCode::from(USAGE_ERROR);
                 }
                 args.push(level.into_os_string());
             }
-            match Cli::try_parse_from(args).map(|cli| cli.command) {
-                Ok(Some(command)) => command,
-                _ => return ExitCode::FAILURE,
+            match Cli::try_parse_from(args) {
+                Ok(Cli {
+                    command: Some(command),
+                    ..
+                }) => command,
+                Ok(_) => return ExitCode::from(USAGE_ERROR),
+                Err(error) => {
+                    eprintln!("gloam: {}", usage_error_line(&error));
+                    return ExitCode::from(USAGE_ERROR);
+                }
             }
         }
     };
