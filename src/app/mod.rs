@@ -2,11 +2,11 @@
 //!
 //! Per displayed frame (winit 0.30 `ApplicationHandler`):
 //! 1. window and device events -> the player's key bindings (`settings`) -> the game's
-//!    `Input` resource, or, while a menu is open, -> the menu (`menu`);
+//!    `Input` resource, or, while a menu is open, -> the menu (`menu`), in `controls`;
 //! 2. `RedrawRequested`: the engine advances by the real time since the last frame (fixed
 //!    60 Hz simulation, then extract -> accel -> render -> film accumulation), unless a
 //!    menu holds it;
-//! 3. present: the film's image (with the filters on, upscaled by the film from a lowered
+//! 3. present (`present`): the film's image (with the filters on, upscaled by the film from a lowered
 //!    internal resolution to the configured one) is tone mapped (the film's tone mapper,
 //!    scaled by the brightness setting) into pixels' frame buffer at the configured
 //!    resolution and pixels scales it to the window; over it, at the window's own
@@ -36,12 +36,15 @@
 //! and, the first time the player stands lit, the crouch key (`hints`).
 
 mod captions;
+mod controls;
 pub mod editor;
 pub mod gamepad;
 pub mod hints;
 mod hud;
 pub(crate) mod interface;
 pub mod menu;
+mod options;
+mod present;
 pub mod resolution;
 pub mod screenshot;
 pub mod settings;
@@ -51,17 +54,17 @@ mod sound;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-use anyhow::{Context as _, anyhow};
+use anyhow::anyhow;
 use glam::Vec2;
 use pixels::{Pixels, PixelsBuilder, SurfaceTexture};
 use winit::application::ApplicationHandler;
 use winit::dpi::LogicalSize;
 use winit::event::{DeviceEvent, DeviceId, ElementState, MouseButton, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
-use winit::keyboard::{KeyCode, PhysicalKey};
-use winit::window::{CursorGrabMode, Fullscreen, Window, WindowId};
+use winit::keyboard::PhysicalKey;
+use winit::window::{Fullscreen, Window, WindowId};
 
 use crate::extract::DeformStats;
 use crate::film::FilterMode;
@@ -70,124 +73,16 @@ use crate::game::{Action, Input};
 use crate::profile::StageTimes;
 use crate::profile::{Profile, overlay};
 use crate::render::RenderSettings;
-use crate::render::film::tone_map;
 use crate::scene::files::default_level;
 use crate::scene::watch::FileWatch;
 use crate::scene::world::Scene;
 use menu::{Finish, Menu, MenuCommand, MenuContext, MenuInput, Page};
+pub use options::PlayOptions;
+use options::{
+    StageLog, adapt_resolution, frame_settings, play_engine, play_headless, set_field_of_view,
+};
 use resolution::ResolutionController;
 use settings::{BestTimes, PadButton, Settings};
-
-pub struct PlayOptions {
-    /// The level to play; None opens the main menu.
-    pub level: Option<PathBuf>,
-    /// Internal render resolution (pixels scales it to the window).
-    pub width: u32,
-    pub height: u32,
-    /// Stop rendering after this many frames and keep showing the image (for tests and
-    /// screenshots); print `ready` once shown.
-    pub frames: Option<u32>,
-    /// With `frames`: quit this long after the last frame.
-    pub linger: Duration,
-    /// Run the same frame loop without a window (`frames` frames, default 60) and print
-    /// the stage times.
-    pub headless: bool,
-    /// Start with the profiler overlay (F3) shown.
-    pub profiler: bool,
-    /// The film's filters.
-    pub filter: FilterMode,
-    /// The frame time the internal resolution adapts to hold: `Some(None)` keeps it fixed,
-    /// None takes the player's setting.
-    pub target_ms: Option<Option<f64>>,
-    /// Record every step's input of the attempt to this file.
-    pub record: Option<PathBuf>,
-    /// Watch this recording's inputs play instead of taking the keyboard's (its level is
-    /// `level`); the attempt is not restarted when it ends.
-    pub watch: Option<crate::game::replay::Recording>,
-}
-
-/// Per-frame stage times, for the table printed when a `--frames` run ends.
-#[derive(Default)]
-struct StageLog {
-    profile: Profile,
-    /// Frames kept (None: all, for the table a `--frames` run prints).
-    keep: Option<usize>,
-    /// Deforming meshes refit and rebuilt, summed over the frames.
-    refits: u64,
-    rebuilds: u64,
-}
-
-impl StageLog {
-    fn new(options: &PlayOptions) -> StageLog {
-        StageLog {
-            profile: Profile {
-                scene: options
-                    .level
-                    .as_ref()
-                    .map_or_else(|| "menu".to_string(), |level| level.display().to_string()),
-                width: options.width,
-                height: options.height,
-                threads: rayon::current_num_threads(),
-                ..Profile::default()
-            },
-            keep: options.frames.is_none().then_some(2 * overlay::HISTORY),
-            ..StageLog::default()
-        }
-    }
-
-    fn push(&mut self, times: &StageTimes, deform: DeformStats, present: f64, frame: f64) {
-        self.refits += deform.refits as u64;
-        self.rebuilds += deform.rebuilds as u64;
-        self.profile.frames.push(times.sample(present, frame));
-        if let Some(keep) = self.keep
-            && self.profile.frames.len() > keep
-        {
-            // Playing without end: keep what the overlay shows, not every frame.
-            self.profile
-                .frames
-                .drain(..self.profile.frames.len() - keep / 2);
-        }
-    }
-
-    /// The per-stage statistics, and the deforming meshes' refits and rebuilds.
-    fn print(&self, label: &str) {
-        print!("{label}: {}", self.profile.table());
-        if self.refits + self.rebuilds > 0 {
-            println!(
-                "deforming BLASes: {} refits, {} rebuilds",
-                self.refits, self.rebuilds
-            );
-        }
-    }
-}
-
-/// What a key does beyond the game's actions (those are the player's, in `settings`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Binding {
-    Pause,
-    Fullscreen,
-    Profiler,
-    Filter,
-    Vsync,
-    Screenshot,
-    /// Edit the level being played, as its file has it (in a play-test: back to the
-    /// editor).
-    Edit,
-}
-
-/// The window's own keys (`settings::RESERVED_KEYS`, which no game action may take).
-const WINDOW_KEYS: [(KeyCode, Binding); 7] = [
-    (KeyCode::F2, Binding::Edit),
-    (KeyCode::Escape, Binding::Pause),
-    (KeyCode::F11, Binding::Fullscreen),
-    (KeyCode::F3, Binding::Profiler),
-    (KeyCode::F4, Binding::Filter),
-    (KeyCode::F12, Binding::Screenshot),
-    (KeyCode::KeyV, Binding::Vsync),
-];
-
-/// Radians of view turn per pixel of mouse motion, at sensitivity 1.
-const MOUSE_SENSITIVITY: f32 = 0.0025;
 
 /// Opens the window: plays `options.level`, or opens the main menu when none is named.
 pub fn play(options: PlayOptions) -> anyhow::Result<()> {
@@ -332,84 +227,6 @@ impl App {
         self.captured = false;
         event_loop.exit();
     }
-}
-
-fn frame_settings(options: &PlayOptions) -> RenderSettings {
-    RenderSettings::real_time(options.width, options.height)
-}
-
-/// The engine as `play` runs it: the level, the real-time settings, the chosen filters.
-fn play_engine(scene: &Scene, options: &PlayOptions) -> Engine {
-    let mut engine = Engine::new(scene, frame_settings(options));
-    engine.film.filter.mode = options.filter;
-    // A playable level is seen through the player's eyes; a showcase scene from its camera.
-    if scene.level.playable {
-        crate::game::spawn_player(&mut engine.world);
-    }
-    engine
-}
-
-/// Sets the player's eye to `degrees` of vertical field of view.
-fn set_field_of_view(engine: &mut Engine, degrees: f32) {
-    use bevy_ecs::query::With;
-    let mut eyes = engine
-        .world
-        .query_filtered::<&mut crate::game::ViewCamera, With<crate::game::PlayerEye>>();
-    for mut eye in eyes.iter_mut(&mut engine.world) {
-        eye.yfov = degrees.to_radians();
-    }
-}
-
-/// Feeds a frame's time to the resolution controller and applies a change of step.
-fn adapt_resolution(
-    controller: &mut Option<ResolutionController>,
-    engine: &mut Engine,
-    options: &PlayOptions,
-    frame_ms: f64,
-) {
-    if let Some(controller) = controller
-        && controller.observe(frame_ms).is_some()
-    {
-        let (width, height) = controller.size(options.width, options.height);
-        engine.film.set_resolution(width, height);
-    }
-}
-
-/// The same frame loop with no window: real time drives the simulation as in `play`, and
-/// present costs nothing.
-fn play_headless(options: PlayOptions) -> anyhow::Result<()> {
-    let level = options.level.clone().unwrap_or_else(default_level);
-    let scene = Scene::load(&level)?;
-    let mut engine = play_engine(&scene, &options);
-    // Headless runs are measurements: the player's settings do not enter them.
-    let target = options
-        .target_ms
-        .unwrap_or(Some(settings::DEFAULT_TARGET_MS));
-    let mut controller = target.map(ResolutionController::new);
-    let mut log = StageLog::new(&options);
-    let mut last = Instant::now();
-    for _ in 0..options.frames.unwrap_or(60) {
-        let now = Instant::now();
-        let elapsed = (now - last).as_secs_f64();
-        adapt_resolution(&mut controller, &mut engine, &options, elapsed * 1e3);
-        engine.advance(elapsed);
-        last = now;
-        log.push(
-            &engine.stage_times(),
-            engine.deform_stats(),
-            0.0,
-            now.elapsed().as_secs_f64() * 1e3,
-        );
-    }
-    log.print("headless");
-    let settings = &engine.film.settings;
-    println!(
-        "film: {}, internal resolution {}x{} at the end",
-        options.filter.name(),
-        settings.width,
-        settings.height
-    );
-    Ok(())
 }
 
 /// A level being played.
@@ -774,138 +591,6 @@ impl App {
         self.set_capture(false);
     }
 
-    fn set_capture(&mut self, capture: bool) {
-        let Some(window) = &self.window else { return };
-        if capture {
-            let grabbed = window
-                .set_cursor_grab(CursorGrabMode::Locked)
-                .or_else(|_| window.set_cursor_grab(CursorGrabMode::Confined));
-            self.captured = grabbed.is_ok();
-        } else {
-            let _ = window.set_cursor_grab(CursorGrabMode::None);
-            self.captured = false;
-        }
-        window.set_cursor_visible(!self.captured);
-    }
-
-    fn menu_input(&mut self, event_loop: &ActiveEventLoop, input: MenuInput) {
-        let Some(menu) = &mut self.menu else { return };
-        if let Some(command) = menu.input(input, &mut self.context) {
-            self.command(event_loop, command);
-        }
-    }
-
-    fn key(&mut self, event_loop: &ActiveEventLoop, code: KeyCode, state: ElementState) {
-        let pressed = state == ElementState::Pressed;
-        if pressed {
-            self.device = hints::Device::Keyboard;
-        }
-        if self.menu.is_some() {
-            if !pressed {
-                return;
-            }
-            let input = match code {
-                _ if self.menu.as_ref().is_some_and(Menu::waiting_for_key) => MenuInput::Key(code),
-                KeyCode::ArrowUp => MenuInput::Up,
-                KeyCode::ArrowDown => MenuInput::Down,
-                KeyCode::ArrowLeft => MenuInput::Left,
-                KeyCode::ArrowRight => MenuInput::Right,
-                KeyCode::Enter | KeyCode::NumpadEnter | KeyCode::Space => MenuInput::Activate,
-                KeyCode::Escape => MenuInput::Back,
-                _ => match WINDOW_KEYS.iter().find(|(key, _)| *key == code) {
-                    Some(&(_, binding)) => return self.window_key(binding),
-                    None => return,
-                },
-            };
-            return self.menu_input(event_loop, input);
-        }
-        if let Some(action) = self.context.settings.keys.action(settings::Key(code)) {
-            // A recording being watched plays its own input.
-            if self.options.watch.is_some() {
-                return;
-            }
-            if pressed {
-                self.keys_held.insert(action);
-            } else {
-                self.keys_held.remove(&action);
-            }
-            let Some(game) = &mut self.game else { return };
-            let mut input = game.engine.world.resource_mut::<Input>();
-            if pressed {
-                input.held.insert(action);
-                input.pressed.insert(action);
-            } else if !self.gamepad.held.contains(&action) {
-                // A pad still holding it keeps it held.
-                input.held.remove(&action);
-            }
-            return;
-        }
-        let Some(&(_, binding)) = WINDOW_KEYS.iter().find(|(key, _)| *key == code) else {
-            return;
-        };
-        if !pressed {
-            return;
-        }
-        if binding == Binding::Edit || (binding == Binding::Pause && self.play_test) {
-            let switch = match (self.play_test, &self.game) {
-                (true, _) => shell::Switch::BackToEditor("play-test left".to_owned()),
-                (false, Some(game)) => shell::Switch::Edit(game.level.clone()),
-                (false, None) => return,
-            };
-            return self.switch_to(event_loop, switch);
-        }
-        if binding == Binding::Pause {
-            return self.pause();
-        }
-        self.window_key(binding);
-    }
-
-    /// The gamepads since the last frame: in a menu their buttons steer it (the d-pad
-    /// moves and changes, A chooses, B and Start go back; a button to bind goes to the
-    /// gamepad page); in play the actions they hold join the keyboard's, Start pauses, and
-    /// the right stick turns the view for the frame's `seconds`.
-    fn read_gamepad(&mut self, event_loop: &ActiveEventLoop, seconds: f32) {
-        let pressed = self.gamepad.poll();
-        let state = &self.gamepad.state;
-        if !pressed.is_empty()
-            || gamepad::past_dead_zone(state.left) != Vec2::ZERO
-            || gamepad::past_dead_zone(state.right) != Vec2::ZERO
-        {
-            self.device = hints::Device::Gamepad;
-        }
-        if self.menu.is_some() {
-            // Whatever the pads held was let go when the menu opened (`pause`).
-            self.gamepad.held.clear();
-            for button in pressed {
-                let Some(menu) = &self.menu else { break };
-                let Some(input) = gamepad::menu_input(button, menu.waiting_for_key()) else {
-                    continue;
-                };
-                self.menu_input(event_loop, input);
-            }
-            return;
-        }
-        // A recording being watched plays its own input.
-        if self.options.watch.is_some() {
-            return;
-        }
-        if pressed.contains(&PadButton::Start) && self.attempt_running() {
-            return self.pause();
-        }
-        let Some(game) = &mut self.game else { return };
-        let now = gamepad::held_actions(&self.gamepad.state, &self.context.settings.pad);
-        let mut input = game.engine.world.resource_mut::<Input>();
-        gamepad::hand_over(&mut input, &self.gamepad.held, &now, &self.keys_held);
-        let pitch = if self.context.settings.invert_y {
-            -1.0
-        } else {
-            1.0
-        };
-        input.look +=
-            gamepad::look_rate(self.gamepad.state.right) * seconds * Vec2::new(1.0, pitch);
-        self.gamepad.held = now;
-    }
-
     /// Takes the sounds the steps since the last frame made and captions those that
     /// matter, as the player stands and faces (nothing when captions are off).
     fn hear_captions(&mut self) {
@@ -972,86 +657,6 @@ impl App {
         running && players.iter(world).next().is_some()
     }
 
-    /// F11, F3, F4, F12 and V, in play and in menus alike.
-    fn window_key(&mut self, binding: Binding) {
-        match binding {
-            Binding::Fullscreen => {
-                if let Some(window) = &self.window {
-                    let fullscreen = window.fullscreen().is_none();
-                    window.set_fullscreen(fullscreen.then_some(Fullscreen::Borderless(None)));
-                    self.context.settings.fullscreen = fullscreen;
-                    self.settings_changed();
-                }
-            }
-            Binding::Profiler => self.overlay = !self.overlay,
-            Binding::Filter => {
-                if let Some(engine) = self.engine_mut() {
-                    let accumulation = &mut engine.film;
-                    accumulation.filter.mode = accumulation.filter.mode.next();
-                    accumulation.filter.reset();
-                    accumulation.reset = true;
-                }
-            }
-            Binding::Vsync => {
-                self.vsync = !self.vsync;
-                if let Some(pixels) = &mut self.pixels {
-                    pixels.enable_vsync(self.vsync);
-                }
-                self.context.settings.vsync = self.vsync;
-                self.settings_changed();
-            }
-            Binding::Screenshot => self.screenshot = true,
-            Binding::Pause | Binding::Edit => {}
-        }
-    }
-
-    /// Writes the frame just composed (and the film under it) to the screenshot folder, and
-    /// says where, or why not.
-    fn save_screenshot(&mut self) {
-        let (Some(pixels), Some(interface), Some(window)) =
-            (&self.pixels, &mut self.interface, &self.window)
-        else {
-            return;
-        };
-        let size = window.inner_size();
-        let size = (size.width, size.height);
-        let shown = screenshot::capture(pixels, size, |encoder, target, context| {
-            context.scaling_renderer.render(encoder, target);
-            interface.paint(encoder, target, context);
-        });
-        let stem = match &self.game {
-            Some(game) => game
-                .level
-                .file_stem()
-                .map(|stem| stem.to_string_lossy().into_owned()),
-            None => None,
-        }
-        .unwrap_or_else(|| "menu".to_owned());
-        let film = self
-            .game
-            .as_ref()
-            .map(|game| &game.engine)
-            .or(self.backdrop.as_ref());
-        let film = film.map(|engine| engine.film.image());
-        let result = settings::screenshot_dir()
-            .context("no pictures or data folder (is $HOME set?)")
-            .and_then(|folder| screenshot::save(&folder, &stem, &shown?, size, film.as_ref()));
-        match result {
-            Ok(written) => {
-                let exr = match &written.exr {
-                    Some(exr) => format!(" and {}", exr.display()),
-                    None => String::new(),
-                };
-                println!("screenshot: {}{exr}", written.png.display());
-                self.notice = Some((
-                    Instant::now(),
-                    format!("screenshot: {}", written.png.display()),
-                ));
-            }
-            Err(error) => self.notify(format!("screenshot not saved: {error:#}")),
-        }
-    }
-
     /// Times a first run's frame; once the probe has its answer, keeps the target it
     /// chooses in the settings and says so.
     fn time_first_run(&mut self, frame_ms: f64) {
@@ -1069,43 +674,6 @@ impl App {
         self.notify(format!(
             "frame-time target {target} ms, from this machine's first frames ({full_ms:.1} ms at full resolution); Settings changes it"
         ));
-    }
-
-    /// The window as the interface lays it out (None before it opens).
-    fn screen(&self) -> Option<interface::Screen> {
-        let (window, pixels) = (self.window.as_ref()?, self.pixels.as_ref()?);
-        let size = window.inner_size();
-        Some(interface::Screen::new(
-            (size.width, size.height),
-            pixels.context().scaling_renderer.clip_rect(),
-            (self.options.width, self.options.height),
-            self.context.settings.ui_scale,
-        ))
-    }
-
-    /// The corner's frame rate, internal resolution and film mode, while playing (and
-    /// under a menu while the profiler overlay is up).
-    fn status_line(&mut self) -> Option<String> {
-        if self.menu.is_some() && !self.overlay {
-            return None;
-        }
-        let film = &self.engine_mut()?.film;
-        let (internal_width, internal_height) = (film.settings.width, film.settings.height);
-        let film = match film.filter.mode {
-            FilterMode::Off => format!("{} spp", film.frames),
-            mode => mode.name().to_string(),
-        };
-        let mean_ms = self.frame_ms.iter().sum::<f32>() / self.frame_ms.len().max(1) as f32;
-        Some(format!(
-            "{:.1} fps {:.1} ms {internal_width}x{internal_height}{} {film}{}",
-            1000.0 / mean_ms.max(1e-3),
-            mean_ms,
-            match &self.resolution {
-                Some(controller) => format!(" ({:.0}%)", controller.scale() * 100.0),
-                None => String::new(),
-            },
-            if self.vsync { "" } else { " novsync" }
-        ))
     }
 
     fn redraw(&mut self, event_loop: &ActiveEventLoop) {
@@ -1172,109 +740,8 @@ impl App {
         self.sound
             .frame(self.game.as_mut().map(|game| &mut game.engine), paused);
         let present_start = Instant::now();
-        profiling::scope!("present");
-        let (width, height) = (self.options.width, self.options.height);
-        let brightness = self.context.settings.brightness;
-        let Some(pixels) = &mut self.pixels else {
+        if !self.present(event_loop) {
             return;
-        };
-        let frame = pixels.frame_mut();
-        let engine = match &mut self.game {
-            Some(game) => Some(&mut game.engine),
-            None => self.backdrop.as_mut(),
-        };
-        match engine {
-            Some(engine) => {
-                // The buffer keeps the configured size: the filtered film is upscaled to
-                // it already; still frames summed at a lowered resolution are resized.
-                let image = engine.film.image().resized(width, height);
-                for (rgba, radiance) in frame.chunks_exact_mut(4).zip(&image.pixels) {
-                    let [r, g, b] = tone_map(*radiance, brightness);
-                    rgba.copy_from_slice(&[r, g, b, 255]);
-                }
-            }
-            None => {
-                for (index, rgba) in frame.chunks_exact_mut(4).enumerate() {
-                    let shade = 10 + (index as u32 / width * 14 / height.max(1)) as u8;
-                    rgba.copy_from_slice(&[shade, shade, shade + 4, 255]);
-                }
-            }
-        }
-        let menu_open = self.menu.is_some();
-        let hud = self.game.as_mut().filter(|_| !menu_open).map(|game| {
-            let settings = &self.context.settings;
-            let controls = hints::Controls {
-                keys: &settings.keys,
-                pad: &settings.pad,
-                device: self.device,
-            };
-            let caught = (self.caught.as_ref())
-                .filter(|(at, _)| at.elapsed().as_secs_f32() < CAUGHT_BANNER_SECONDS)
-                .map(|(_, by)| by.as_str());
-            let watching = self.options.watch.is_some();
-            let interact = controls.label(Action::Interact);
-            let mut view = hud::HudView::gather(
-                &mut game.engine,
-                (width, height),
-                caught,
-                watching,
-                &interact,
-            );
-            if game.scene.level.campaign == Some(1) {
-                view.hint = hud::hint_moment(&mut game.engine)
-                    .and_then(|moment| game.hints.line(moment, &controls));
-            }
-            view.captions = self.captions.lines().map(str::to_string).collect();
-            view
-        });
-        let status = self.status_line();
-        if self.overlay {
-            let frames = &self.log.profile.frames;
-            let recent = &frames[frames.len().saturating_sub(overlay::HISTORY)..];
-            let (refits, rebuilds) = self.game.as_ref().map_or((0, 0), |game| {
-                let deform = game.engine.deform_stats();
-                (deform.refits, deform.rebuilds)
-            });
-            let Some(pixels) = &mut self.pixels else {
-                return;
-            };
-            overlay::draw(pixels.frame_mut(), width, height, recent, refits, rebuilds);
-        }
-        let page = self.menu.as_ref().map(|menu| menu.view(&self.context));
-        // The screenshot is what the player saw, without the notice that reports it.
-        let screenshot = std::mem::take(&mut self.screenshot);
-        let corner = hud::Corner {
-            status,
-            notice: (self.notice.as_ref())
-                .filter(|(at, _)| !screenshot && at.elapsed().as_secs_f32() < NOTICE_SECONDS)
-                .map(|(_, line)| line.clone()),
-            file_error: self.file_error.clone(),
-        };
-        let (Some(screen), Some(interface)) = (self.screen(), &mut self.interface) else {
-            return;
-        };
-        interface.draw(&screen, |painter| {
-            // A menu holds the level: the HUD waits under it.
-            match (&page, &hud) {
-                (Some(page), _) => menu::paint(painter, screen.rect, page),
-                (None, Some(hud)) => hud::paint(painter, &screen, hud),
-                (None, None) => {}
-            }
-            hud::paint_corner(painter, &screen, &corner);
-        });
-        let Some(pixels) = &self.pixels else {
-            return;
-        };
-        let presented = pixels.render_with(|encoder, target, context| {
-            context.scaling_renderer.render(encoder, target);
-            interface.paint(encoder, target, context);
-            Ok(())
-        });
-        if let Err(error) = presented {
-            return self.fail(event_loop, anyhow!("presenting the frame: {error}"));
-        }
-        if screenshot {
-            self.save_screenshot();
         }
         if advanced && let Some(engine) = self.engine_mut() {
             let times = engine.stage_times();
@@ -1456,7 +923,7 @@ impl ApplicationHandler for App {
             let pitch = if settings.invert_y { 1.0 } else { -1.0 };
             game.engine.world.resource_mut::<Input>().look +=
                 Vec2::new(delta.0 as f32, delta.1 as f32)
-                    * MOUSE_SENSITIVITY
+                    * controls::MOUSE_SENSITIVITY
                     * settings.mouse_sensitivity
                     * Vec2::new(1.0, pitch);
         }

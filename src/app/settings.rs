@@ -266,11 +266,11 @@ pub const ACTION_NAMES: [(Action, &str); 9] = [
 
 /// Keys no game action may take: the window's own (pause and menus, fullscreen, profiler,
 /// filters, vsync).
-pub const RESERVED_KEYS: [KeyCode; super::WINDOW_KEYS.len()] = {
-    let mut keys = [KeyCode::Escape; super::WINDOW_KEYS.len()];
+pub const RESERVED_KEYS: [KeyCode; super::controls::WINDOW_KEYS.len()] = {
+    let mut keys = [KeyCode::Escape; super::controls::WINDOW_KEYS.len()];
     let mut i = 0;
     while i < keys.len() {
-        keys[i] = super::WINDOW_KEYS[i].0;
+        keys[i] = super::controls::WINDOW_KEYS[i].0;
         i += 1;
     }
     keys
