@@ -1,0 +1,689 @@
+//! The editor's interface, built each frame: the menu and tool bar, the outline and
+//! palette (left), the inspector (right), the status line, and the view in the middle with
+//! its overlays (the selection's boxes, markers for what draws nothing, wardens' routes
+//! with draggable waypoints, the gizmo). It reads a snapshot of the level (`FrameInput`)
+//! and only queues `Command`s: the window runs them after. The inspector (`inspector`) and
+//! the view with its overlays (`view`) each have their own file.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use egui::{Color32, Key, KeyboardShortcut, Modifiers, Pos2, Rect, Sense, Stroke, TextureId};
+use glam::{DMat4, EulerRot, Quat, Vec2, Vec3};
+use transform_gizmo_egui::config::GizmoModeKind;
+use transform_gizmo_egui::math::Transform as GizmoTransform;
+use transform_gizmo_egui::prelude::*;
+
+use super::dialogs::DialogKind;
+use super::{Command, Leave, view_ray};
+use crate::edit::audibility::{Audibility, NoiseKind};
+use crate::edit::camera::FlyCamera;
+use crate::edit::exposure::Exposure;
+use crate::edit::palette::{Prefab, asset_files, assets_folder};
+use crate::edit::play_check::Checked;
+use crate::edit::{Editor, entity_bounds};
+use crate::film::FilterMode;
+use crate::frame::Engine;
+use crate::game::Assets;
+use crate::game::LevelEntity;
+use crate::game::level_io::entity_defs;
+use crate::scene::level::{
+    CameraDef, EntityDef, ExitDef, KnockDef, LightDef, MaterialOverride, MoverDef, PlayerSpawn,
+    ShardDef, WardenDef,
+};
+use crate::scene::model::Material;
+
+mod inspector;
+mod view;
+
+use inspector::euler_degrees;
+
+/// What the interface reads of the level this frame.
+pub struct FrameInput {
+    pub defs: Vec<(LevelEntity, EntityDef)>,
+    pub selection: Vec<LevelEntity>,
+    /// The world box of each selected entity that draws something.
+    pub bounds: Vec<(Vec3, Vec3)>,
+    pub dirty: bool,
+    pub can_undo: bool,
+    pub can_redo: bool,
+    /// The materials of the asset the one selected entity instances (for its overrides).
+    pub materials: Vec<Material>,
+}
+
+impl FrameInput {
+    pub fn gather(engine: &mut Engine, editor: &Editor) -> FrameInput {
+        let bounds = editor
+            .selection
+            .iter()
+            .filter_map(|&place| entity_bounds(engine, place))
+            .collect();
+        let defs = entity_defs(&mut engine.world);
+        let materials = match editor.selection.as_slice() {
+            [place] => defs
+                .iter()
+                .find(|(p, _)| p == place)
+                .and_then(|(_, def)| def.instance.as_ref())
+                .and_then(|instance| {
+                    let mut assets = engine.world.get_resource_mut::<Assets>()?;
+                    assets.0.load(&instance.asset).ok()
+                })
+                .map_or_else(Vec::new, |asset| asset.materials.clone()),
+            _ => Vec::new(),
+        };
+        FrameInput {
+            defs,
+            materials,
+            selection: editor.selection.clone(),
+            bounds,
+            dirty: editor.is_dirty(),
+            can_undo: editor.can_undo(),
+            can_redo: editor.can_redo(),
+        }
+    }
+
+    fn def(&self, place: LevelEntity) -> Option<&EntityDef> {
+        self.defs
+            .iter()
+            .find(|(p, _)| *p == place)
+            .map(|(_, def)| def)
+    }
+}
+
+/// The view's film this frame.
+pub struct ViewState {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub mode: FilterMode,
+    pub texture: TextureId,
+}
+
+/// What the palette holds, ready to place with the next click in the view.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PaletteItem {
+    Prefab(Prefab),
+    Asset(PathBuf),
+}
+
+/// The fly keys held this frame.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FlyKeys {
+    forward: bool,
+    back: bool,
+    left: bool,
+    right: bool,
+    up: bool,
+    down: bool,
+    pub fast: bool,
+}
+
+impl FlyKeys {
+    /// x right, y up, z forward; each -1, 0 or 1.
+    pub fn direction(&self) -> Vec3 {
+        let axis = |plus: bool, minus: bool| plus as i32 as f32 - minus as i32 as f32;
+        Vec3::new(
+            axis(self.right, self.left),
+            axis(self.up, self.down),
+            axis(self.forward, self.back),
+        )
+    }
+}
+
+/// Which handles the gizmo shows (W, E, R).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Tool {
+    Move,
+    Rotate,
+    Scale,
+}
+
+/// The exposure overlay's controls.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExposureControls {
+    pub on: bool,
+    pub crouching: bool,
+    /// Seconds into the wardens' beats.
+    pub time: f32,
+    /// The gem a route may not rise above.
+    pub threshold: f32,
+    /// What the map shows: where the player is seen (None), or where a noise would be
+    /// heard (`edit::audibility`).
+    pub heard: Option<NoiseKind>,
+    /// What the last map says, or that one is being computed.
+    pub status: String,
+}
+
+/// What the view draws over the level besides the selection: the exposure map, and the last
+/// play-check with whether the level has been edited since.
+#[derive(Clone, Copy, Default)]
+pub struct Overlays<'a> {
+    pub exposure: Option<&'a Exposure>,
+    /// Where the chosen noise would be heard, when the map shows that.
+    pub audibility: Option<&'a Audibility>,
+    pub play_check: Option<(&'a Checked, bool)>,
+}
+
+/// The longest time the exposure slider reaches, seconds.
+const EXPOSURE_TIME_MAX: f32 = 60.0;
+
+/// Pixels within which a click takes a marker or a waypoint.
+const HANDLE_RADIUS: f32 = 9.0;
+
+pub struct Panels {
+    /// The right button went down in the view and is still held: the camera flies.
+    pub flying: bool,
+    pub fly_keys: FlyKeys,
+    /// The primary button is held (a drag in progress continues).
+    pub primary_down: bool,
+    /// Closing or opening another level with unsaved edits: ask first.
+    pub leaving: Option<Leave>,
+    /// The desktop can show file dialogs (Browse buttons beside the path field).
+    pub dialogs: bool,
+    /// A desktop file dialog is open (its Browse buttons wait).
+    pub dialog_open: bool,
+    /// The last thing the editor did or failed to do.
+    pub notice: Option<(Instant, String)>,
+    /// The level changed on disk while there are unsaved edits: ask which to keep.
+    pub conflict: bool,
+    /// The level or an asset on disk does not load: its problems, shown over the view
+    /// until a good version is loaded.
+    pub file_error: Option<String>,
+    pub exposure: ExposureControls,
+    /// The play-check's state in a few words (playing, or its outcome), beside its button.
+    pub play_check: String,
+    tool: Tool,
+    snapping: bool,
+    /// Grid step for moving, metres.
+    grid: f32,
+    /// Angle step for rotating, degrees.
+    angle: f32,
+    armed: Option<PaletteItem>,
+    assets_folder: PathBuf,
+    assets: Vec<PathBuf>,
+    /// The path field for Open and Save as (always there, with or without a desktop file
+    /// dialog).
+    path_field: String,
+    gizmo: Gizmo,
+    /// The waypoint being dragged: (warden's name, index in its route).
+    waypoint: Option<(String, usize)>,
+}
+
+impl Panels {
+    pub fn new(level: &Path) -> Panels {
+        let folder = assets_folder(level);
+        Panels {
+            flying: false,
+            fly_keys: FlyKeys::default(),
+            primary_down: false,
+            leaving: None,
+            dialogs: super::dialogs::available(),
+            dialog_open: false,
+            notice: None,
+            conflict: false,
+            file_error: None,
+            exposure: ExposureControls {
+                on: false,
+                crouching: false,
+                time: 0.0,
+                threshold: 0.5,
+                heard: None,
+                status: String::new(),
+            },
+            play_check: String::new(),
+            tool: Tool::Move,
+            snapping: true,
+            grid: 0.25,
+            angle: 15.0,
+            armed: None,
+            assets: asset_files(&folder),
+            assets_folder: folder,
+            path_field: level.display().to_string(),
+            gizmo: Gizmo::default(),
+            waypoint: None,
+        }
+    }
+
+    /// Another level is being edited: what belonged to the last one goes (the palette's
+    /// assets, the choice held, the path field, a file's error), the designer's tools stay.
+    pub fn opened(&mut self, level: &Path) {
+        let fresh = Panels::new(level);
+        *self = Panels {
+            notice: self.notice.take(),
+            exposure: ExposureControls {
+                status: String::new(),
+                ..self.exposure.clone()
+            },
+            tool: self.tool,
+            snapping: self.snapping,
+            grid: self.grid,
+            angle: self.angle,
+            dialogs: self.dialogs,
+            ..fresh
+        };
+    }
+
+    pub fn ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: &FrameInput,
+        view: &ViewState,
+        camera: &FlyCamera,
+        overlays: Overlays,
+        out: &mut Vec<Command>,
+    ) {
+        let ctx = ui.ctx().clone();
+        self.primary_down = ctx.input(|i| i.pointer.primary_down());
+        self.shortcuts(&ctx, out);
+        egui::Panel::top("menu").show_inside(ui, |ui| self.menu_bar(ui, frame, view, out));
+        egui::Panel::bottom("status").show_inside(ui, |ui| self.status(ui, frame, view));
+        egui::Panel::left("outline")
+            .resizable(true)
+            .default_size(220.0)
+            .show_inside(ui, |ui| self.outline_and_palette(ui, frame, out));
+        egui::Panel::right("inspector")
+            .resizable(true)
+            .default_size(280.0)
+            .show_inside(ui, |ui| self.inspector(ui, frame, out));
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE.fill(Color32::from_gray(12)))
+            .show_inside(ui, |ui| self.view(ui, frame, view, camera, overlays, out));
+        if self.leaving.is_some() {
+            self.leave_prompt(&ctx, out);
+        } else if self.conflict {
+            conflict_prompt(&ctx, out);
+        }
+    }
+
+    /// The keys. None fires while a text field has the keyboard.
+    fn shortcuts(&mut self, ctx: &egui::Context, out: &mut Vec<Command>) {
+        self.fly_keys = FlyKeys::default();
+        if ctx.egui_wants_keyboard_input() {
+            return;
+        }
+        let command = |key| KeyboardShortcut::new(Modifiers::COMMAND, key);
+        let command_shift = |key| KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, key);
+        ctx.input_mut(|input| {
+            // Ctrl+Shift+Z before Ctrl+Z, which would also match it.
+            if input.consume_shortcut(&command_shift(Key::Z))
+                || input.consume_shortcut(&command(Key::Y))
+            {
+                out.push(Command::Redo);
+            }
+            if input.consume_shortcut(&command(Key::Z)) {
+                out.push(Command::Undo);
+            }
+            if input.consume_shortcut(&command(Key::S)) {
+                out.push(Command::Save);
+            }
+            if input.consume_shortcut(&command(Key::D)) {
+                out.push(Command::Duplicate);
+            }
+            if input.consume_key(Modifiers::NONE, Key::Delete) {
+                out.push(Command::Delete);
+            }
+            if input.consume_key(Modifiers::NONE, Key::F4) {
+                out.push(Command::ToggleView);
+            }
+            if input.consume_key(Modifiers::NONE, Key::F5) {
+                out.push(Command::PlayTest);
+            }
+            if input.consume_key(Modifiers::NONE, Key::F6) {
+                out.push(Command::PlayCheck);
+            }
+            if !self.flying && input.consume_key(Modifiers::NONE, Key::X) {
+                self.exposure.on = !self.exposure.on;
+            }
+            if input.consume_key(Modifiers::NONE, Key::Escape) && self.armed.take().is_none() {
+                out.push(Command::ClearSelection);
+            }
+            if self.flying {
+                self.fly_keys = FlyKeys {
+                    forward: input.key_down(Key::W),
+                    back: input.key_down(Key::S),
+                    left: input.key_down(Key::A),
+                    right: input.key_down(Key::D),
+                    up: input.key_down(Key::E),
+                    down: input.key_down(Key::Q),
+                    fast: input.modifiers.shift,
+                };
+            } else {
+                for (key, tool) in [
+                    (Key::W, Tool::Move),
+                    (Key::E, Tool::Rotate),
+                    (Key::R, Tool::Scale),
+                ] {
+                    if input.consume_key(Modifiers::NONE, key) {
+                        self.tool = tool;
+                    }
+                }
+            }
+        });
+    }
+
+    fn menu_bar(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: &FrameInput,
+        view: &ViewState,
+        out: &mut Vec<Command>,
+    ) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            // The File menu holds a text field: a click in it must not close the menu
+            // (each command closes it itself).
+            let file_menu = egui::containers::menu::MenuConfig::new()
+                .close_behavior(egui::PopupCloseBehavior::CloseOnClickOutside);
+            egui::containers::menu::MenuButton::new("File")
+                .config(file_menu)
+                .ui(ui, |ui| {
+                    if ui.button("Save  (Ctrl+S)").clicked() {
+                        out.push(Command::Save);
+                        ui.close();
+                    }
+                    ui.separator();
+                    ui.label("Level file:");
+                    ui.text_edit_singleline(&mut self.path_field);
+                    ui.horizontal(|ui| {
+                        if ui.button("Open this file").clicked() {
+                            let path = PathBuf::from(self.path_field.trim());
+                            self.leave(Leave::Open(path), frame.dirty, out);
+                            ui.close();
+                        }
+                        if ui.button("Save as this file").clicked() {
+                            out.push(Command::SaveAs(PathBuf::from(self.path_field.trim())));
+                            ui.close();
+                        }
+                    });
+                    if self.dialogs {
+                        ui.horizontal(|ui| {
+                            for (label, kind) in [
+                                ("Open...", DialogKind::Open),
+                                ("Save as...", DialogKind::SaveAs),
+                            ] {
+                                let button = egui::Button::new(label);
+                                if ui.add_enabled(!self.dialog_open, button).clicked() {
+                                    out.push(Command::Browse(kind));
+                                    ui.close();
+                                }
+                            }
+                        });
+                    }
+                    ui.separator();
+                    if ui
+                        .add_enabled(frame.dirty, egui::Button::new("Revert to the file"))
+                        .clicked()
+                    {
+                        out.push(Command::Revert);
+                        ui.close();
+                    }
+                    if ui.button("Quit").clicked() {
+                        self.leave(Leave::Quit, frame.dirty, out);
+                        ui.close();
+                    }
+                });
+            ui.menu_button("Edit", |ui| {
+                let items = [
+                    ("Undo  (Ctrl+Z)", frame.can_undo, Command::Undo),
+                    (
+                        "Redo  (Ctrl+Shift+Z, Ctrl+Y)",
+                        frame.can_redo,
+                        Command::Redo,
+                    ),
+                    (
+                        "Duplicate  (Ctrl+D)",
+                        !frame.selection.is_empty(),
+                        Command::Duplicate,
+                    ),
+                    (
+                        "Delete  (Del)",
+                        !frame.selection.is_empty(),
+                        Command::Delete,
+                    ),
+                ];
+                for (label, enabled, command) in items {
+                    if ui.add_enabled(enabled, egui::Button::new(label)).clicked() {
+                        out.push(command);
+                        ui.close();
+                    }
+                }
+            });
+            ui.separator();
+            for (tool, label) in [
+                (Tool::Move, "Move (W)"),
+                (Tool::Rotate, "Rotate (E)"),
+                (Tool::Scale, "Scale (R)"),
+            ] {
+                if ui.selectable_label(self.tool == tool, label).clicked() {
+                    self.tool = tool;
+                }
+            }
+            ui.separator();
+            ui.checkbox(&mut self.snapping, "Snap");
+            ui.add(
+                egui::DragValue::new(&mut self.grid)
+                    .range(0.01..=10.0)
+                    .speed(0.01)
+                    .suffix(" m"),
+            );
+            ui.add(
+                egui::DragValue::new(&mut self.angle)
+                    .range(1.0..=90.0)
+                    .speed(0.5)
+                    .suffix("°"),
+            );
+            ui.separator();
+            let label = match view.mode {
+                FilterMode::Off => "View: converging (F4)",
+                _ => "View: game (F4)",
+            };
+            if ui.button(label).clicked() {
+                out.push(Command::ToggleView);
+            }
+            if ui.button("Play-test (F5)").clicked() {
+                out.push(Command::PlayTest);
+            }
+            if ui.button("Play-check (F6)").clicked() {
+                out.push(Command::PlayCheck);
+            }
+            if !self.play_check.is_empty() {
+                ui.label(&self.play_check);
+            }
+            ui.separator();
+            ui.toggle_value(&mut self.exposure.on, "Exposure map (X)");
+        });
+    }
+
+    fn status(&mut self, ui: &mut egui::Ui, frame: &FrameInput, view: &ViewState) {
+        ui.horizontal(|ui| {
+            let film = match view.mode {
+                FilterMode::Off => format!("{} spp", view.spp),
+                _ => "game view".to_owned(),
+            };
+            ui.label(format!(
+                "{}x{} {film}{}",
+                view.width,
+                view.height,
+                if frame.dirty { "  | unsaved" } else { "" }
+            ));
+            ui.separator();
+            if let Some(item) = &self.armed {
+                let name = match item {
+                    PaletteItem::Prefab(prefab) => prefab.name().to_owned(),
+                    PaletteItem::Asset(path) => path.display().to_string(),
+                };
+                ui.colored_label(
+                    Color32::LIGHT_YELLOW,
+                    format!("click in the view to place {name}; Esc puts it back"),
+                );
+            } else if let Some((at, line)) = &self.notice
+                && at.elapsed().as_secs_f32() < super::NOTICE_SECONDS
+            {
+                ui.label(line);
+            } else {
+                ui.weak("right mouse + W A S D Q E: fly   click: select   Shift+click: add");
+            }
+        });
+    }
+
+    fn outline_and_palette(
+        &mut self,
+        ui: &mut egui::Ui,
+        frame: &FrameInput,
+        out: &mut Vec<Command>,
+    ) {
+        let shift = ui.input(|i| i.modifiers.shift);
+        ui.heading("Level");
+        egui::ScrollArea::vertical()
+            .id_salt("outline")
+            .max_height(ui.available_height() * 0.55)
+            .show(ui, |ui| {
+                for (place, def) in &frame.defs {
+                    let selected = frame.selection.contains(place);
+                    if ui.selectable_label(selected, &def.name).clicked() {
+                        out.push(Command::Select {
+                            place: *place,
+                            add: shift,
+                        });
+                    }
+                }
+            });
+        ui.separator();
+        ui.heading("Palette");
+        egui::ScrollArea::vertical()
+            .id_salt("palette")
+            .show(ui, |ui| {
+                ui.label("Prefabs");
+                for prefab in Prefab::ALL {
+                    let item = PaletteItem::Prefab(prefab);
+                    let armed = self.armed.as_ref() == Some(&item);
+                    if ui.selectable_label(armed, prefab.name()).clicked() {
+                        self.armed = (!armed).then_some(item);
+                    }
+                }
+                ui.label("Assets");
+                for asset in &self.assets {
+                    let label = asset
+                        .strip_prefix(&self.assets_folder)
+                        .unwrap_or(asset)
+                        .display()
+                        .to_string();
+                    let item = PaletteItem::Asset(asset.clone());
+                    let armed = self.armed.as_ref() == Some(&item);
+                    if ui.selectable_label(armed, label).clicked() {
+                        self.armed = (!armed).then_some(item);
+                    }
+                }
+            });
+    }
+
+    /// Quits or opens another level now, or asks first if there are unsaved edits.
+    pub fn leave(&mut self, leave: Leave, dirty: bool, out: &mut Vec<Command>) {
+        if dirty {
+            self.leaving = Some(leave);
+        } else {
+            out.push(Command::Leave(leave));
+        }
+    }
+
+    /// Unsaved edits and the designer is leaving them: save, drop or stay. The answer
+    /// that loses nothing has the keyboard, so Enter saves.
+    fn leave_prompt(&mut self, ctx: &egui::Context, out: &mut Vec<Command>) {
+        let Some(leave) = self.leaving.clone() else {
+            return;
+        };
+        let (save, drop) = match leave {
+            Leave::Quit => ("Save and quit", "Quit without saving"),
+            Leave::Open(_) => ("Save and open", "Open without saving"),
+        };
+        egui::Modal::new(egui::Id::new("leave prompt")).show(ctx, |ui| {
+            ui.heading("Unsaved changes");
+            ui.label("The level has edits that are not saved.");
+            let answer = prompt_answers(ui, &[save, drop, "Cancel"]);
+            match answer {
+                Some(0) => out.push(Command::SaveAndLeave(leave.clone())),
+                Some(1) => out.push(Command::Leave(leave.clone())),
+                _ => {}
+            }
+            if answer.is_some() {
+                self.leaving = None;
+            }
+        });
+    }
+}
+
+/// The level changed on disk while there are unsaved edits: which to keep. Neither is
+/// dropped silently: keeping the edits means the next save replaces the file (kept as
+/// `.bak`); taking the file writes the edits to the autosave file first.
+fn conflict_prompt(ctx: &egui::Context, out: &mut Vec<Command>) {
+    egui::Modal::new(egui::Id::new("changed on disk")).show(ctx, |ui| {
+        ui.heading("The level changed on disk");
+        ui.label("Someone else saved the level file while you have unsaved edits.");
+        let answers = [
+            "Keep my edits",
+            "Load the file (my edits go to the autosave file)",
+        ];
+        match prompt_answers(ui, &answers) {
+            Some(0) => out.push(Command::KeepEdits),
+            Some(_) => out.push(Command::TakeFile),
+            None => {}
+        }
+    });
+}
+
+/// A prompt's answers in a row; which was clicked. The first, the one that loses nothing,
+/// has the keyboard while nothing else does, so Enter (or Space) picks it as in the
+/// desktop's own dialogs; once answered the keyboard is let go at once, so a shortcut
+/// pressed straight after reaches the editor.
+fn prompt_answers(ui: &mut egui::Ui, answers: &[&str]) -> Option<usize> {
+    ui.horizontal(|ui| {
+        let mut clicked = None;
+        for (index, answer) in answers.iter().enumerate() {
+            let button = ui.button(*answer);
+            if index == 0 && ui.memory(|memory| memory.focused().is_none()) {
+                button.request_focus();
+            }
+            if button.clicked() {
+                clicked = Some(index);
+                button.surrender_focus();
+            }
+        }
+        clicked
+    })
+    .inner
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn euler_degrees_inverts_the_level_rotation() {
+        for rotation in [
+            Vec3::new(0.0, 90.0, 0.0),
+            Vec3::new(-90.0, 0.0, 0.0),
+            Vec3::new(10.0, -135.0, 30.0),
+        ] {
+            let def = crate::scene::level::TransformDef {
+                rotation,
+                ..Default::default()
+            };
+            let back = euler_degrees(def.rotation_quat());
+            assert!(
+                (back - rotation).abs().max_element() < 1e-2,
+                "{rotation} -> {back}"
+            );
+        }
+    }
+
+    #[test]
+    fn fly_keys_make_a_direction() {
+        let keys = FlyKeys {
+            forward: true,
+            left: true,
+            up: true,
+            ..FlyKeys::default()
+        };
+        assert_eq!(keys.direction(), Vec3::new(-1.0, 1.0, 1.0));
+    }
+}
