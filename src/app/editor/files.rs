@@ -1,0 +1,128 @@
+//! The editor's level file on disk: opening another, saving (to its path or a new one),
+//! reverting to what the file holds, and following changes made outside the editor to the
+//! level and its assets (hot reload, with a prompt when both sides changed).
+
+use super::*;
+
+impl EditorApp {
+    /// Edits the level in `path` instead of this one: a new world, history and camera,
+    /// the same window. Nothing changes if it does not load.
+    pub(super) fn open_level(&mut self, path: PathBuf) -> anyhow::Result<String> {
+        let scene = Scene::load(&path)?;
+        let disk = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        self.engine = editor_engine(&scene, &self.options);
+        self.camera = FlyCamera::from_view(&self.engine);
+        self.camera.install(&mut self.engine.world);
+        self.editor = Editor::new();
+        self.disk = disk;
+        self.panels.opened(&path);
+        self.exposure = None;
+        self.audibility = None;
+        self.exposure_job = None;
+        self.exposure_for = None;
+        self.play_check = PlayCheck::default();
+        self.autosaved = Instant::now();
+        self.options.level = path.clone();
+        self.path = path;
+        self.watch_files();
+        Ok(format!("opened {}", self.path.display()))
+    }
+
+    /// Saves the level to `path` (which becomes the file edited); says where.
+    pub(super) fn save_to(&mut self, path: PathBuf) -> anyhow::Result<String> {
+        self.editor.save(&mut self.engine, &path)?;
+        self.disk = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        self.path = path;
+        Ok(format!("saved {}", self.path.display()))
+    }
+
+    /// Reads the level file again, dropping unsaved edits, the editor's camera kept; on an
+    /// error nothing changes.
+    pub(super) fn force_reload(&mut self) -> anyhow::Result<&'static str> {
+        let reloaded = match self.editor.reload(&mut self.engine, &self.path) {
+            Ok(reloaded) => reloaded,
+            Err(error) => {
+                self.panels.file_error = Some(format!("{error:#}"));
+                return Err(error);
+            }
+        };
+        self.panels.file_error = None;
+        self.disk = std::fs::read(&self.path)
+            .with_context(|| format!("reading {}", self.path.display()))?;
+        self.camera.install(&mut self.engine.world);
+        Ok(match reloaded {
+            Reloaded::Unchanged => "the file holds the level shown",
+            Reloaded::Replaced => "reloaded",
+        })
+    }
+
+    /// What changed on disk since the last frame, handled: the level (someone else's
+    /// save), or assets it uses.
+    pub(super) fn files_changed(&mut self) {
+        let Some(watch) = &mut self.watch else { return };
+        let changed = watch.poll();
+        if changed.is_empty() {
+            return;
+        }
+        let level_changed = changed.iter().any(|file| *file == absolute(&self.path));
+        let assets: Vec<PathBuf> = changed
+            .into_iter()
+            .filter(|file| *file != absolute(&self.path))
+            .collect();
+        if !assets.is_empty() {
+            match self.editor.reload_assets(&mut self.engine, &assets) {
+                Ok(count) => {
+                    self.panels.file_error = None;
+                    let names: Vec<String> =
+                        assets.iter().map(|f| f.display().to_string()).collect();
+                    self.notify(format!("reloaded {} ({count} entities)", names.join(", ")));
+                }
+                Err(error) => {
+                    self.panels.file_error = Some(format!("{error:#}"));
+                    self.notify(format!("{error:#}"));
+                }
+            }
+        }
+        if level_changed {
+            let bytes = std::fs::read(&self.path).unwrap_or_default();
+            if bytes == self.disk {
+                // The editor's own save, or the file put back as the editor knows it.
+                if self.panels.file_error.take().is_some() {
+                    self.notify(format!(
+                        "{}: the file holds the level shown",
+                        self.path.display()
+                    ));
+                }
+                return;
+            }
+            if self.editor.is_dirty() {
+                self.panels.conflict = true;
+                self.notify(format!(
+                    "{} changed on disk while there are unsaved edits",
+                    self.path.display()
+                ));
+                return;
+            }
+            match self.force_reload() {
+                Ok(line) => {
+                    self.notify(format!("{}: {line} (changed on disk)", self.path.display()))
+                }
+                Err(error) => self.notify(format!("{error:#}")),
+            }
+        }
+    }
+
+    /// Watches the level file and every asset the world has loaded.
+    pub(super) fn watch_files(&mut self) {
+        let Some(watch) = &mut self.watch else { return };
+        let mut files = vec![self.path.clone()];
+        if let Some(assets) = self.engine.world.get_resource::<crate::game::Assets>() {
+            files.extend(assets.0.files().map(|f| f.to_path_buf()));
+        }
+        if files.iter().any(|file| !watch.watches(file))
+            && let Err(error) = watch.set_files(files)
+        {
+            self.notify(format!("{error:#}"));
+        }
+    }
+}
