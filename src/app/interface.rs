@@ -45,6 +45,8 @@ pub struct Screen {
     pub film: Rect,
     /// The frame buffer's size, pixels.
     buffer: (u32, u32),
+    /// The window's physical size, pixels (what egui's output is drawn into).
+    window: (u32, u32),
     /// Physical pixels per point.
     pub pixels_per_point: f32,
 }
@@ -65,6 +67,7 @@ impl Screen {
             rect: Rect::from_min_max(Pos2::ZERO, points(window.0, window.1)),
             film: Rect::from_min_max(points(x, y), points(x + width, y + height)),
             buffer,
+            window,
             pixels_per_point,
         }
     }
@@ -214,11 +217,8 @@ impl Interface {
 
     /// One egui pass over `screen`: `draw` paints with a painter that covers the window.
     pub fn draw(&mut self, screen: &Screen, draw: impl FnOnce(&egui::Painter)) {
-        let size = screen.rect.size() * screen.pixels_per_point;
-        self.paint.set_screen(
-            (size.x.round() as u32, size.y.round() as u32),
-            screen.pixels_per_point,
-        );
+        self.paint
+            .set_screen(screen.window, screen.pixels_per_point);
         let mut draw = Some(draw);
         let output = self.context.run_ui(screen.input(), |ui| {
             if let Some(draw) = draw.take() {
