@@ -286,7 +286,7 @@ impl Engine {
     }
 
     /// The image to show: the film's.
-    pub fn image(&self) -> crate::render::Film {
+    pub fn image(&self) -> crate::render::HdrImage {
         self.film.image()
     }
 }

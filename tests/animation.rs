@@ -625,7 +625,7 @@ fn baked(scene: &Scene, engine: &mut Engine) -> Scene {
     baked
 }
 
-fn rmse_over_mean(a: &gloam::render::Film, b: &gloam::render::Film) -> f64 {
+fn rmse_over_mean(a: &gloam::render::HdrImage, b: &gloam::render::HdrImage) -> f64 {
     let mut squared = 0.0;
     let mut mean = 0.0;
     for (x, y) in a.pixels.iter().zip(&b.pixels) {
@@ -662,8 +662,8 @@ fn a_deformed_pose_renders_like_the_same_pose_baked_static() {
         let deformed = engine.render_scene();
         let still = static_engine.render_scene();
         let camera = Camera::new(&deformed.camera, 96, 64);
-        let a = render(deformed, &camera, &settings(96, 64, 8), &|_| {}).film;
-        let b = render(still, &camera, &settings(96, 64, 8), &|_| {}).film;
+        let a = render(deformed, &camera, &settings(96, 64, 8), &|_| {}).image;
+        let b = render(still, &camera, &settings(96, 64, 8), &|_| {}).image;
         // Same triangles, same rays, same seeds: the images agree to rounding (measured
         // ~2e-8 on first-light, ~6e-7 on CesiumMan), except where a tie between triangles
         // sharing an edge resolves differently in the two trees (their layouts differ).

@@ -1,9 +1,10 @@
 //! The player bot and the recordings it makes: it wins every shipped level unseen with
 //! every shard, and the run it makes is the shipped `<level>-won.json` step for step (a
-//! rule change fails here until the recordings are made again, with the README's one
-//! command); every shipped recording replays to its pinned state hash on one and two
-//! threads, and with the portable kernels a CPU without AVX2 runs; an edited recording is replayed and says at which step and in which part of
-//! the state it went another way; a level whose way out cannot be walked to has no route.
+//! rule change fails here until the recordings are made again, with the one command in
+//! `headless::autoplay`'s docs); every shipped recording replays to its pinned state hash
+//! on one and two threads, and with the portable kernels a CPU without AVX2 runs; an
+//! edited recording is replayed and says at which step and in which part of the state it
+//! went another way; a level whose way out cannot be walked to has no route.
 
 mod common;
 
@@ -44,7 +45,7 @@ fn bot_wins(stem: &str) {
     let (shipped, _) = read_recording(&recording(&format!("{stem}-won.json"))).unwrap();
     assert!(
         shipped.steps == run.recorded.steps && shipped.trail == run.recorded.trail,
-        "{stem}: the bot's run is no longer tests/recordings/{stem}-won.json: make the recordings again (README, \"Recordings\") and review what changed"
+        "{stem}: the bot's run is no longer tests/recordings/{stem}-won.json: make the recordings again (the docs of gloam::headless::autoplay, \"Making the recordings again\") and review what changed"
     );
 }
 

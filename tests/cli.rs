@@ -78,9 +78,12 @@ fn bad_flags_are_one_line_usage_errors_and_failed_runs_exit_1() {
                 "--record",
                 "x.json",
             ],
-            1,
+            2,
         ),
-        (&["play", "levels/first-light.ron", "--json", "x.json"], 1),
+        (&["play", "levels/first-light.ron", "--json", "x.json"], 2),
+        (&["play", "--replay", "x.json", "--threads", "2"], 2),
+        (&["play", "--linger-seconds", "2"], 2),
+        (&["flythrough", "--alpha-min", "0"], 2),
         (
             &[
                 "exposure",
@@ -122,7 +125,7 @@ fn a_missing_argument_is_named_with_the_help_to_read() {
         ),
         (
             &["check"],
-            "gloam: check needs a PATH (see `gloam check --help`)",
+            "gloam: check needs a SCENE (see `gloam check --help`)",
         ),
     ] {
         let output = gloam(args);
@@ -647,4 +650,60 @@ fn a_replay_runs_headless_and_writes_its_report() {
         "{}",
         text(&output.stderr)
     );
+}
+
+/// Every flag and argument of every command says what it is in `--help`, and a level
+/// argument is called LEVEL (or SCENE where a glTF file is taken too).
+#[test]
+fn every_argument_has_help_and_a_conventional_name() {
+    use clap::CommandFactory as _;
+    fn walk(command: &clap::Command, path: &str, found: &mut Vec<String>, positionals: &mut usize) {
+        for arg in command.get_arguments() {
+            let id = arg.get_id().as_str();
+            if matches!(id, "help" | "version") {
+                continue;
+            }
+            if arg.get_help().is_none() && arg.get_long_help().is_none() {
+                found.push(format!("{path}: {id} has no help text"));
+            }
+            if arg.is_positional() {
+                let name = match arg.get_value_names() {
+                    Some([name, ..]) => name.to_string(),
+                    _ => id.to_uppercase(),
+                };
+                // `compare` takes two images; every other positional is a level or scene.
+                let images = path == "gloam compare" && matches!(id, "image" | "reference");
+                if !images && !matches!(name.as_str(), "LEVEL" | "SCENE") {
+                    found.push(format!("{path}: <{name}> is neither LEVEL nor SCENE"));
+                }
+                if name == "LEVEL"
+                    && arg
+                        .get_help()
+                        .is_some_and(|h| h.to_string().contains("glTF"))
+                {
+                    found.push(format!("{path}: <LEVEL> takes glTF too, so it is a SCENE"));
+                }
+                *positionals += 1;
+            }
+        }
+        for sub in command.get_subcommands() {
+            walk(
+                sub,
+                &format!("{path} {}", sub.get_name()),
+                found,
+                positionals,
+            );
+        }
+    }
+    let mut found = Vec::new();
+    let mut positionals = 0;
+    walk(
+        &gloam::cli::Cli::command(),
+        "gloam",
+        &mut found,
+        &mut positionals,
+    );
+    assert!(found.is_empty(), "{}", found.join("\n"));
+    // The commands taking a level or scene today: the walk saw them all.
+    assert!(positionals >= 13, "{positionals} positional arguments");
 }

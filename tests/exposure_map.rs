@@ -1,4 +1,5 @@
-//! The exposure map (`gloam exposure`) of level 1: the JSON the README promises, cells
+//! The exposure map (`gloam exposure`) of level 1: the JSON its docs promise
+//! (`headless::bench`, "gloam exposure"), cells
 //! that follow the lamps, a value that is the light gem the game itself gives a player
 //! standing there, a route that is lit while warden 1 stands over a shard and dark once it
 //! walks away, and no route to a shard nobody can reach.
@@ -6,11 +7,11 @@
 mod common;
 
 use glam::Vec3;
-use gloam::bench::exposure_map::{Options, PNG_SCALE, run};
 use gloam::frame::Engine;
 use gloam::game::exposure::curve::HIDDEN;
 use gloam::game::exposure_map::{Waypoints, exposure_map};
 use gloam::game::{Exposure, Input, Transform, WorldGeometry, spawn_player};
+use gloam::headless::bench::exposure_map::{Options, PNG_SCALE, run};
 use gloam::render::RenderSettings;
 use gloam::scene::Scene;
 use serde_json::Value;
@@ -36,7 +37,7 @@ fn map_at(time: f64) -> (Value, (u32, u32)) {
     (json, png)
 }
 
-/// The value of `map[key]` at (x, z), by the README's cell formula.
+/// The value of `map[key]` at (x, z), by the cell formula in its docs.
 fn cell(map: &Value, key: &str, x: f32, z: f32) -> Option<f64> {
     let origin = map["origin"].as_array().unwrap();
     let size = map["cell_size"].as_f64().unwrap() as f32;

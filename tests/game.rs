@@ -91,7 +91,7 @@ fn still_frames_accumulate_into_the_multi_sample_image() {
     // Four frames of one white-noise sample each are the four samples of a 4-spp render.
     let render_scene = gloam::frame::render_scene(&scene);
     let camera = Camera::new(&render_scene.camera, 24, 16);
-    let four = render(&render_scene, &camera, &settings(4), &|_| {}).film;
+    let four = render(&render_scene, &camera, &settings(4), &|_| {}).image;
     let accumulated = engine.image();
     let worst = four
         .pixels

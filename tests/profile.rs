@@ -69,7 +69,7 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
     let dir = common::scratch_dir("bench");
     let (report, csv) = bench(&dir, "first", &["--threads", "2"]);
 
-    // The JSON schema the README gives for `gloam bench --json`.
+    // The JSON schema `headless::bench`'s docs give for `gloam bench --json`.
     assert_eq!(report["frames"], 24);
     assert_eq!(
         (report["width"].as_u64(), report["height"].as_u64()),

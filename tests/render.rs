@@ -10,8 +10,8 @@ use std::path::PathBuf;
 
 use glam::{Quat, Vec3, Vec4};
 use gloam::render::{
-    Camera, Film, IntegratorKind, RadianceCache, RenderScene, RenderSettings, SamplerKind, render,
-    render_guided,
+    Camera, HdrImage, IntegratorKind, RadianceCache, RenderScene, RenderSettings, SamplerKind,
+    render, render_guided,
 };
 use gloam::scene::gltf_export::{
     CameraData, GltfDocument, MaterialData, MeshData, NodeData, write_gltf,
@@ -42,11 +42,11 @@ fn settings(
     }
 }
 
-fn run(scene: &RenderScene, settings: &RenderSettings) -> Film {
+fn run(scene: &RenderScene, settings: &RenderSettings) -> HdrImage {
     let camera = Camera::new(&scene.camera, settings.width, settings.height);
     let output = render(scene, &camera, settings, &|_| {});
     assert_eq!(output.invalid_samples, 0, "NaN or infinite samples");
-    output.film
+    output.image
 }
 
 fn emitter(name: &str, albedo: Vec3, radiance: Vec3) -> MaterialData {
@@ -321,7 +321,7 @@ fn path_and_reference_agree_on_diffuse_mirror_and_glass() {
     // Quadrants (each holds one of the special materials): reference noise from caustics
     // through the glass is a few percent per quadrant; allow 6%.
     for (qx, qy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-        let mean_of = |film: &Film| {
+        let mean_of = |film: &HdrImage| {
             let mut sum = Vec3::ZERO;
             for y in qy * height / 2..(qy + 1) * height / 2 {
                 for x in qx * width / 2..(qx + 1) * width / 2 {
@@ -362,7 +362,7 @@ fn renders_are_identical_on_any_thread_count() {
 /// The real-time view's frames with a radiance cache: `frames` of one sample each, and the
 /// mean of each frame's image from `from` on (the cache learnt by then), with the paths
 /// the cache ended.
-fn cached_frames(scene: &RenderScene, frames: u32, from: u32) -> (Film, Vec3, u64) {
+fn cached_frames(scene: &RenderScene, frames: u32, from: u32) -> (HdrImage, Vec3, u64) {
     let settings = RenderSettings::real_time(64, 36);
     let camera = Camera::new(&scene.camera, settings.width, settings.height);
     let mut cache = RadianceCache::new();
@@ -376,11 +376,11 @@ fn cached_frames(scene: &RenderScene, frames: u32, from: u32) -> (Film, Vec3, u6
         cache.learn(&output.cache_samples);
         assert_eq!(output.invalid_samples, 0, "NaN or infinite samples");
         if frame >= from {
-            let pixels = &output.film.pixels;
+            let pixels = &output.image.pixels;
             sum += pixels.iter().copied().sum::<Vec3>() / pixels.len() as f32;
             ended += output.rays.cache_ended;
         }
-        last = Some(output.film);
+        last = Some(output.image);
     }
     (last.unwrap(), sum / (frames - from) as f32, ended)
 }
@@ -419,7 +419,7 @@ fn the_radiance_cache_keeps_the_image_and_is_the_same_on_any_thread_count() {
             frame,
             ..settings.clone()
         };
-        let pixels = render_guided(&scene, &camera, &settings, None).film.pixels;
+        let pixels = render_guided(&scene, &camera, &settings, None).image.pixels;
         full += pixels.iter().copied().sum::<Vec3>() / pixels.len() as f32;
     }
     let full = full / 32.0;
@@ -438,13 +438,13 @@ fn lingering_after_the_lights_go_out(relit: bool) -> Vec<f32> {
         ..RenderSettings::real_time(96, 54)
     };
     let camera = Camera::new(&scene.camera, 96, 54);
-    let mean = |film: &Film| film.mean().y;
+    let mean = |film: &HdrImage| film.mean().y;
     let mut cache = RadianceCache::new();
     for frame in 0..48 {
         let output = render_guided(&scene, &camera, &settings(frame), Some(&cache));
         cache.learn(&output.cache_samples);
     }
-    let lit = mean(&render_guided(&scene, &camera, &settings(47), None).film);
+    let lit = mean(&render_guided(&scene, &camera, &settings(47), None).image);
     scene.lights = gloam::render::light::LightSet::default();
     if relit {
         cache.relit();
@@ -453,8 +453,8 @@ fn lingering_after_the_lights_go_out(relit: bool) -> Vec<f32> {
         .map(|frame| {
             let cached = render_guided(&scene, &camera, &settings(frame), Some(&cache));
             cache.learn(&cached.cache_samples);
-            let full = mean(&render_guided(&scene, &camera, &settings(frame), None).film);
-            (mean(&cached.film) - full) / (lit - full)
+            let full = mean(&render_guided(&scene, &camera, &settings(frame), None).image);
+            (mean(&cached.image) - full) / (lit - full)
         })
         .collect()
 }

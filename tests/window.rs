@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use gloam::frame::Engine;
 use gloam::render::RenderSettings;
-use gloam::render::film::tone_map;
+use gloam::render::hdr::tone_map;
 use gloam::scene::world::Scene;
 
 const WIDTH: u32 = 128;
@@ -335,7 +335,7 @@ fn the_window_shows_the_headless_frame() {
         difference < 2.0,
         "the screenshot differs from the headless frame by {difference} of 255 on average"
     );
-    let film = gloam::render::film::Film::read_exr(&exr).unwrap();
+    let film = gloam::render::hdr::HdrImage::read_exr(&exr).unwrap();
     assert_eq!(
         film.pixels,
         engine.image().pixels,

@@ -10,7 +10,7 @@ use gloam::frame::Engine;
 use gloam::game::{
     AssetInstance, LevelEntity, PunctualLight, SwitchedOff, Transform, level_from_world, spawn,
 };
-use gloam::render::{Camera, Film, IntegratorKind, RenderSettings, SamplerKind, render};
+use gloam::render::{Camera, HdrImage, IntegratorKind, RenderSettings, SamplerKind, render};
 use gloam::scene::Scene;
 use gloam::scene::level::{
     EntityDef, InstanceDef, LightDef, MaterialOverride, TransformDef, level_to_string, parse_level,
@@ -35,14 +35,14 @@ fn first_light() -> std::path::PathBuf {
 }
 
 /// The engine's scene rendered at `settings()` on `threads` threads.
-fn image(engine: &Engine, threads: usize) -> Film {
+fn image(engine: &Engine, threads: usize) -> HdrImage {
     let scene = engine.render_scene();
     let camera = Camera::new(&scene.camera, settings().width, settings().height);
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .unwrap()
-        .install(|| render(scene, &camera, &settings(), &|_| {}).film)
+        .install(|| render(scene, &camera, &settings(), &|_| {}).image)
 }
 
 /// The root entity of the level entity called `name`.
@@ -289,7 +289,7 @@ fn lights_and_emitters_switch_off_and_on() {
     let dark = engine.render_scene().lights.lights.len();
     assert!(dark < out, "the shard's emitters left the light set");
     let darker = image(&engine, 2);
-    let mean = |film: &Film| film.mean().element_sum();
+    let mean = |film: &HdrImage| film.mean().element_sum();
     assert!(mean(&darker) < mean(&before) * 0.9);
     for &lamp in &lamps {
         engine.world.entity_mut(lamp).remove::<SwitchedOff>();

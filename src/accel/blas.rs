@@ -2,7 +2,8 @@
 //!
 //! Frame step `accel`, first half: static meshes are built once at load; deforming meshes
 //! are refit every frame (leaf boxes in parallel, then a single bottom-up sweep) and rebuilt
-//! when refitting has let the tree decay. Built on obvhs's `Bvh2` (PLOC + reinsertion +
+//! when refitting has let the tree decay (its SAH cost past [`REBUILD_RATIO`] times its
+//! last build's). Built on obvhs's `Bvh2` (PLOC + reinsertion +
 //! leaf collapse; Meister & Bittner 2018, "Parallel Locally-Ordered Clustering for Bounding
 //! Volume Hierarchy Construction"). Opaque meshes collapse it into an 8-wide BVH (`wide`),
 //! which `gloam raybench` measures at about twice the BVH2's throughput; a deforming mesh

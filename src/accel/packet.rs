@@ -26,7 +26,7 @@
 //! `occluded_coherent` is here for rays that do converge, and for the comparison).
 //!
 //! Why no hit is lost: IEEE subtraction and multiplication round monotonically, so the
-//! interval bound computed from the corners of [origin] x [reciprocal] is below (entry) or
+//! interval bound computed from the corners of `[origin] x [reciprocal]` is below (entry) or
 //! above (exit) what any ray's own arithmetic gives, and the interval test passes every box
 //! any one ray's test passes. Leaf boxes and triangles then get exactly the single-ray
 //! tests, so every ray finds the hit distance it finds alone (the tests check it bit for
@@ -807,7 +807,7 @@ impl WideBvh {
         self.traverse_packet::<Portable, false>(packet, rays, t_max, slots)
     }
 
-    /// The rays in `rays` that something blocks within (t_min, t_max[lane]) (any hit).
+    /// The rays in `rays` that something blocks within `(t_min, t_max[lane])` (any hit).
     pub fn occluded_packet(
         &self,
         packet: &RayPacket,

@@ -4,7 +4,9 @@
 //! world-space boxes (Meister & Bittner 2018); the builder, the box list and the index list
 //! are kept between frames so a rebuild allocates nothing once the instance count settles.
 //! Rays walk it collapsed 8 wide (`WideTlas`, rebuilt from the BVH2 each frame) with the
-//! same kernels as the BLASes; `Traversal::Bvh2` walks obvhs's BVH2 instead.
+//! same kernels as the BLASes; `Traversal::Bvh2` walks obvhs's BVH2 instead. A TLAS of a
+//! single entry (a level that is all one static batch) is not walked: single rays and
+//! packets go straight to the entry, whose own tree tests the box.
 
 use glam::{Affine3A, Mat3A, Vec2, Vec3A};
 use obvhs::aabb::Aabb;

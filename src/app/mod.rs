@@ -6,9 +6,9 @@
 //! 2. `RedrawRequested`: the engine advances by the real time since the last frame (fixed
 //!    60 Hz simulation, then extract -> accel -> render -> film accumulation), unless a
 //!    menu holds it;
-//! 3. present (`present`): the film's image (with the filters on, upscaled by the film from a lowered
-//!    internal resolution to the configured one) is tone mapped (the film's tone mapper,
-//!    scaled by the brightness setting) into pixels' frame buffer at the configured
+//! 3. present (`present`): the film's image (with the filters on, upscaled by the film from
+//!    a lowered internal resolution to the configured one) is tone mapped (the film's tone
+//!    mapper, scaled by the brightness setting) into pixels' frame buffer at the configured
 //!    resolution and pixels scales it to the window; over it, at the window's own
 //!    resolution (`interface`), the HUD (`hud`: the light gem, the shards, each warden's
 //!    state mark projected over its head, captions, prompts) or the open menu (`menu`);
@@ -19,21 +19,39 @@
 //!    (`scene::watch`), the level starts again from the files; one that does not load
 //!    leaves the level playing with its `file:line:column: message` on screen until fixed.
 //!
-//! The first run (no settings file yet) times its first frames at the full resolution and
-//! keeps the frame-time target they choose (`resolution::first_run_target`).
+//! The internal resolution adapts to hold the frame-time target (the setting, or
+//! `--target-ms`), a step at a time down and up a ladder of scales ([`resolution`]). The
+//! first run (no settings file yet) times its first frames at the full resolution and
+//! keeps the frame-time target they choose (`resolution::first_run_target`), and says so
+//! on screen.
 //!
-//! With no level named, the window opens on the main menu over the first level seen from
-//! its own camera, its wardens walking their beats. Keys in play (the defaults; the keys
-//! page rebinds them): W A S D walk, Shift sprints, Space jumps, C or Ctrl crouches, E
-//! douses or relights the lamp looked at, N toggles noclip (fly through walls: Space and C
-//! rise and sink), mouse looks once captured (click). Fixed: Esc pauses (the pause page:
-//! resume, restart, settings, main menu, quit), F11 toggles fullscreen, V vsync (both
-//! remembered in the settings), F3 the
-//! profiler overlay, F4 cycles the film's filters (temporal+spatial, temporal, raw), F2
-//! opens the level's file in the editor (`shell`), F12 writes a screenshot (`screenshot`: the frame as PNG and the linear film as EXR). No
-//! single key quits. A level without a player start is flown through with the same keys.
-//! Prompts name the key the player bound, and the campaign's first level states its goal
-//! and, the first time the player stands lit, the crouch key (`hints`).
+//! # Menus
+//!
+//! With no level named, the window opens on the main menu ([`menu`]) over the first level
+//! seen from its own camera, its wardens walking their beats. Play starts the first level
+//! not yet won; Choose a level lists every playable level in `levels/` in campaign order
+//! with its best time; Settings sets the mouse, the view, brightness, the frame-time
+//! target, the interface size, captions, the volumes, the keys and the gamepad buttons
+//! ([`settings`]). Getting out opens the end page with the time, shards, times seen and
+//! how it compares with the best; Next level goes on. A run with a level, a recording or a
+//! frame count (`gloam LEVEL`, `gloam play LEVEL`, `--headless`, `--replay`, `--record`,
+//! `--frames`) skips the menu. With no display, `gloam play` says so in one line and
+//! points to the headless commands.
+//!
+//! # Keys
+//!
+//! Keys in play (the defaults; the keys page rebinds them): W A S D walk, Shift sprints,
+//! Space jumps, C or Ctrl crouches, E douses or relights the lamp looked at, N toggles
+//! noclip (fly through walls: Space and C rise and sink), mouse looks once captured
+//! (click). A gamepad plays too ([`gamepad`]). Fixed: Esc pauses (the pause page: resume,
+//! restart, settings, main menu, quit; losing the keyboard focus pauses the same way), F11
+//! toggles fullscreen, V vsync (both remembered in the settings), F3 the profiler overlay
+//! (`crate::profile::overlay`), F4 cycles the film's filters (temporal+spatial, temporal,
+//! raw), F2 opens the level's file in the editor (`shell`), F12 writes a screenshot
+//! ([`screenshot`]: the frame as PNG and the linear film as EXR). No single key quits. A
+//! level without a player start is flown through with the same keys. Prompts name the key
+//! the player bound, and the campaign's first level states its goal and, the first time
+//! the player stands lit, the crouch key ([`hints`]).
 
 mod captions;
 mod controls;

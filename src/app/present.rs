@@ -14,7 +14,7 @@ use super::{
 use crate::film::FilterMode;
 use crate::game::Action;
 use crate::profile::overlay;
-use crate::render::film::tone_map;
+use crate::render::hdr::tone_map;
 
 impl App {
     /// Shows the frame: the film tone mapped into pixels' buffer (the profiler overlay

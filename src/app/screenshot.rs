@@ -10,7 +10,7 @@ use anyhow::Context as _;
 
 use pixels::{Pixels, PixelsContext, wgpu};
 
-use crate::render::film::Film;
+use crate::render::hdr::HdrImage;
 use crate::scene::files::write_atomically;
 
 /// The files one screenshot wrote.
@@ -29,7 +29,7 @@ pub fn save(
     stem: &str,
     rgba: &[u8],
     (width, height): (u32, u32),
-    film: Option<&Film>,
+    film: Option<&HdrImage>,
 ) -> anyhow::Result<Written> {
     let name =
         |number: u32, extension: &str| folder.join(format!("{stem}-{number:03}.{extension}"));
@@ -159,7 +159,7 @@ mod tests {
     fn a_screenshot_writes_the_frame_and_the_linear_film_without_replacing_older_ones() {
         let folder = scratch("numbers");
         let rgba: Vec<u8> = (0..4 * 3 * 2).map(|i| i as u8 * 10).collect();
-        let film = Film {
+        let film = HdrImage {
             width: 3,
             height: 2,
             pixels: (0..6).map(|i| Vec3::splat(i as f32 * 2.5)).collect(),
@@ -173,7 +173,7 @@ mod tests {
             [40, 50, 60],
             "RGB of the frame, alpha dropped"
         );
-        let exr = Film::read_exr(first.exr.as_ref().unwrap()).unwrap();
+        let exr = HdrImage::read_exr(first.exr.as_ref().unwrap()).unwrap();
         assert_eq!(
             exr.pixels, film.pixels,
             "the EXR holds radiance, not tone-mapped bytes"

@@ -1,13 +1,16 @@
 //! The player's own files, read when the window opens and written when they change: the
-//! settings (mouse, view, brightness, frame-time target, interface size, keys, gamepad
-//! buttons, captions, volumes) and the best time of each
-//! level, both RON in the user's config folder (`$GLOAM_CONFIG_DIR`, else
-//! `$XDG_CONFIG_HOME/gloam`, `~/.config/gloam`, `%APPDATA%\gloam` or
-//! `~/Library/Application Support/gloam`).
+//! settings (mouse sensitivity and invert Y, field of view, brightness, frame-time target,
+//! interface size, keys, gamepad buttons, captions, volumes: [`SETTINGS_FILE`]) and the
+//! best time of each level ([`BEST_TIMES_FILE`]), both RON in the user's config folder
+//! (`$GLOAM_CONFIG_DIR`, else `$XDG_CONFIG_HOME/gloam`, `~/.config/gloam`, `%APPDATA%\gloam`
+//! or `~/Library/Application Support/gloam`). F12's screenshots go to the pictures folder
+//! (`screenshot_dir`).
 //!
-//! A file that cannot be read as what it should be is named in one line with the place
-//! (`file:line:column: message`), renamed aside to `<name>.broken` so nothing is lost, and
-//! the defaults are used. Writes are atomic (a temporary file, then a rename).
+//! A file that cannot be read as what it should be (bad syntax, an unknown field, a value
+//! out of range, an unknown key, or one of the window's own keys, Esc, F2, F3, F4, F11, F12
+//! and V, or the pad's Start, which cannot be rebound) is named in one line with the place
+//! (`settings.ron:3:5: unknown field ...`), renamed aside to `<name>.broken` so nothing is
+//! lost, and the defaults are used. Writes are atomic (a temporary file, then a rename).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -10,9 +10,8 @@ use std::time::Instant;
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 
-pub(crate) mod values;
-
-use crate::bench::{FilterArg, convergence, exposure_map, flythrough, frames, raybench};
+use crate::film::FilterMode;
+use crate::headless::bench::{convergence, exposure_map, flythrough, frames, raybench};
 use crate::scene::files::default_level;
 use crate::scene::world::Scene;
 
@@ -42,17 +41,19 @@ pub enum Command {
     /// live in the user's config folder (~/.config/gloam, or $GLOAM_CONFIG_DIR).
     #[command(allow_negative_numbers = true)]
     Play {
+        /// The level to play; the menu opens when omitted.
         level: Option<PathBuf>,
-        /// Internal render resolution; the window scales it.
-        #[arg(long, default_value_t = crate::app::DEFAULT_WIDTH, value_parser = crate::cli::values::count())]
+        /// Internal render width, in pixels; the window scales it.
+        #[arg(long, default_value_t = crate::app::DEFAULT_WIDTH, value_parser = crate::headless::values::count())]
         width: u32,
-        #[arg(long, default_value_t = crate::app::DEFAULT_HEIGHT, value_parser = crate::cli::values::count())]
+        /// Internal render height, in pixels.
+        #[arg(long, default_value_t = crate::app::DEFAULT_HEIGHT, value_parser = crate::headless::values::count())]
         height: u32,
         /// Render this many frames, then keep showing the image and print `ready`.
-        #[arg(long, value_parser = crate::cli::values::count())]
+        #[arg(long, value_parser = crate::headless::values::count())]
         frames: Option<u32>,
         /// With --frames: quit this many seconds after the last frame.
-        #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::non_negative)]
+        #[arg(long, default_value_t = 0.0, value_parser = crate::headless::values::non_negative, requires = "frames")]
         linger_seconds: f64,
         /// The same frame loop without a window (for --frames frames, default 60); prints
         /// the per-stage table `bench` prints.
@@ -62,32 +63,32 @@ pub enum Command {
         #[arg(long)]
         profiler: bool,
         /// The film's filters (F4 cycles them in the window).
-        #[arg(long, value_enum, default_value_t = FilterArg::Full)]
-        filter: FilterArg,
+        #[arg(long, value_enum, default_value_t = FilterMode::Full)]
+        filter: FilterMode,
         /// Keep the internal resolution fixed instead of adapting it to --target-ms.
         #[arg(long)]
         fixed_resolution: bool,
         /// The frame time the adaptive resolution holds, in milliseconds (default: the
         /// settings' frame-time target, 33.3 until changed).
-        #[arg(long, value_parser = crate::cli::values::positive)]
+        #[arg(long, value_parser = crate::headless::values::positive)]
         target_ms: Option<f64>,
         /// Record every step's input of this attempt to FILE (JSON), written when it is
         /// won, caught or quit.
-        #[arg(long, value_name = "FILE")]
+        #[arg(long, value_name = "FILE", conflicts_with = "replay")]
         record: Option<PathBuf>,
         /// Watch a recording play in the window (it names its level), or with --headless
         /// replay it without rendering.
         #[arg(long, value_name = "FILE")]
         replay: Option<PathBuf>,
-        /// With --replay: write the per-step report here (JSON).
-        #[arg(long, value_name = "FILE")]
+        /// With --headless --replay: write the per-step report here (JSON).
+        #[arg(long, value_name = "FILE", requires_all = ["headless", "replay"])]
         json: Option<PathBuf>,
-        /// With --replay: worker threads (the result is the same on any count).
-        #[arg(long, value_parser = crate::cli::values::size())]
+        /// With --headless --replay: worker threads (the result is the same on any count).
+        #[arg(long, value_parser = crate::headless::values::size(), requires_all = ["headless", "replay"])]
         threads: Option<usize>,
         /// With --headless --replay: write the run's sound, as the player heard it, here
         /// (48 kHz stereo 16-bit WAV; the same bytes on any thread count).
-        #[arg(long, value_name = "OUT.wav", requires = "replay")]
+        #[arg(long, value_name = "OUT.wav", requires_all = ["headless", "replay"])]
         audio: Option<PathBuf>,
         /// Which vector kernels run: the CPU's best, or the portable ones a CPU without
         /// AVX2 runs (the same bits, so a replay ends at the same state hash).
@@ -105,15 +106,17 @@ pub enum Command {
     /// Unsaved edits are autosaved to .LEVEL.autosave beside it every two minutes.
     #[command(allow_negative_numbers = true)]
     Edit {
+        /// The level file to edit.
         level: PathBuf,
-        /// The view's render resolution.
-        #[arg(long, default_value_t = crate::app::DEFAULT_WIDTH, value_parser = crate::cli::values::count())]
+        /// The view's render width, in pixels.
+        #[arg(long, default_value_t = crate::app::DEFAULT_WIDTH, value_parser = crate::headless::values::count())]
         width: u32,
-        #[arg(long, default_value_t = crate::app::DEFAULT_HEIGHT, value_parser = crate::cli::values::count())]
+        /// The render height, in pixels.
+        #[arg(long, default_value_t = crate::app::DEFAULT_HEIGHT, value_parser = crate::headless::values::count())]
         height: u32,
         /// Quit after this many frames and print the frame times (idle, converging,
         /// dragging).
-        #[arg(long, value_parser = crate::cli::values::count())]
+        #[arg(long, value_parser = crate::headless::values::count())]
         frames: Option<u32>,
     },
     /// Validate a level (.ron) or glTF file: prints `file:line:column: message` per problem,
@@ -121,6 +124,7 @@ pub enum Command {
     #[command(allow_negative_numbers = true)]
     Check {
         /// Level or glTF/GLB file.
+        #[arg(value_name = "SCENE")]
         path: PathBuf,
     },
     /// Write generated files: the shipped assets, or a stress-test mesh.
@@ -162,18 +166,19 @@ pub enum Command {
     /// blocked, the path's length and where it arrives from, and the room's reverb.
     #[command(allow_negative_numbers = true)]
     Listen {
+        /// The level whose sounds are heard.
         level: PathBuf,
         /// Where the ears are, world metres.
-        #[arg(long, value_name = "X,Y,Z", value_parser = crate::cli::values::point)]
+        #[arg(long, value_name = "X,Y,Z", value_parser = crate::headless::values::point)]
         at: glam::Vec3,
         /// Which way the ears face, degrees about +Y (0 looks down -Z).
-        #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::finite)]
+        #[arg(long, default_value_t = 0.0, value_parser = crate::headless::values::finite)]
         facing: f32,
         /// Seconds into the level (wardens walk, gates lift).
-        #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::non_negative)]
+        #[arg(long, default_value_t = 0.0, value_parser = crate::headless::values::non_negative)]
         time: f64,
         /// Seconds of sound.
-        #[arg(long, default_value_t = 4.0, value_parser = crate::cli::values::positive)]
+        #[arg(long, default_value_t = 4.0, value_parser = crate::headless::values::positive)]
         seconds: f64,
         /// The WAV file to write.
         #[arg(long, value_name = "OUT.wav")]
@@ -197,19 +202,6 @@ pub enum Command {
     Raybench(raybench::Options),
 }
 
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
-pub enum IntegratorArg {
-    Path,
-    Reference,
-}
-
-#[derive(Clone, Copy, Debug, clap::ValueEnum)]
-pub enum SamplerArg {
-    Blue,
-    Stratified,
-    White,
-}
-
 #[derive(Debug, Subcommand)]
 pub enum Generate {
     /// Regenerate every file under assets/ (src/scene/kit.rs).
@@ -230,7 +222,7 @@ pub enum Generate {
     #[command(allow_negative_numbers = true)]
     Stress {
         /// Minimum number of triangles.
-        #[arg(long, default_value_t = 1_000_000, value_parser = crate::cli::values::size())]
+        #[arg(long, default_value_t = 1_000_000, value_parser = crate::headless::values::size())]
         triangles: usize,
         /// A skinned, animated warden instead of a static grid.
         #[arg(long)]
@@ -394,11 +386,6 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 if headless {
                     return replay_command(&replay, json.as_deref(), audio.as_deref(), threads);
                 }
-                if record.is_some() || json.is_some() || threads.is_some() || audio.is_some() {
-                    anyhow::bail!(
-                        "watching a recording (--replay without --headless) takes no --record, --json, --audio or --threads"
-                    );
-                }
                 let (recording, recorded_level) = crate::headless::replay::read_recording(&replay)?;
                 if let Some(given) = &level
                     && std::fs::canonicalize(given).ok()
@@ -413,9 +400,6 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 }
                 level = Some(recorded_level);
                 watch = Some(recording);
-            }
-            if json.is_some() || threads.is_some() || audio.is_some() {
-                anyhow::bail!("--json, --audio and --threads go with --headless --replay FILE");
             }
             // Only a bare window opens on the menu: scripted runs play the default level.
             let menu = !headless && frames.is_none() && record.is_none();
@@ -432,7 +416,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
                 linger: std::time::Duration::from_secs_f64(linger_seconds.max(0.0)),
                 headless,
                 profiler,
-                filter: filter.mode(),
+                filter,
                 target_ms: if fixed_resolution {
                     Some(None)
                 } else {
@@ -566,7 +550,7 @@ fn replay_command(
     audio: Option<&Path>,
     threads: Option<usize>,
 ) -> anyhow::Result<ExitCode> {
-    let threads = threads.unwrap_or_else(crate::bench::default_threads);
+    let threads = threads.unwrap_or_else(crate::headless::bench::default_threads);
     if threads == 0 {
         anyhow::bail!("--threads must be at least 1");
     }
@@ -669,35 +653,39 @@ pub struct RenderCommand {
     /// Output .exr or .png.
     #[arg(long)]
     pub out: PathBuf,
-    #[arg(long, default_value_t = 640, value_parser = crate::cli::values::count())]
+    /// The render width, in pixels.
+    #[arg(long, default_value_t = 640, value_parser = crate::headless::values::count())]
     pub width: u32,
-    #[arg(long, default_value_t = 360, value_parser = crate::cli::values::count())]
+    /// The render height, in pixels.
+    #[arg(long, default_value_t = 360, value_parser = crate::headless::values::count())]
     pub height: u32,
     /// Samples per pixel.
-    #[arg(long, default_value_t = 64, value_parser = crate::cli::values::count())]
+    #[arg(long, default_value_t = 64, value_parser = crate::headless::values::count())]
     pub spp: u32,
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::count_or_zero())]
+    /// The sampler's seed: another seed draws other samples (the same image on any thread count).
+    #[arg(long, default_value_t = 0, value_parser = crate::headless::values::count_or_zero())]
     pub seed: u32,
-    #[arg(long, value_enum, default_value_t = IntegratorArg::Path)]
-    pub integrator: IntegratorArg,
+    /// The integrator.
+    #[arg(long, value_enum, default_value_t = crate::render::IntegratorKind::Path)]
+    pub integrator: crate::render::IntegratorKind,
     /// Stratified by default: at 4 spp and more it has the lowest RMSE of the three
     /// (`gloam convergence`); blue noise pays off at 1-2 spp, where its error is blue.
-    #[arg(long, value_enum, default_value_t = SamplerArg::Stratified)]
-    pub sampler: SamplerArg,
+    #[arg(long, value_enum, default_value_t = crate::render::SamplerKind::Stratified)]
+    pub sampler: crate::render::SamplerKind,
     /// Bounces at most (0: emitters only, 1: direct lighting, ...).
-    #[arg(long, default_value_t = 8, value_parser = crate::cli::values::count_or_zero())]
+    #[arg(long, default_value_t = 8, value_parser = crate::headless::values::count_or_zero())]
     pub max_depth: u32,
     /// Exposure multiplier for .png output (ignored for .exr).
-    #[arg(long, default_value_t = 1.0, value_parser = crate::cli::values::positive_f32)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::headless::values::positive_f32)]
     pub exposure: f32,
     /// Seconds after level start: animation clips and deformers are posed there.
-    #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::non_negative)]
+    #[arg(long, default_value_t = 0.0, value_parser = crate::headless::values::non_negative)]
     pub time: f64,
 }
 
 /// `gloam render`: load, extract, render with a progress bar on a terminal, write.
 fn render_command(command: RenderCommand) -> anyhow::Result<()> {
-    use crate::render::{Camera, IntegratorKind, RenderSettings, SamplerKind, render};
+    use crate::render::{Camera, RenderSettings, render};
 
     // Refuse a bad output name before spending minutes rendering.
     let extension = command
@@ -721,15 +709,8 @@ fn render_command(command: RenderCommand) -> anyhow::Result<()> {
         spp: command.spp,
         seed: command.seed,
         frame: 0,
-        integrator: match command.integrator {
-            IntegratorArg::Path => IntegratorKind::Path,
-            IntegratorArg::Reference => IntegratorKind::Reference,
-        },
-        sampler: match command.sampler {
-            SamplerArg::Blue => SamplerKind::BlueNoise,
-            SamplerArg::Stratified => SamplerKind::Stratified,
-            SamplerArg::White => SamplerKind::White,
-        },
+        integrator: command.integrator,
+        sampler: command.sampler,
         max_depth: command.max_depth,
     };
     // The game's own path to a posed scene: skinning, morphs and deformers at --time.
@@ -738,11 +719,11 @@ fn render_command(command: RenderCommand) -> anyhow::Result<()> {
     let render_scene = engine.render_scene();
     let camera = Camera::new(&render_scene.camera, settings.width, settings.height);
     // Per mille of the image's samples.
-    let bar = crate::bench::progress::bar(1000, "rendering");
+    let bar = crate::headless::bench::progress::bar(1000, "rendering");
     let progress = |fraction: f32| bar.set_position((fraction * 1000.0) as u64);
     let output = render(render_scene, &camera, &settings, &progress);
     bar.finish_and_clear();
-    output.film.write(&command.out, command.exposure)?;
+    output.image.write(&command.out, command.exposure)?;
     println!(
         "wrote {}: {}x{}, {} spp, {:?} integrator, {} sampler, camera '{}'; {:.2} s, {:.2} Mrays/s ({} camera, {} bounce, {} shadow rays){}",
         command.out.display(),
@@ -769,8 +750,8 @@ fn render_command(command: RenderCommand) -> anyhow::Result<()> {
 /// `gloam compare`.
 fn compare(image: &Path, reference: &Path) -> anyhow::Result<()> {
     let (a, b) = (
-        crate::render::Film::read_exr(image)?,
-        crate::render::Film::read_exr(reference)?,
+        crate::render::HdrImage::read_exr(image)?,
+        crate::render::HdrImage::read_exr(reference)?,
     );
     let comparison = a
         .compare(&b)

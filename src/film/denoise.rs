@@ -26,19 +26,20 @@ use rayon::prelude::*;
 use super::atrous::{self, AtrousSettings, Input};
 use super::temporal::{TemporalFilter, TemporalSettings, feed_back_row};
 use crate::render::camera::Camera;
-use crate::render::film::Film;
 use crate::render::guides::Guides;
+use crate::render::hdr::HdrImage;
 use crate::render::planes::{BLUE, GREEN, RED, SharedRuns, SignalPlanes};
 
-/// Which filters run.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// Which filters run (the command line's `--filter`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum FilterMode {
-    /// The raw frame: still views accumulate progressively instead.
+    /// The raw frame (still views accumulate progressively instead).
     #[default]
+    #[value(name = "raw")]
     Off,
-    /// Temporal accumulation only.
+    /// Temporal reprojection only.
     Temporal,
-    /// Temporal, then spatial (SVGF).
+    /// Temporal reprojection, then the a-trous spatial filter (SVGF).
     Full,
 }
 
@@ -130,12 +131,12 @@ impl FrameFilter {
     /// instances at `instances`): the image to show.
     pub fn apply(
         &mut self,
-        radiance: &Film,
+        radiance: &HdrImage,
         guides: &Guides,
         camera: &Camera,
         instances: &[Affine3A],
-    ) -> Film {
-        let mut image = Film {
+    ) -> HdrImage {
+        let mut image = HdrImage {
             width: radiance.width,
             height: radiance.height,
             pixels: Vec::new(),
@@ -147,11 +148,11 @@ impl FrameFilter {
     /// `apply`, into `image` (its buffer reused: the game keeps last frame's).
     pub fn apply_into(
         &mut self,
-        radiance: &Film,
+        radiance: &HdrImage,
         guides: &Guides,
         camera: &Camera,
         instances: &[Affine3A],
-        image: &mut Film,
+        image: &mut HdrImage,
     ) {
         let FrameFilter {
             mode,
@@ -242,7 +243,7 @@ impl FrameFilter {
 
 /// Step 3: `image` = `illumination` x albedo + the unfiltered light, pixel by pixel (sky:
 /// its own radiance), a row at a time (`Guides::modulate_row`).
-fn remodulate(guides: &Guides, illumination: &SignalPlanes, image: &mut Film) {
+fn remodulate(guides: &Guides, illumination: &SignalPlanes, image: &mut HdrImage) {
     let width = guides.width as usize;
     image
         .pixels

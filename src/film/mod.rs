@@ -11,8 +11,8 @@
 //!   it, and it learns the frame's samples on a pool thread while the next frame's
 //!   simulation runs (`BackgroundCache`).
 //!
-//! The image itself (`render::Film`), its tone mapper and its file writers and readers
-//! are in `render::film`: render writes that buffer and everything downstream reads it.
+//! The image itself (`render::HdrImage`), its tone mapper and its file writers and readers
+//! are in `render::hdr`: render writes that buffer and everything downstream reads it.
 //! Knows nothing of the ECS or windows.
 
 pub mod atrous;
@@ -33,8 +33,8 @@ use crate::profile::{RayMix, Stage, StageTimes, TileSpan, since};
 use crate::render::cache::CacheSample;
 use crate::render::scene::SceneChanges;
 use crate::render::{
-    Camera, Film, RadianceCache, RenderOutput, RenderScene, RenderSettings, render, render_guided,
-    render_guided_reusing,
+    Camera, HdrImage, RadianceCache, RenderOutput, RenderScene, RenderSettings, render,
+    render_guided, render_guided_reusing,
 };
 
 /// The film: frames accumulated since the last change, as a running sum of per-frame
@@ -51,7 +51,7 @@ pub struct Accumulation {
     /// The real-time filter chain (`FilterMode::Off` unless the shell turns it on).
     pub filter: FrameFilter,
     /// The last frame through the filter.
-    filtered: Option<Film>,
+    filtered: Option<HdrImage>,
     /// The last filtered frame's render, whose buffers the next one reuses.
     rendered: Option<RenderOutput>,
     /// The filtered frames' radiance cache (made with the first of them: render/cache.rs).
@@ -61,7 +61,7 @@ pub struct Accumulation {
     pub shown: (u32, u32),
     pub upscaler: Upscaler,
     /// The last filtered frame at the render's resolution, before upscaling.
-    filtered_render: Film,
+    filtered_render: HdrImage,
     /// Set when anything visible changed: the next frame starts a new sum.
     pub reset: bool,
     /// The view the sum was rendered from.
@@ -76,7 +76,7 @@ impl Accumulation {
         Accumulation {
             shown: (settings.width, settings.height),
             upscaler: Upscaler::new(UpscaleSettings::default()),
-            filtered_render: Film::new(0, 0),
+            filtered_render: HdrImage::new(0, 0),
             settings,
             sum: vec![Vec3::ZERO; pixels],
             frames: 0,
@@ -128,14 +128,14 @@ impl Accumulation {
 
     /// The image to show: the filtered frame with the filter on, else the mean of the
     /// accumulated frames.
-    pub fn image(&self) -> Film {
+    pub fn image(&self) -> HdrImage {
         if self.filter.mode != FilterMode::Off
             && let Some(filtered) = &self.filtered
         {
             return filtered.clone();
         }
         let scale = 1.0 / self.frames.max(1) as f32;
-        Film {
+        HdrImage {
             width: self.settings.width,
             height: self.settings.height,
             pixels: self.sum.iter().map(|p| *p * scale).collect(),
@@ -229,7 +229,7 @@ impl Accumulation {
                 .map(|instance| instance.world_from_object())
                 .collect();
             // Last frame's image is overwritten (a fresh buffer a frame costs page faults).
-            let mut image = self.filtered.take().unwrap_or_else(|| Film::new(0, 0));
+            let mut image = self.filtered.take().unwrap_or_else(|| HdrImage::new(0, 0));
             let upscaling = self.shown != (settings.width, settings.height);
             self.filter.render_scale = if upscaling {
                 (settings.width as f32 / self.shown.0.max(1) as f32)
@@ -239,12 +239,12 @@ impl Accumulation {
             };
             let upscale_ms = if !upscaling {
                 self.filter
-                    .apply_into(&output.film, guides, &camera, &instances, &mut image);
+                    .apply_into(&output.image, guides, &camera, &instances, &mut image);
                 0.0
             } else {
                 let filtered = &mut self.filtered_render;
                 self.filter
-                    .apply_into(&output.film, guides, &camera, &instances, filtered);
+                    .apply_into(&output.image, guides, &camera, &instances, filtered);
                 let start = std::time::Instant::now();
                 profiling::scope!("film.upscale");
                 self.upscaler.apply_into(
@@ -274,7 +274,7 @@ impl Accumulation {
             };
             return;
         }
-        for (sum, pixel) in self.sum.iter_mut().zip(&output.film.pixels) {
+        for (sum, pixel) in self.sum.iter_mut().zip(&output.image.pixels) {
             *sum += *pixel;
         }
         self.frames += 1;

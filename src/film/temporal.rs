@@ -26,11 +26,11 @@ use super::reproject::{
     HistoryRow, LastPixel, LastTransforms, ProjectedRow, RecordLanes, Reprojection, SurfaceRow,
 };
 use crate::render::camera::Camera;
-use crate::render::film::Film;
 use crate::render::guides::{
     ALBEDO_B, ALBEDO_FLOOR, ALBEDO_G, ALBEDO_R, Guides, NO_INSTANCE, UNFILTERED_B, UNFILTERED_G,
     UNFILTERED_R,
 };
+use crate::render::hdr::HdrImage;
 use crate::render::planes::{
     BAND_ROWS, BLUE, GREEN, PlaneRows, RED, SIGNAL_PLANES, SharedRuns, SignalPlanes, VARIANCE,
 };
@@ -134,7 +134,7 @@ impl TemporalFilter {
     /// instances at `instances`' world-from-object transforms) into the history.
     pub fn accumulate(
         &mut self,
-        radiance: &Film,
+        radiance: &HdrImage,
         guides: &Guides,
         camera: &Camera,
         instance_transforms: &[Affine3A],
@@ -153,7 +153,7 @@ impl TemporalFilter {
     /// moves on a frame. The spatial filter chains its passes after them (film/chain.rs).
     pub(super) fn accumulate_then<R>(
         &mut self,
-        radiance: &Film,
+        radiance: &HdrImage,
         guides: &Guides,
         camera: &Camera,
         instance_transforms: &[Affine3A],
@@ -346,7 +346,7 @@ pub(super) unsafe fn feed_back_row(illumination: [&[f32]; 3], y: usize, history:
 
 /// What every band of a frame's accumulation reads.
 struct Band<'a> {
-    radiance: &'a Film,
+    radiance: &'a HdrImage,
     guides: &'a Guides,
     /// Last frame, if there was one.
     reprojection: Option<&'a Reprojection<'a>>,
@@ -500,7 +500,7 @@ fn smaller(a: f32, b: f32) -> f32 {
 /// Step 1 for row `y`: each pixel demodulated (`GuidePixel::demodulate`, from the guide
 /// planes) into `current`'s red, green and blue rows, with its luminance in the fourth.
 #[inline(always)]
-fn demodulate_row(radiance: &Film, guides: &Guides, y: usize, current: [&mut [f32]; CHANNELS]) {
+fn demodulate_row(radiance: &HdrImage, guides: &Guides, y: usize, current: [&mut [f32]; CHANNELS]) {
     let width = guides.width as usize;
     let start = y * width;
     let radiance = &radiance.pixels[start..start + width];
@@ -593,7 +593,7 @@ impl NeighbourhoodRows {
     /// Demodulates rows `first_row..=last_row` and the rows either side, and takes their
     /// row sums.
     #[inline(always)]
-    fn sum_band(&mut self, radiance: &Film, guides: &Guides, first_row: u32, last_row: u32) {
+    fn sum_band(&mut self, radiance: &HdrImage, guides: &Guides, first_row: u32, last_row: u32) {
         let (width, height) = (guides.width as usize, guides.height);
         self.width = width;
         self.first = first_row.saturating_sub(1);
@@ -977,8 +977,8 @@ mod tests {
         guides
     }
 
-    fn film(value: impl Fn(u32, u32) -> Vec3) -> Film {
-        let mut film = Film::new(32, 16);
+    fn film(value: impl Fn(u32, u32) -> Vec3) -> HdrImage {
+        let mut film = HdrImage::new(32, 16);
         for y in 0..16 {
             for x in 0..32 {
                 film.pixels[(y * 32 + x) as usize] = value(x, y);

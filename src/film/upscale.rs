@@ -28,8 +28,8 @@ use rayon::prelude::*;
 
 use super::reproject::{LastTransforms, Motion};
 use crate::render::camera::{Camera, Projection};
-use crate::render::film::Film;
 use crate::render::guides::{Guides, NO_INSTANCE, POSITION_X, POSITION_Y, POSITION_Z};
+use crate::render::hdr::HdrImage;
 
 /// Render rows per parallel job at half scale (twice as many shown rows), more than the
 /// filters' `BAND_ROWS`: each band scatters the two sample rows above its first again, a
@@ -276,12 +276,12 @@ impl Upscaler {
     /// instances at `instances`) into `out`, `width` x `height`.
     pub fn apply_into(
         &mut self,
-        image: &Film,
+        image: &HdrImage,
         guides: &Guides,
         camera: &Camera,
         instances: &[Affine3A],
         (width, height): (u32, u32),
-        out: &mut Film,
+        out: &mut HdrImage,
     ) {
         debug_assert_eq!((image.width, image.height), (guides.width, guides.height));
         if (width, height) != (self.width, self.height) {
@@ -304,7 +304,7 @@ impl Upscaler {
     /// Step 1.
     fn take_samples(
         &mut self,
-        image: &Film,
+        image: &HdrImage,
         guides: &Guides,
         camera: &Camera,
         shown: &Camera,
@@ -366,7 +366,7 @@ impl Upscaler {
     }
 
     /// Step 2, into `out` and the next history.
-    fn blend(&mut self, render_width: usize, render_height: usize, out: &mut Film) {
+    fn blend(&mut self, render_width: usize, render_height: usize, out: &mut HdrImage) {
         let (width, height) = (self.width as usize, self.height as usize);
         out.width = self.width;
         out.height = self.height;
@@ -1123,9 +1123,9 @@ mod tests {
 
     /// One frame rendered at `RENDER`, each pixel's sample jittered (a small hash of the
     /// frame and pixel), as the renderer's guides and remodulated image give it.
-    fn frame(camera: &Camera, frame: u32) -> (Film, Guides) {
+    fn frame(camera: &Camera, frame: u32) -> (HdrImage, Guides) {
         let (mut film, mut guides) = (
-            Film::new(RENDER.0, RENDER.1),
+            HdrImage::new(RENDER.0, RENDER.1),
             Guides::new(RENDER.0, RENDER.1),
         );
         for y in 0..RENDER.1 {
@@ -1156,13 +1156,13 @@ mod tests {
     }
 
     /// The stripes as the shown film's pixel centres see them.
-    fn truth(camera: &Camera) -> Film {
+    fn truth(camera: &Camera) -> HdrImage {
         let shown = Camera {
             width: SHOWN.0,
             height: SHOWN.1,
             ..camera.clone()
         };
-        let mut film = Film::new(SHOWN.0, SHOWN.1);
+        let mut film = HdrImage::new(SHOWN.0, SHOWN.1);
         for y in 0..SHOWN.1 {
             for x in 0..SHOWN.0 {
                 let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
@@ -1173,8 +1173,8 @@ mod tests {
     }
 
     /// Runs `frames` frames with the camera at `x(frame)`: the last output and its truth.
-    fn run(upscaler: &mut Upscaler, frames: u32, x: impl Fn(u32) -> f32) -> (Film, Film) {
-        let mut out = Film::new(0, 0);
+    fn run(upscaler: &mut Upscaler, frames: u32, x: impl Fn(u32) -> f32) -> (HdrImage, HdrImage) {
+        let mut out = HdrImage::new(0, 0);
         let mut last_camera = camera(0.0, RENDER);
         for index in 0..frames {
             last_camera = camera(x(index), RENDER);
@@ -1332,7 +1332,7 @@ mod tests {
     #[test]
     fn an_instance_spawned_since_has_no_history_to_carry() {
         let camera = camera(0.0, RENDER);
-        let mut out = Film::new(0, 0);
+        let mut out = HdrImage::new(0, 0);
         let mut show = |upscaler: &mut Upscaler, index: u32| {
             let (image, guides) = frame(&camera, index);
             let still = [Affine3A::IDENTITY];

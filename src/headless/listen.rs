@@ -6,6 +6,14 @@
 //! The level is loaded into its own `Engine`, its clock run on to `--time` (wardens walk,
 //! gates lift), and the simulation's copy of the level then answers every ray. Sound files
 //! are read as the game reads them (`audio::load_clip`: WAV, FLAC, Ogg Vorbis, MP3).
+//!
+//! `gloam listen LEVEL --at X,Y,Z --out OUT.wav` writes 48 kHz stereo 16-bit PCM; with
+//! `--json OUT.json`, each source as heard and the room's reverb:
+//!
+//! ```text
+//! {"sources": [{"name", "level_db", "occluded", "path_length", "arrival": [x, y, z]}],
+//!  "reverb": {"decay_s", "wet_db"}}
+//! ```
 
 use std::path::Path;
 

@@ -1,10 +1,16 @@
-//! Runs with no window: a recording replayed step by step (`replay`), the player bot
-//! that plays a level to its end and records the run (`autoplay`), and what ears at a
-//! place hear (`listen`). Outside the frame:
-//! both drive the frame driver's own fixed step (`frame::Engine::step`) and never render.
-//! The command line and the window (the editor's play-check) both call them; nothing here
-//! knows either.
+//! Every run with no window, which the command line and the window (the editor's
+//! play-check) both call; nothing here knows either. Outside the frame: these drive the
+//! frame driver's own steps (`frame::Engine`).
+//! - `replay`: a recording replayed step by step, checked against its trail;
+//! - `autoplay`: the player bot, which plays a level to its end and records the run;
+//! - `listen`: what ears at a place hear, mixed offline;
+//! - `bench`: the measurement tools (`bench`, `raybench`, `flythrough`, `convergence`
+//!   and the exposure map), which time the engine's steps and write reports;
+//! - `values`: the checks on the runs' option values (counts, sizes, ranges), which the
+//!   command line's own flags share.
 
 pub mod autoplay;
+pub mod bench;
 pub mod listen;
 pub mod replay;
+pub mod values;

@@ -12,11 +12,23 @@
 //! or caught. After each step the whole state is read (`game::state::StateParts`); at
 //! each mark of the recording's trail it is held to the mark, and the replay stops at the
 //! first mark it departs from. A replay that ends at another step than the recording did
-//! (won or caught sooner, or not at all) has departed too. The report, per 60 Hz step:
-//! the time, the player's feet, the light gem, the shards left and the wardens; then the
-//! outcome, `state_hash` (the states of every step chained, 16 hex digits: the same on
-//! any thread count and with either SIMD kernels), and `diverged`: null, or where the
-//! replay went another way (`{"step", "t", "part"}`).
+//! (won or caught sooner, or not at all) has departed too; the command then exits 1 with
+//! one line naming the step and the first part of the state that differs
+//! (`REC: diverged at step N (t = S s): player position`).
+//!
+//! The report (`--json OUT`) has every step, then the outcome, `state_hash` (the states of
+//! every step chained, 16 hex digits: the same on any thread count and with either SIMD
+//! kernels; the tests pin every shipped recording's) and `diverged`, null or where the
+//! replay went another way:
+//!
+//! ```text
+//! {"outcome": "won" | "caught" | "quit" | "running", "state_hash",
+//!  "steps": [{"t", "player": [x, y, z] (feet), "exposure" (the light gem), "shards_left",
+//!             "wardens": [{"name", "state", "suspicion"}],
+//!             "sounds": [the sound kit's files the step's events played, e.g.
+//!                        "step-stone-crouch-1", "warden-alarm"]}],
+//!  "diverged": null | {"step", "t", "part"}}
+//! ```
 //!
 //! Listening (`--audio OUT.wav`), the player's ears hear every step as they do in the
 //! window (`audio::Hearing`) and the window's mixer mixes it, one step's samples at a

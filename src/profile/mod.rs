@@ -4,17 +4,37 @@
 //! once; the frame driver's `StageTimes` (filled by its timers and by the extract systems
 //! that time their own parts) becomes one `FrameSample` per frame, and a `Profile` of them
 //! is what `gloam bench` prints and writes:
-//! - JSON, the schema the README gives for `gloam bench` (`frames`, `width`, `height`,
-//!   `stages.<name>.{mean_ms, p50_ms, p95_ms, p99_ms, max_ms}`, `frame`, `mrays_per_s`),
-//!   plus rays per frame;
-//! - CSV, a row per frame and a column per stage;
-//! - a Chrome trace (the JSON "Trace Event Format"), which Perfetto and chrome://tracing
-//!   open: one complete ("X") event per stage per frame, laid end to end;
-//! - a PNG chart: the stages stacked per frame over time, and a histogram of frame times.
+//! - JSON (its schema: [`crate::headless::bench`]): per stage and per frame the mean, p50,
+//!   p95, p99 and max milliseconds, Mrays/s, rays per frame;
+//! - CSV (`--csv`), a row per frame and a column per stage and phase;
+//! - a Chrome trace (`--trace`, the JSON "Trace Event Format"), which Perfetto
+//!   (ui.perfetto.dev) and chrome://tracing open: a track of frames, a track of their
+//!   stages with the phases nested inside, and a track per render thread holding the tiles
+//!   it traced (the last `TRACE_TILE_FRAMES` frames' tiles, to keep the file loadable);
+//! - a PNG chart (`--chart`, [`chart`]): the stages stacked per frame over time, the timed
+//!   phases in shades of their stage's colour, the frame budget marked, over a histogram of
+//!   frame times.
 //!
-//! `overlay` draws the same statistics live over the game's frame (F3).
+//! [`overlay`] draws the same statistics live over the game's frame (F3).
 //!
 //! Depends on nothing above it: plain numbers in, files and pixels out.
+//!
+//! # Live profiling in Tracy or puffin
+//!
+//! The frame stages, the render phases (`render.primary`, `render.shade`, `render.shadow`,
+//! `render.bounces`, per tile and thread) and obvhs's own build scopes are `profiling`
+//! crate scopes, which compile to nothing in a normal build. Build with a feature to see
+//! them live ([`start_live_profiler`]):
+//!
+//! ```sh
+//! # then connect the Tracy profiler (v0.14, the protocol tracy-client 0.18 speaks)
+//! cargo run --release --features profile-with-tracy
+//! # then `puffin_viewer` (cargo install puffin_viewer), served on 127.0.0.1:8585
+//! cargo run --release --features profile-with-puffin
+//! ```
+//!
+//! Any command works with them, e.g. `cargo run --release --features profile-with-tracy --
+//! bench --frames 600` for a long, steady capture.
 
 use std::path::Path;
 
@@ -60,8 +80,8 @@ pub fn start_live_profiler() -> anyhow::Result<Option<LiveProfiler>> {
 
 /// The stages of a frame, in the order they run: the one list the frame driver's schedules
 /// and timers, `StageTimes`, every report (table, JSON, CSV, trace, chart) and the F3
-/// overlay are indexed by. DESIGN's frame line, with `transforms` and `extract` timed
-/// apart from their neighbours.
+/// overlay are indexed by. The frame line of the crate's front page, with `transforms` and
+/// `extract` timed apart from their neighbours.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Stage {
     /// Input actions applied, last step's transforms remembered (fixed steps).
@@ -601,7 +621,7 @@ impl Profile {
         (!ratios.is_empty()).then(|| Summary::of(&ratios).p50)
     }
 
-    /// The `bench --json` report (README), and the rays of each frame.
+    /// The `bench --json` report (its schema: `headless::bench`), and the rays of each frame.
     pub fn to_json(&self) -> Value {
         let stages: serde_json::Map<String, Value> = STAGES
             .iter()

@@ -10,7 +10,7 @@ use glam::{Mat3A, Vec2, Vec3A};
 use crate::accel::Ray;
 use crate::scene::world::CameraPlacement;
 
-/// Film points for `Camera::pinhole_rays`, a plane per axis (so they load as lanes).
+/// Image-plane points for `Camera::pinhole_rays`, a plane per axis (so they load as lanes).
 #[derive(Clone, Debug, Default)]
 pub struct FilmPoints {
     x: Vec<f32>,
@@ -196,7 +196,7 @@ impl Camera {
 pub struct Projection {
     camera_from_world: Mat3A,
     position: Vec3A,
-    /// Film pixels per unit of x / -z and y / -z (y flipped: film rows run down).
+    /// Image-plane pixels per unit of x / -z and y / -z (y flipped: film rows run down).
     scale: Vec2,
     centre: Vec2,
 }

@@ -4,7 +4,11 @@
 //!   vertex, multiple importance sampling (power heuristic) between light and BSDF
 //!   sampling, and Russian roulette (Veach 1997; pbrt-v4's `PathIntegrator`). The
 //!   real-time render's paths (`PathState::with_dominant_apart`) shade the first vertex's
-//!   dominant lamp in full and keep its light apart, sampling the other lights.
+//!   dominant lamp in full and keep its light apart, sampling the other lights. That light,
+//!   noiseless, is what the film's filters leave as it is, so a lamp's pool stays whole and
+//!   sharp under motion for one more shadow ray a pixel: in `gloam flythrough` on
+//!   first-light the moving lamp's pool keeps 0.88 of its light natively and 0.83 in the
+//!   player's view, against 0.54 and 0.46 with the lamp sampled like the others.
 //! - `reference`: BSDF sampling only, no NEE, no MIS, no roulette. Slow and simple: every
 //!   variance reduction in `path` must converge to the image this one converges to.
 //!   (It cannot see punctual lights, which only light sampling can reach.)
@@ -24,9 +28,12 @@ use super::sampling::{Frame, power_heuristic};
 use super::scene::{RenderScene, SceneAlpha};
 use crate::accel::{Hit, InstanceMask, Ray, SurfaceHit, TriangleSurface, approximate_log2};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Which integrator renders (the command line's `--integrator`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum IntegratorKind {
+    /// The path tracer with next event estimation (the game's).
     Path,
+    /// The unbiased reference the path tracer is checked against.
     Reference,
 }
 

@@ -1,6 +1,6 @@
 //! Frame step `render`: camera rays, path tracing with next event estimation, samplers,
-//! then hands its frame to `film`. Reads a `RenderScene` (built by `extract`) and writes a `Film`;
-//! knows nothing of the ECS or windows.
+//! then hands its frame to `film`. Reads a `RenderScene` (built by `extract`) and writes a
+//! `HdrImage`; knows nothing of the ECS or windows.
 //!
 //! Per call of `render`:
 //! 1. split the image into 16 x 16 tiles and hand them to rayon;
@@ -34,14 +34,27 @@
 //!    thread count either).
 //!
 //! The phases draw each pixel's sample dimensions in the order one path at a time
-//! (`integrator::continue_path` from the camera ray) does, so
-//! the wavefront and the one-path-at-a-time integrator give bit-identical images.
+//! (`integrator::continue_path` from the camera ray) does, so the wavefront and the
+//! one-path-at-a-time integrator give bit-identical images (checked by hashing renders),
+//! and at the same speed as a per-pixel loop (first-light at 480 x 270, render p50 72.2
+//! against 72.3 ms and 72.6 against 71.4 in one run); what the wavefront buys is the
+//! batched work each phase can then do (packets, streams, `VertexDrawBatch`, prefetching).
+//! In the bounces phase, asking for each incoherent hit's triangle as its ray is traced
+//! and its corners' lines `SURFACE_AHEAD` hits before its surface is read took 5% off the
+//! phase's time on first-light and the-gallery.
+//!
+//! # Tests
+//!
+//! A furnace (a closed box lit by its own walls: Le / (1 - rho), with both integrators),
+//! direct light from a tilted polygonal light against Lambert's analytic formula, `path`
+//! against `reference` on diffuse, mirror, glass and rough metal, thread-count determinism,
+//! and the low-frequency power of the 1-spp error spectrum (blue noise against white).
 
 pub mod bsdf;
 pub mod cache;
 pub mod camera;
-pub mod film;
 pub mod guides;
+pub mod hdr;
 pub mod integrator;
 pub mod light;
 pub mod material;
@@ -59,8 +72,8 @@ use rayon::prelude::*;
 
 pub use cache::RadianceCache;
 pub use camera::Camera;
-pub use film::Film;
 pub use guides::{GuidePixel, Guides};
+pub use hdr::HdrImage;
 pub use integrator::{IntegratorKind, RayCounts};
 pub use sampler::SamplerKind;
 pub use scene::RenderScene;
@@ -274,7 +287,7 @@ impl TileScratch<'_> {
 }
 
 pub struct RenderOutput {
-    pub film: Film,
+    pub image: HdrImage,
     pub rays: RayCounts,
     pub seconds: f64,
     /// Where the tiles' CPU time went.
@@ -354,10 +367,10 @@ fn render_tiles(
     // The film and guides: an earlier output's buffers where they fit (every pixel is
     // set by its tile, so nothing needs clearing).
     let (mut film, earlier_guides) = match earlier {
-        Some(earlier) if (earlier.film.width, earlier.film.height) == (width, height) => {
-            (earlier.film, earlier.guides)
+        Some(earlier) if (earlier.image.width, earlier.image.height) == (width, height) => {
+            (earlier.image, earlier.guides)
         }
-        _ => (Film::new(width, height), None),
+        _ => (HdrImage::new(width, height), None),
     };
     let mut guides = want_guides.then(|| {
         earlier_guides
@@ -421,7 +434,7 @@ fn render_tiles(
         invalid_samples += tile.invalid;
     }
     RenderOutput {
-        film,
+        image: film,
         rays,
         seconds: start.elapsed().as_secs_f64(),
         phases,
@@ -863,7 +876,7 @@ mod tests {
             max_depth: 5,
         };
         let camera = Camera::new(&scene.camera, settings.width, settings.height);
-        let film = render(&scene, &camera, &settings, &|_| {}).film;
+        let film = render(&scene, &camera, &settings, &|_| {}).image;
         let blue = BlueNoise::new(settings.seed, settings.frame);
         let tile = Tile {
             scene: &scene,
@@ -918,17 +931,17 @@ mod tests {
             max_depth: 1,
         };
         let camera = Camera::new(&scene.camera, settings.width, settings.height);
-        let plain = render(&scene, &camera, &settings, &|_| {}).film;
+        let plain = render(&scene, &camera, &settings, &|_| {}).image;
         let split = render_guided(&scene, &camera, &settings, None);
         let guides = split.guides.expect("render_guided gives guides");
-        let mean = |film: &Film| {
+        let mean = |film: &HdrImage| {
             film.pixels
                 .iter()
                 .map(|p| p.as_dvec3())
                 .sum::<glam::DVec3>()
                 / film.pixels.len() as f64
         };
-        let (plain_mean, split_mean) = (mean(&plain), mean(&split.film));
+        let (plain_mean, split_mean) = (mean(&plain), mean(&split.image));
         let relative = (split_mean - plain_mean).abs() / plain_mean;
         assert!(
             relative.max_element() < 0.02,
@@ -938,7 +951,7 @@ mod tests {
         let apart = (0..guides.width * guides.height)
             .filter(|&index| {
                 let pixel = guides.pixel(index as usize);
-                let radiance = split.film.pixels[index as usize];
+                let radiance = split.image.pixels[index as usize];
                 !pixel.is_sky() && pixel.unfiltered.element_sum() > 0.5 * radiance.element_sum()
             })
             .count();

@@ -1,10 +1,33 @@
-//! glTF 2.0 import (.gltf with embedded or external buffers, .glb) into the `Asset` model.
+//! glTF 2.0 import (.gltf with embedded `data:` or external buffers, .glb) into the `Asset`
+//! model.
 //!
 //! Load time, before the frame loop. Owns: reading buffers and images, bounds-checked
 //! accessor decoding (every component type, normalized integers, sparse accessors, byte
-//! strides), triangle-list conversion, flat normals where a file has none, materials with
-//! the extensions the README lists, cameras, KHR_lights_punctual, skins, morph targets and
-//! animations (parsed here, evaluated by the animation step).
+//! strides), triangle-list conversion, flat normals where a file has none, materials,
+//! cameras, lights, skins, morph targets and animations (parsed here, evaluated by the
+//! animation step).
+//!
+//! # What it reads
+//!
+//! The node hierarchy (TRS or matrices); every triangle primitive (lists, strips and fans;
+//! indexed or not; flat normals generated when a file has none, as the spec asks); UV sets
+//! 0 and 1; metallic-roughness materials with their textures (sRGB decoding for colour,
+//! linear for data; sampler filters and wrap modes) and normal textures; the emissive
+//! factor and texture with `KHR_materials_emissive_strength`, `KHR_materials_transmission`,
+//! `KHR_materials_ior`, `KHR_texture_transform`, `KHR_mesh_quantization`, alpha mode and
+//! cutoff, double-sidedness; perspective and orthographic cameras; `KHR_lights_punctual`;
+//! skins (every joint/weight set, inverse bind matrices); morph targets (positions,
+//! normals); and animations (translation, rotation, scale and morph-weight channels;
+//! linear, step and cubic-spline samplers, sparse accessors included). A file that
+//! *requires* any other extension ([`SUPPORTED_REQUIRED_EXTENSIONS`]) is refused with an
+//! error naming it.
+//!
+//! Conventions: glTF's space (right-handed, +Y up, metres, cameras look down -Z); linear
+//! Rec.709 colour inside; an emissive surface's radiance is emissiveFactor x
+//! emissiveStrength in W/(sr m^2); point and spot light intensity is radiant intensity in
+//! W/sr, directional intensity is irradiance in W/m^2.
+//!
+//! # Errors
 //!
 //! Every failure is a `Diagnostic` naming the file, a line:column in its JSON (the GLB's
 //! JSON chunk for binary files) and the JSON pointer of the offending element. Nothing a

@@ -26,7 +26,13 @@
 //! [`generate_assets`] to rewrite every file under `assets/`; a test checks that the
 //! committed files are byte-identical to what this code writes, so edit the code, never
 //! the files. Everything is in glTF space (right-handed, +Y up, metres) with linear colours
-//! and emission given as radiance in W/(sr m^2).
+//! and emission given as radiance in W/(sr m^2). `assets/SOURCES.md` lists every file under
+//! `assets/` and where it comes from (the sounds: `gloam generate sounds`, `sound_kit`).
+//!
+//! `gloam generate stress [--triangles N] --out FILE` writes the wavy grid of at least N
+//! triangles (default 1,000,000), whose load time `gloam check FILE` reports; with
+//! `--skinned`, a walking warden of at least N triangles, whose `animation` and
+//! `blas_refit` stages `gloam play FILE --headless` reports.
 
 use std::path::{Path, PathBuf};
 

@@ -1,15 +1,182 @@
-//! The level format, version 1: a RON file that places glTF assets, lights, a camera and
-//! the player spawn in the world. Load time, and the editor's save path.
+//! The level format, version 1: a [RON](https://github.com/ron-rs/ron) file in `levels/`
+//! that places glTF assets, lights, cameras, the player spawn, and the game's things
+//! (shards, the exit, wardens, knockable things, movers, sounds) in the world. Load time,
+//! and the editor's save path.
 //!
-//! A level names its assets by paths relative to the level file. Each entity is a name, a
-//! transform and a set of optional components; gameplay components (shards, wardens, patrol
-//! routes) join as further optional fields in later versions of this struct, and unknown
-//! fields are rejected so a typo is an error, not a silent default. A complete example is
-//! `levels/first-light.ron`; README.md documents every field.
+//! A level names its glTF assets by paths relative to itself and places entities: each has a
+//! unique `name`, a `transform`, and optional components. `#![enable(implicit_some)]` lets
+//! optional components be written without `Some(...)`. Unknown fields are errors, so a typo
+//! never silently becomes a default. Units and conventions are the project's (the crate's
+//! front page): glTF's space, metres, degrees in the file, linear colour, lights in the
+//! units of `KHR_lights_punctual`.
 //!
-//! Parsing gives typed data; `validate` then checks values (finite numbers, positive scale,
-//! ior >= 1, one player spawn in a playable level, ...) and reports each problem at its
-//! place in the text through `source_map`.
+//! # Every field
+//!
+//! ```ron
+//! #![enable(implicit_some)]
+//! (
+//!     version: 1,                       // required; this gloam reads version 1
+//!     name: "First light",              // shown in menus and the editor
+//!     playable: true,                   // default true: needs exactly one player_spawn;
+//!                                       // false for showcase scenes such as the Cornell box
+//!     campaign: 1,                      // optional: its place in the level select (levels
+//!                                       // without one follow, by file name)
+//!     environment: (
+//!         sky: (0.02, 0.03, 0.05),      // radiance of the sky, linear RGB, W/(sr m^2)
+//!         // A sound bed heard everywhere (optional; .wav, .flac, .ogg or .mp3, relative to
+//!         // the level file; gain_db defaults to 0).
+//!         ambience: (asset: "../assets/sounds/wind.wav", gain_db: -6.0),
+//!     ),
+//!     entities: [
+//!         (
+//!             name: "crate 3",
+//!             transform: (
+//!                 translation: (3.9, 1.0, -3.7),   // metres
+//!                 rotation: (0.0, -12.0, 0.0),     // degrees: (pitch X, yaw Y, roll Z),
+//!                                                  // applied yaw, then pitch, then roll
+//!                 scale: (0.7, 0.7, 0.7),          // positive in every axis
+//!             ),
+//!             instance: (
+//!                 asset: "../assets/kit/crate.glb",   // .gltf or .glb, relative to this file
+//!                 material_overrides: {                // by material name; all optional
+//!                     "wood": (
+//!                         base_color: (0.35, 0.25, 0.15, 1.0),   // linear RGBA in [0, 1]
+//!                         // metallic, roughness, transmission: [0, 1]
+//!                         // emissive: (r, g, b) radiance; ior: >= 1; double_sided: bool
+//!                     ),
+//!                 },
+//!             ),
+//!         ),
+//!         (
+//!             name: "hanging lamp",
+//!             transform: (translation: (0.0, 2.7, 0.0)),
+//!             light: Point(color: (1.0, 0.85, 0.6), intensity: 30.0),      // W/sr
+//!         ),
+//!         (
+//!             name: "warden lamp",
+//!             transform: (translation: (4.0, 2.0, 4.0), rotation: (-20.0, 45.0, 0.0)),
+//!             light: Spot(                   // shines down the entity's -Z
+//!                 color: (0.8, 0.9, 1.0),
+//!                 intensity: 120.0,          // W/sr
+//!                 inner_cone_degrees: 15.0,
+//!                 outer_cone_degrees: 25.0,  // 0 <= inner < outer <= 90
+//!             ),
+//!             // Directional(color: ..., intensity: ...) is irradiance in W/m^2.
+//!         ),
+//!         (
+//!             name: "overview camera",       // the view `render` uses; looks down -Z
+//!             transform: (translation: (0.0, 1.7, 5.5), rotation: (-10.0, 0.0, 0.0)),
+//!             camera: (yfov_degrees: 70.0, znear: 0.05),   // znear defaults to 0.05
+//!         ),
+//!         (
+//!             name: "player start",          // feet position; yaw gives the view direction
+//!             transform: (translation: (0.0, 0.0, 5.0)),
+//!             player_spawn: (
+//!                 eye_height: 1.6,           // the default
+//!                 // Optional: the player's own body (a model facing +Z with `walk` and
+//!                 // `idle` clips, feet at its origin); their camera sees past it, it casts
+//!                 // shadows and shows in reflections.
+//!                 body: (asset: "../assets/kit/warden.glb", material_overrides: {}),
+//!             ),
+//!         ),
+//!         (
+//!             name: "shard 1",               // collected when the player's body comes within
+//!             transform: (translation: (0.0, 0.0, -4.5)),   // `radius` (default 0.6 m)
+//!             instance: (asset: "../assets/kit/shard.glb"),
+//!             shard: (),                     // or shard: (radius: 0.8); taking it removes
+//!         ),                                 // the entity, its glow with it
+//!         (
+//!             name: "way out",               // with every shard taken, reaching it wins;
+//!             transform: (translation: (0.0, 0.0, 5.0)),    // a level with shards and no
+//!             exit: (radius: 1.0),           // exit is won when the last shard is taken
+//!         ),
+//!         (
+//!             name: "warden 1",
+//!             transform: (translation: (2.0, 0.0, -3.0)),
+//!             instance: (asset: "../assets/kit/warden.glb"),
+//!             animation: (
+//!                 clip: "walk",              // a glTF animation's name, or "#N" for the N-th
+//!                 playback: Loop,            // default Loop; Once holds the last pose
+//!                 speed: 1.0,                // default 1; 0 pauses, negative plays backwards
+//!                 start: 0.25,               // seconds into the clip at level start (>= 0)
+//!             ),
+//!             warden: (                      // faces its model's +Z; plays its model's
+//!                                            // walk, idle and alert clips by its state
+//!                 route: [(-4.0, 0.0, -3.0), (2.0, 0.0, -3.0)],  // feet positions, walked in
+//!                 speed: 1.2,                // order, round and round; m/s (default 1.2)
+//!                 lamp: (                    // a spot light it carries; these are the
+//!                     color: (1.0, 0.8, 0.55),   // defaults, and every field is optional
+//!                     intensity: 40.0,       // W/sr
+//!                     inner_cone_degrees: 20.0,
+//!                     outer_cone_degrees: 32.0,
+//!                     height: 1.3,           // above its feet
+//!                     reach: 0.35,           // ahead of it
+//!                     tilt_degrees: 40.0,    // below the horizon
+//!                 ),
+//!             ),
+//!         ),
+//!         (
+//!             name: "flag",
+//!             instance: (asset: "../assets/kit/banner.glb"),
+//!             // Procedural deformation of every mesh of the instance, along rest normals,
+//!             // in mesh space; shading normals are recomputed from the moved triangles.
+//!             deformer: Wave(
+//!                 amplitude: 0.05,           // metres
+//!                 wavelength: 0.8,           // metres, > 0
+//!                 period: 1.5,               // seconds, > 0
+//!                 direction: (0.0, 1.0, 0.0),   // default (1, 0, 0)
+//!             ),
+//!             // or Wobble(amplitude: 0.02, period: 0.7): a breathing, rippling blob.
+//!         ),
+//!         (
+//!             name: "bottle 1",
+//!             transform: (translation: (-9.0, 0.0, 0.6)),
+//!             instance: (asset: "../assets/kit/bottle.glb"),
+//!             knock: (),                     // falls over with a crash when the player walks
+//!                                            // into it standing: knock: (radius: 0.25,
+//!                                            // noise: 10.0) are the defaults (metres)
+//!         ),
+//!         (
+//!             name: "rail lantern light",
+//!             transform: (translation: (-5.55, 2.33, 0.0), rotation: (-55.0, -90.0, 0.0)),
+//!             light: Spot(color: (1.0, 0.75, 0.45), intensity: 22.0,
+//!                         inner_cone_degrees: 30.0, outer_cone_degrees: 48.0),
+//!             // Swings up to `offset` metres either side of its place, a sine over `period`
+//!             // seconds by the simulation clock; entities with the same mover move as one.
+//!             mover: (offset: (0.0, 0.0, 5.5), period: 16.0),
+//!             // A sound it makes where it stands, moving with it; gain_db (default 0) at
+//!             // 1 m; looping: true (the default) plays it round and round, false once as
+//!             // the level starts.
+//!             sound: (asset: "../assets/sounds/lamp-hum.wav", gain_db: -3.0),
+//!             // The entity whose instance the light shines from (a lamp-bracket, a
+//!             // hanging-lamp, a candle): its glow goes dark while the lamp is doused.
+//!             fixture: "rail lantern",
+//!         ),
+//!     ],
+//! )
+//! ```
+//!
+//! A level without a camera entity renders from the first camera in its assets (the Cornell
+//! box level does this), and without either from a view that frames the scene. A bare
+//! `.gltf` or `.glb` given where a level is expected loads as a showcase level with one
+//! entity at the origin. `levels/first-light.ron` is a complete level; the editor saves
+//! levels in exactly the form the files in `levels/` are written in ([`level_to_string`]), so
+//! an unchanged save changes nothing.
+//!
+//! # Validation
+//!
+//! Parsing gives typed data; [`validate_level`] then checks values and reports each problem
+//! at its place in the text through [`crate::scene::source_map`], as `file:line:column: message (at
+//! /json/pointer)`; `gloam check FILE` lists them all. Reported: RON syntax errors and
+//! unknown fields, an unsupported `version`, non-finite numbers, non-positive scale, colours
+//! out of range, ior below 1, bad spot cones or camera fields, empty or duplicate entity
+//! names, missing or broken asset files (with the asset's own diagnostics), material
+//! overrides naming a material the asset lacks, animation clips the asset lacks (listing
+//! those it has), animations or deformers on an entity with no instance, non-positive
+//! deformer wavelengths and periods, non-positive shard, exit and knock radii, a negative
+//! knock noise, a mover with a non-positive period, a warden with no route, a non-positive
+//! speed or a bad lamp, a fixture on an entity with no light, naming no entity or one that
+//! draws nothing, and a playable level with no (or two) player spawns.
 
 use std::collections::BTreeMap;
 use std::path::Path;

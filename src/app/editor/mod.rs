@@ -5,9 +5,10 @@
 //! 1. window events go to egui first (`gui`); mouse motion while the right button is held
 //!    turns the editor camera;
 //! 2. `RedrawRequested`: a finished exposure map or play-check (`edit::play_check`, F6),
-//!    each computed on a thread of its own, is taken up; the camera flies by the held keys; the interface is built
-//!    (`panels`): the outline, palette, inspector, the view with its gizmo and overlays,
-//!    and the shortcuts, which queue `Command`s rather than act;
+//!    each computed on a thread of its own, is taken up; the camera flies by the held
+//!    keys; the interface is built (`panels`): the outline, palette, inspector, the view
+//!    with its gizmo and overlays, and the shortcuts, which queue `Command`s rather than
+//!    act;
 //! 3. the commands run on the `Editor` and the `Engine` (a drag of the gizmo, a waypoint
 //!    or an inspector field is one undo step, ended when the button is let go);
 //! 4. the engine renders one frame of the still level (no simulation step runs): with the
@@ -17,14 +18,82 @@
 //! 5. present: the film is tone mapped into pixels' buffer, whose texture the interface
 //!    draws as the view.
 //!
-//! Every few minutes unsaved edits go to the level's autosave file; closing, or opening
-//! another level (the File menu's path field, or the desktop's dialog: `dialogs`), with
-//! unsaved edits asks first. The level file and its assets are watched (`scene::watch`,
-//! `files`): a level
-//! changed on disk by someone else is loaded (or, with unsaved edits, the designer is asked
-//! which to keep), a changed asset is imported again in place, and a file that does not
-//! load leaves the level as it is and shows its `file:line:column: message` over the view
-//! until it is fixed. The editor's own saves are recognised by their bytes and ignored.
+//! # Using it
+//!
+//! `gloam edit levels/x.ron` opens the level as its file has it, path traced from a camera
+//! of its own (it starts at the level's camera and is never saved). The view converges
+//! while the camera and the level stand still, up to [`CONVERGED_SPP`] samples a pixel,
+//! then rests; F4 switches to the game's own view (1 sample a pixel through the film's
+//! filters), to see what the player will see. No key fires while a text field has the
+//! keyboard.
+//!
+//! - **Look around:** hold the right mouse button in the view and fly with W A S D, E up
+//!   and Q down (Shift: four times faster).
+//! - **Select:** click in the view (the first thing the ray hits, up to its level entity)
+//!   or a name in the outline on the left; Shift+click adds or removes. Lights, the player
+//!   start, the exit and cameras draw nothing, so they show as dots to click. The selection
+//!   is outlined in orange; a selected warden's waypoints are squares to drag over the
+//!   floor.
+//! - **Move, rotate, scale:** W, E and R choose the gizmo's handles (axes and planes) when
+//!   the camera is not flying. Snap (on by default) steps moves by the grid (0.25 m) and
+//!   turns by the angle (15 degrees), both set in the tool bar; waypoints snap to the grid
+//!   too.
+//! - **Place:** choose a prefab (lamp, shard, warden with its lamp, door, exit, player
+//!   start) or any glTF under `assets/` in the palette (`edit::palette`), then click in the
+//!   view: it lands where the click meets the level (the ground plane where it meets
+//!   nothing), under a unique name. Shift+click places another; Esc puts the choice back.
+//! - **Inspect:** the panel on the right edits every component of the one selected entity:
+//!   name, transform, material overrides, light (kind, colour, intensity, cones), warden
+//!   (speed, route, lamp), shard, exit, player start, camera, knock, mover. A box beside
+//!   each component adds or removes it. Under the asset, each of its named materials lists
+//!   the values a level may replace for this one entity (base colour, metallic, roughness,
+//!   transmission, ior, emissive, double sided): ticking one starts from the asset's value,
+//!   and the file names only the values ticked.
+//! - **Undo everything:** Ctrl+Z undoes, Ctrl+Shift+Z or Ctrl+Y redoes; a whole gizmo,
+//!   waypoint or field drag is one step, and a deleted entity comes back with all its
+//!   components at its old place in the file. Ctrl+D duplicates, Delete deletes.
+//! - **Never lose work:** the title starts with `*` while there are unsaved edits. Ctrl+S
+//!   writes the file atomically and keeps the previous one as `x.ron.bak`; a save that
+//!   fails says why and leaves the old file and the edits as they were. The File menu's
+//!   path field opens another level (Open this file) or saves this one under a new name
+//!   (Save as this file); where the desktop has file dialogs (`dialogs`: the XDG desktop
+//!   portal, or zenity, on Linux), Open... and Save as... show them too. Every two minutes
+//!   unsaved edits go to `.x.ron.autosave` beside the level (the level file itself is
+//!   untouched); neither name is a `*.ron`, so no level list picks them up. Closing, or
+//!   opening another level, with unsaved edits asks first: save, don't save, or cancel;
+//!   Enter takes the first answer, which loses nothing. A level loaded and saved with no
+//!   edit is the same file, byte for byte.
+//! - **Play-test:** F5 (or the tool bar's button) plays the level as it stands in the
+//!   editor, unsaved edits and all, with the player standing on the floor under the
+//!   editor's camera and facing its way (the level's own start when the camera is over no
+//!   floor). Esc, or getting out, comes back to the editor exactly as it was left. In play,
+//!   F2 does the opposite: it opens the level's file in the editor.
+//! - **Play-check:** F6 (or the tool bar's button) runs the player bot on the level as it
+//!   stands (`edit::play_check`), from the level's own start, on a thread of its own while
+//!   the view stays live (first-light takes about 40 s). Beside the button it says how it
+//!   went: won unseen in m:ss, with the route it walked drawn in green over the floor;
+//!   caught, with the place ringed; or no unseen route, with the lit chokepoints ringed.
+//!   An edit made since greys the answer out ("edited since"); F6 again checks anew.
+//! - **Exposure and audibility maps:** X (or the tool bar's button) lays `gloam exposure`'s
+//!   map over the floor (`edit::exposure`), computed by the rays the game uses: each cell
+//!   the player can reach from the start in its colour (dark blue hidden, warming to yellow
+//!   as the light gem rises, red above 0.5), standing or crouching. The darkest route from
+//!   the start through every shard to the exit is drawn as a line, and where even that
+//!   route has to cross light above 0.5 (no way round is darker) the crossing is ringed in
+//!   red, "lit, no way round". The map can show instead where a noise the player makes
+//!   would be heard by a warden (`edit::audibility`). The slider moves the wardens along
+//!   their beats (red dots facing their way) and their lamps with them. The map follows
+//!   every edit: it is computed on a thread of its own (about 0.3 s for the first level on
+//!   two cores) while the view stays live, and again as soon as the level or the time has
+//!   changed.
+//! - **Hot reload:** the level file and every asset it uses are watched (`scene::watch`,
+//!   `files`). When another program saves the level, the editor loads it; with unsaved
+//!   edits it asks first: keep the edits (Enter), which the next save writes over the file,
+//!   kept as `.bak`; or load the file, the edits written to the autosave file first. A
+//!   changed asset is imported again and the entities that use it are respawned in place.
+//!   A file that does not load leaves the level as it was and shows its
+//!   `file:line:column: message` over the view until it is fixed. The editor's own saves
+//!   are recognised by their bytes and not reloaded.
 
 mod dialogs;
 mod files;
@@ -55,7 +124,7 @@ use crate::film::FilterMode;
 use crate::frame::Engine;
 use crate::game::LevelEntity;
 use crate::render::RenderSettings;
-use crate::render::film::tone_map;
+use crate::render::hdr::tone_map;
 use crate::scene::Scene;
 use crate::scene::files::absolute;
 use crate::scene::level::EntityDef;

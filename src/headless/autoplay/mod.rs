@@ -18,6 +18,50 @@
 //! ends won, caught, with no unseen route (`no_route`, with the lit chokepoints), or at
 //! `--max-seconds` of play (`timeout`); the report and the recording are written whatever
 //! the ending.
+//!
+//! # What a run writes
+//!
+//! `gloam autoplay LEVEL --out REC.json --json REPORT.json` exits 0 when the bot won, 1
+//! otherwise with one line why (`no unseen route: the way out cannot be reached on foot
+//! from the spawn`, or where the way is watched and lit and from when). `REC.json` is an
+//! ordinary recording ([`crate::game::replay`]; `gloam play --replay REC.json` watches it).
+//! The report, for every outcome:
+//!
+//! ```text
+//! {"level", "outcome": "won" | "caught" | "no_route" | "timeout", "seconds", "shards",
+//!  "shards_total", "times_seen", "max_gem", "replans", "recording",
+//!  "chokepoints": [{"x", "z", "time", "exposure"}]}
+//! ```
+//!
+//! `--get-caught` is the scripted walk into the light instead ([`get_caught`]; exit 0 when
+//! caught).
+//!
+//! # Making the recordings again
+//!
+//! The shipped recordings in `tests/recordings/` are the bot's runs, and `tests/autoplay.rs`
+//! fails when a run is no longer its recording, step for step (after any change to the
+//! rules, the levels or the bot). Make them again with one loop, from the repository root
+//! after `cargo build --release`, then review what changed (`git diff --stat
+//! tests/recordings`, then the tests: `tests/autoplay.rs` pins each recording's final
+//! state hash, so a recording made again needs its new pin):
+//!
+//! ```sh
+//! for level in first-light the-gallery the-keep; do
+//!   target/release/gloam autoplay levels/$level.ron --out tests/recordings/$level-won.json
+//!   target/release/gloam autoplay levels/$level.ron --get-caught \
+//!     --out tests/recordings/$level-caught.json
+//! done
+//! ```
+//!
+//! The recordings, and what makes each:
+//! - `<level>-won.json`: the loop's first command, the bot unseen with every shard;
+//! - `<level>-caught.json`: the loop's second, standing in the nearest warden's lamp;
+//! - `first-light-glimpsed.json`: by hand, a glimpse in the hall, searched for and given up
+//!   (`tests/wardens.rs`);
+//! - `the-gallery-mirror.json`: by hand, seen only in the corner mirror (`tests/levels.rs`).
+//!
+//! On the shipped recordings the bot wins first light in 1:09.8, the gallery in 1:15.0 and
+//! the keep in 1:26.2 of play.
 
 pub mod plan;
 
@@ -55,10 +99,10 @@ pub struct Options {
     #[arg(long, value_name = "REPORT.json")]
     pub json: Option<PathBuf>,
     /// Seconds of play after which the run ends as a timeout.
-    #[arg(long, default_value_t = DEFAULT_MAX_SECONDS, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = DEFAULT_MAX_SECONDS, value_parser = crate::headless::values::positive)]
     pub max_seconds: f64,
     /// Worker threads (the run is the same on any count).
-    #[arg(long, value_parser = crate::cli::values::size())]
+    #[arg(long, value_parser = crate::headless::values::size())]
     pub threads: Option<usize>,
     /// Which vector kernels run: the CPU's best, or the portable ones a CPU without AVX2
     /// runs (the same bits, so the same run).
@@ -120,7 +164,7 @@ pub struct Run {
 }
 
 impl Run {
-    /// The report (the README's schema).
+    /// The report (its schema: the module's documentation).
     pub fn report(&self) -> Value {
         json!({
             "level": self.level,
@@ -146,7 +190,7 @@ impl Run {
 pub fn run(options: &Options) -> anyhow::Result<bool> {
     let threads = options
         .threads
-        .unwrap_or_else(crate::bench::default_threads);
+        .unwrap_or_else(crate::headless::bench::default_threads);
     if threads == 0 {
         anyhow::bail!("--threads must be at least 1");
     }

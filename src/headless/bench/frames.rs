@@ -31,31 +31,34 @@ use crate::scene::world::Scene;
 #[derive(Debug, clap::Args)]
 pub struct Options {
     /// The level (or glTF) to profile; levels/first-light.ron when omitted.
+    #[arg(value_name = "SCENE")]
     pub level: Option<PathBuf>,
     /// Frames measured (after the warm-up).
-    #[arg(long, default_value_t = 240, value_parser = crate::cli::values::count())]
+    #[arg(long, default_value_t = 240, value_parser = crate::headless::values::count())]
     pub frames: u32,
     /// Frames run first and not measured (caches, page faults, the first BLAS refits).
-    #[arg(long, default_value_t = 30, value_parser = crate::cli::values::count_or_zero())]
+    #[arg(long, default_value_t = 30, value_parser = crate::headless::values::count_or_zero())]
     pub warmup: u32,
-    #[arg(long, default_value_t = 480, value_parser = crate::cli::values::count())]
+    /// The render width, in pixels.
+    #[arg(long, default_value_t = 480, value_parser = crate::headless::values::count())]
     pub width: u32,
-    #[arg(long, default_value_t = 270, value_parser = crate::cli::values::count())]
+    /// The render height, in pixels.
+    #[arg(long, default_value_t = 270, value_parser = crate::headless::values::count())]
     pub height: u32,
     /// Worker threads (default: all cores), for scaling studies.
-    #[arg(long, value_parser = crate::cli::values::size())]
+    #[arg(long, value_parser = crate::headless::values::size())]
     pub threads: Option<usize>,
     /// Which vector kernels run: the CPU's best, or the portable ones a CPU without AVX2
     /// runs (the same bits, timed).
     #[arg(long, value_enum, default_value_t = crate::simd::Simd::Native)]
     pub simd: crate::simd::Simd,
-    /// Write the JSON report here (its fields: README, `gloam bench`).
+    /// Write the JSON report here (its fields: the `headless::bench` module's docs).
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write a row per frame, a column per stage.
     #[arg(long)]
     pub csv: Option<PathBuf>,
-    /// Write a Chrome trace (open it in https://ui.perfetto.dev or chrome://tracing).
+    /// Write a Chrome trace (open it in Perfetto, ui.perfetto.dev, or chrome://tracing).
     #[arg(long)]
     pub trace: Option<PathBuf>,
     /// Write a PNG chart: stages stacked per frame, and a frame-time histogram.
@@ -64,19 +67,19 @@ pub struct Options {
     /// Render at this scale of --width x --height per axis, and upscale the filtered
     /// frames to it (`film::upscale`), as the game does when its adaptive resolution
     /// lowers the render's; 1 renders at --width x --height.
-    #[arg(long, default_value_t = 1.0, value_parser = crate::cli::values::unit)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::headless::values::share)]
     pub render_scale: f32,
     /// The film's filters, as in `play` (their cost is the `film` stage).
-    #[arg(long, value_enum, default_value_t = super::FilterArg::Full)]
-    pub filter: super::FilterArg,
+    #[arg(long, value_enum, default_value_t = crate::film::FilterMode::Full)]
+    pub filter: crate::film::FilterMode,
     /// A world that changes while it runs: every other frame spawns this many instances
     /// of the level's first asset (in a grid on the floor) and the frame after despawns
     /// them; the table then splits extract + accel by spawning, despawning and quiet
     /// frames.
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::count_or_zero())]
+    #[arg(long, default_value_t = 0, value_parser = crate::headless::values::count_or_zero())]
     pub churn_instances: u32,
     /// ... and this many point lights with them.
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::count_or_zero())]
+    #[arg(long, default_value_t = 0, value_parser = crate::headless::values::count_or_zero())]
     pub churn_lights: u32,
     /// Profile a real play-through: the player at the recording's level start, fed one
     /// recorded step's input a frame, seen through its eyes (the measured frames end
@@ -247,7 +250,7 @@ fn measure(
         scene,
         RenderSettings::real_time(options.width, options.height),
     );
-    engine.film.filter.mode = options.filter.mode();
+    engine.film.filter.mode = options.filter;
     // Ears, as in play (the player's, or the view's on the camera path): their cost is
     // the `audio` stage. The mixing runs on the device's thread, off the frame, so the
     // commands are dropped here.

@@ -1,4 +1,4 @@
-//! The command line's number checks, one per kind of quantity: clap runs them while it
+//! The number checks of every run's options, one per kind of quantity: clap runs them while it
 //! parses, so a bad value is one line naming the flag and the range (`invalid value '-3'
 //! for '--spp <SPP>': -3 is not in 1..=4294967295`). Negative numbers are read as values
 //! (each command allows them), so `--spp -3` is judged by the range rather than taken
@@ -81,4 +81,9 @@ pub fn non_negative(text: &str) -> Result<f64, String> {
 /// Between 0 and 1 inclusive (a gem value, a blend weight).
 pub fn unit(text: &str) -> Result<f32, String> {
     number(text, |v| (0.0..=1.0).contains(&v), "between 0 and 1")
+}
+
+/// Above 0 and at most 1 (a scale per axis, a blend weight that must not vanish).
+pub fn share(text: &str) -> Result<f32, String> {
+    number(text, |v| v > 0.0 && v <= 1.0, "above 0 and at most 1")
 }

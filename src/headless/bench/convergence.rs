@@ -14,7 +14,7 @@ use std::path::PathBuf;
 use crate::render::light::luminance;
 use crate::render::spectrum::low_frequency_power;
 use crate::render::{
-    Camera, Film, IntegratorKind, RenderScene, RenderSettings, SamplerKind, render,
+    Camera, HdrImage, IntegratorKind, RenderScene, RenderSettings, SamplerKind, render,
 };
 use crate::scene::world::Scene;
 
@@ -22,17 +22,20 @@ use crate::scene::world::Scene;
 pub struct Options {
     /// Level or glTF/GLB file.
     pub scene: PathBuf,
-    #[arg(long, default_value_t = 128, value_parser = crate::cli::values::count())]
+    /// The render width, in pixels.
+    #[arg(long, default_value_t = 128, value_parser = crate::headless::values::count())]
     pub width: u32,
-    #[arg(long, default_value_t = 128, value_parser = crate::cli::values::count())]
+    /// The render height, in pixels.
+    #[arg(long, default_value_t = 128, value_parser = crate::headless::values::count())]
     pub height: u32,
     /// Samples per pixel of the converged image.
-    #[arg(long, default_value_t = 4096, value_parser = crate::cli::values::count())]
+    #[arg(long, default_value_t = 4096, value_parser = crate::headless::values::count())]
     pub reference_spp: u32,
     /// Seeds each RMSE is averaged over.
-    #[arg(long, default_value_t = 8, value_parser = crate::cli::values::count())]
+    #[arg(long, default_value_t = 8, value_parser = crate::headless::values::count())]
     pub seeds: u32,
-    #[arg(long, default_value_t = 8, value_parser = crate::cli::values::count_or_zero())]
+    /// Bounces at most (0: emitters only, 1: direct lighting, ...).
+    #[arg(long, default_value_t = 8, value_parser = crate::headless::values::count_or_zero())]
     pub max_depth: u32,
 }
 
@@ -52,11 +55,11 @@ fn timed(
     camera: &Camera,
     settings: &RenderSettings,
     bar: &indicatif::ProgressBar,
-) -> (Film, f64, f64) {
+) -> (HdrImage, f64, f64) {
     let output = render(scene, camera, settings, &|_| {});
     bar.inc(u64::from(settings.spp));
     let mrays = output.mrays_per_second();
-    (output.film, output.seconds, mrays)
+    (output.image, output.seconds, mrays)
 }
 
 pub fn run(options: &Options) -> anyhow::Result<()> {
@@ -227,7 +230,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
 
 /// The mean power of `film`'s luminance error against `converged` over the radii below
 /// 1/8 of the image size (a quarter of Nyquist).
-fn low_band_error_power(film: &Film, converged: &Film) -> f32 {
+fn low_band_error_power(film: &HdrImage, converged: &HdrImage) -> f32 {
     let error: Vec<f32> = film
         .pixels
         .iter()

@@ -33,9 +33,9 @@ use crate::film::denoise::{FilterMode, FrameFilter};
 use crate::film::upscale::{DEFAULT_RENDER_SCALE, UpscaleSettings, Upscaler};
 use crate::frame::Engine;
 use crate::game::{Patrol, Transform, ViewCamera};
-use crate::render::film::display_value;
+use crate::render::hdr::display_value;
 use crate::render::light::{Light, luminance};
-use crate::render::{Film, Guides, RadianceCache, RenderSettings, render, render_guided};
+use crate::render::{Guides, HdrImage, RadianceCache, RenderSettings, render, render_guided};
 use crate::scene::files::write_atomically;
 use crate::scene::world::Scene;
 
@@ -44,20 +44,22 @@ pub struct Options {
     /// The level to fly through; levels/first-light.ron when omitted.
     pub level: Option<PathBuf>,
     /// Frames rendered (one 60 Hz step each).
-    #[arg(long, default_value_t = 64, value_parser = crate::cli::values::count())]
+    #[arg(long, default_value_t = 64, value_parser = crate::headless::values::count())]
     pub frames: u32,
     /// Frames before the first comparison (the histories fill).
-    #[arg(long, default_value_t = 16, value_parser = crate::cli::values::count_or_zero())]
+    #[arg(long, default_value_t = 16, value_parser = crate::headless::values::count_or_zero())]
     pub warmup: u32,
     /// Compare against a reference every this many frames.
-    #[arg(long, default_value_t = 8, value_parser = crate::cli::values::count())]
+    #[arg(long, default_value_t = 8, value_parser = crate::headless::values::count())]
     pub every: u32,
-    #[arg(long, default_value_t = 320, value_parser = crate::cli::values::count())]
+    /// The render width, in pixels.
+    #[arg(long, default_value_t = 320, value_parser = crate::headless::values::count())]
     pub width: u32,
-    #[arg(long, default_value_t = 180, value_parser = crate::cli::values::count())]
+    /// The render height, in pixels.
+    #[arg(long, default_value_t = 180, value_parser = crate::headless::values::count())]
     pub height: u32,
     /// Samples per pixel of each reference.
-    #[arg(long, default_value_t = 256, value_parser = crate::cli::values::count())]
+    #[arg(long, default_value_t = 256, value_parser = crate::headless::values::count())]
     pub reference_spp: u32,
     /// The level entity that patrols across the view (by name); "warden 1" when omitted.
     #[arg(long)]
@@ -72,17 +74,17 @@ pub struct Options {
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=8))]
     pub iterations: Option<u32>,
     /// Tuning: the newest frame's least weight in the temporal average, in (0, 1].
-    #[arg(long, value_parser = crate::cli::values::unit)]
+    #[arg(long, value_parser = crate::headless::values::share)]
     pub alpha_min: Option<f32>,
     /// The player's view renders at this scale of --width x --height per axis and is
     /// upscaled (0.5 when omitted).
-    #[arg(long, value_parser = crate::cli::values::unit)]
+    #[arg(long, value_parser = crate::headless::values::share)]
     pub render_scale: Option<f32>,
     /// Tuning: the upscaler's history cap, in samples.
-    #[arg(long, value_parser = crate::cli::values::positive_f32)]
+    #[arg(long, value_parser = crate::headless::values::positive_f32)]
     pub max_history: Option<f32>,
     /// Tuning: the a-trous luminance edge's width, in standard deviations.
-    #[arg(long, value_parser = crate::cli::values::positive_f32)]
+    #[arg(long, value_parser = crate::headless::values::positive_f32)]
     pub sigma_luminance: Option<f32>,
 }
 
@@ -119,7 +121,7 @@ struct Pool {
 
 /// The pixels the moving lamp lights: in `reference`, more than `POOL_SHARE` of their
 /// luminance is missing from `unlit` (the same instant and seed with that lamp dark).
-fn pool_mask(reference: &Film, unlit: &Film) -> Vec<bool> {
+fn pool_mask(reference: &HdrImage, unlit: &HdrImage) -> Vec<bool> {
     reference
         .pixels
         .iter()
@@ -131,7 +133,7 @@ fn pool_mask(reference: &Film, unlit: &Film) -> Vec<bool> {
         .collect()
 }
 
-fn pool(image: &Film, reference: &Film, in_pool: &[bool]) -> Pool {
+fn pool(image: &HdrImage, reference: &HdrImage, in_pool: &[bool]) -> Pool {
     let (mut image_sum, mut reference_sum, mut display, mut count) = (0.0, 0.0, 0.0, 0usize);
     for ((a, b), _) in image
         .pixels
@@ -158,7 +160,7 @@ fn render_without(
     lamp: u32,
     camera: &crate::render::Camera,
     settings: &RenderSettings,
-) -> anyhow::Result<Film> {
+) -> anyhow::Result<HdrImage> {
     let lit = {
         let mut state = engine.render_state_mut();
         let light = state
@@ -177,12 +179,12 @@ fn render_without(
         }
         lit
     };
-    let film = render(engine.render_scene(), camera, settings, &|_| {}).film;
+    let film = render(engine.render_scene(), camera, settings, &|_| {}).image;
     engine.render_state_mut().scene.lights.lights[lamp as usize] = lit;
     Ok(film)
 }
 
-fn errors(image: &Film, reference: &Film, trail: &[bool]) -> Errors {
+fn errors(image: &HdrImage, reference: &HdrImage, trail: &[bool]) -> Errors {
     let (mut display, mut linear, mut trail_sum, mut trail_count) = (0.0, 0.0, 0.0, 0usize);
     for ((a, b), in_trail) in image.pixels.iter().zip(&reference.pixels).zip(trail) {
         let d = (display_value(*a, 1.0) - display_value(*b, 1.0)).length_squared() as f64;
@@ -204,12 +206,6 @@ fn errors(image: &Film, reference: &Film, trail: &[bool]) -> Errors {
 pub fn run(options: &Options) -> anyhow::Result<()> {
     if options.width == 0 || options.height == 0 || options.frames == 0 {
         anyhow::bail!("--width, --height and --frames must be at least 1");
-    }
-    if let Some(alpha) = options.alpha_min {
-        anyhow::ensure!(
-            alpha > 0.0 && alpha <= 1.0,
-            "--alpha-min {alpha}: must be in (0, 1]"
-        );
     }
     if let Some(sigma) = options.sigma_luminance {
         anyhow::ensure!(
@@ -296,10 +292,10 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     player_filter.render_scale = render_scale;
     let mut settings = RenderSettings::real_time(width, height);
     let mut player_settings = RenderSettings::real_time(render_size.0, render_size.1);
-    let (mut player_render, mut player_image) = (Film::new(0, 0), Film::new(0, 0));
+    let (mut player_render, mut player_image) = (HdrImage::new(0, 0), HdrImage::new(0, 0));
     // Each view's radiance cache, as the game keeps one for its view.
     let (mut cache, mut player_cache) = (RadianceCache::new(), RadianceCache::new());
-    let mut resized_render = Film::new(0, 0);
+    let mut resized_render = HdrImage::new(0, 0);
     let mut trail_masks: VecDeque<Vec<bool>> = VecDeque::new();
     let mut rows = Vec::new();
     let (mut render_ms, mut temporal_ms, mut full_ms) = (Vec::new(), Vec::new(), Vec::new());
@@ -345,10 +341,10 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             .map(|i| i.world_from_object())
             .collect();
         let started = Instant::now();
-        let temporal_image = temporal.apply(&output.film, guides, &camera, &instances);
+        let temporal_image = temporal.apply(&output.image, guides, &camera, &instances);
         temporal_ms.push(started.elapsed().as_secs_f64() * 1e3);
         let started = Instant::now();
-        let full_image = full.apply(&output.film, guides, &camera, &instances);
+        let full_image = full.apply(&output.image, guides, &camera, &instances);
         full_ms.push(started.elapsed().as_secs_f64() * 1e3);
 
         // The player's view: rendered smaller, filtered, upscaled.
@@ -366,7 +362,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         let player_guides = player_output.guides.as_ref().context("guides")?;
         let started = Instant::now();
         player_filter.apply_into(
-            &player_output.film,
+            &player_output.image,
             player_guides,
             &player_camera,
             &instances,
@@ -386,7 +382,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         // The same small frame as the game showed it before it had the upscaler: filtered
         // as at full resolution, then resized bilinearly.
         resized_filter.apply_into(
-            &player_output.film,
+            &player_output.image,
             player_guides,
             &player_camera,
             &instances,
@@ -411,9 +407,9 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             frame: 0,
             ..settings.clone()
         };
-        let reference = render(engine.render_scene(), &camera, &reference_settings, &|_| {}).film;
+        let reference = render(engine.render_scene(), &camera, &reference_settings, &|_| {}).image;
         let images = [
-            &output.film,
+            &output.image,
             &temporal_image,
             &full_image,
             &resized_image,
@@ -440,7 +436,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         rows.push((frame, compared));
         last_images = Some((
             [
-                output.film,
+                output.image,
                 temporal_image,
                 full_image,
                 resized_image,
@@ -640,8 +636,8 @@ mod tests {
     use super::*;
     use glam::Vec3;
 
-    fn film(pixels: &[f32]) -> Film {
-        Film {
+    fn film(pixels: &[f32]) -> HdrImage {
+        HdrImage {
             width: pixels.len() as u32,
             height: 1,
             pixels: pixels.iter().map(|&v| Vec3::splat(v)).collect(),

@@ -44,19 +44,19 @@ pub struct Options {
     /// Level or glTF/GLB file (its camera; emissive triangles are the shadow-ray targets).
     pub scene: PathBuf,
     /// Repeat the scene's instances in a grid until there are N.
-    #[arg(long, value_parser = crate::cli::values::size())]
+    #[arg(long, value_parser = crate::headless::values::size())]
     pub instances: Option<usize>,
     /// Add a deforming grid of at least M triangles and time its per-frame refit.
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::size_or_zero())]
+    #[arg(long, default_value_t = 0, value_parser = crate::headless::values::size_or_zero())]
     pub deforming_triangles: usize,
     /// Threads for the multi-threaded measurement (one thread is always measured).
-    #[arg(long, default_value_t = super::default_threads(), value_parser = crate::cli::values::size())]
+    #[arg(long, default_value_t = crate::headless::bench::default_threads(), value_parser = crate::headless::values::size())]
     pub threads: usize,
     /// Primary rays per side (size x size).
-    #[arg(long, default_value_t = 512, value_parser = crate::cli::values::count())]
+    #[arg(long, default_value_t = 512, value_parser = crate::headless::values::count())]
     pub size: u32,
     /// Timed runs per measurement; medians are reported.
-    #[arg(long, default_value_t = 5, value_parser = crate::cli::values::size())]
+    #[arg(long, default_value_t = 5, value_parser = crate::headless::values::size())]
     pub repeats: usize,
     /// Write the report as JSON.
     #[arg(long)]

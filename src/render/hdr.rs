@@ -1,8 +1,9 @@
-//! Frame step `render`, its output: the image a render produces, the files it is written to
-//! and read from, and how it compares with a reference (`gloam compare`). The film steps
-//! that work on it frame after frame are in `crate::film`.
+//! Frame step `render`, its output: `HdrImage`, the linear radiance image a render
+//! produces, the files it is written to and read from, and how it compares with a
+//! reference (`gloam compare`). The `film` step works on these images frame after frame
+//! (`crate::film`).
 //!
-//! A film pixel holds the mean radiance over the pixel's area (box filter, uniform jitter),
+//! A pixel holds the mean radiance over the pixel's area (box filter, uniform jitter),
 //! in linear Rec.709 RGB, W/(sr m^2). `.exr` files store exactly that (no exposure, no tone
 //! mapping) so they compare with any reference renderer. `.png` files and the window go
 //! through the one tone mapper below.
@@ -20,16 +21,16 @@ use glam::Vec3;
 use crate::scene::files::write_atomically;
 
 #[derive(Clone, Debug, PartialEq)]
-pub struct Film {
+pub struct HdrImage {
     pub width: u32,
     pub height: u32,
     /// Mean radiance per pixel, row-major from the top-left.
     pub pixels: Vec<Vec3>,
 }
 
-impl Film {
-    pub fn new(width: u32, height: u32) -> Film {
-        Film {
+impl HdrImage {
+    pub fn new(width: u32, height: u32) -> HdrImage {
+        HdrImage {
             width,
             height,
             pixels: vec![Vec3::ZERO; (width * height) as usize],
@@ -47,7 +48,7 @@ impl Film {
 
     /// Bilinearly resampled to `width` x `height`, pixel centres aligned (the window shows
     /// a lowered internal resolution this way).
-    pub fn resized(&self, width: u32, height: u32) -> Film {
+    pub fn resized(&self, width: u32, height: u32) -> HdrImage {
         if (width, height) == (self.width, self.height) {
             return self.clone();
         }
@@ -69,7 +70,7 @@ impl Film {
                 pixels.push(top.lerp(bottom, ty));
             }
         }
-        Film {
+        HdrImage {
             width,
             height,
             pixels,
@@ -77,7 +78,7 @@ impl Film {
     }
 
     /// Root-mean-square difference from `reference` over all pixels and channels.
-    pub fn rmse(&self, reference: &Film) -> f32 {
+    pub fn rmse(&self, reference: &HdrImage) -> f32 {
         debug_assert_eq!(self.pixels.len(), reference.pixels.len());
         let sum: f64 = self
             .pixels
@@ -105,7 +106,7 @@ impl Film {
     fn exr_bytes(&self) -> anyhow::Result<Vec<u8>> {
         let data: Vec<f32> = self.pixels.iter().flat_map(|p| p.to_array()).collect();
         let image =
-            image::Rgb32FImage::from_raw(self.width, self.height, data).context("film size")?;
+            image::Rgb32FImage::from_raw(self.width, self.height, data).context("image size")?;
         let mut bytes = Cursor::new(Vec::new());
         image::DynamicImage::ImageRgb32F(image)
             .write_to(&mut bytes, image::ImageFormat::OpenExr)
@@ -120,7 +121,7 @@ impl Film {
             .flat_map(|p| tone_map(*p, exposure))
             .collect();
         let image =
-            image::RgbImage::from_raw(self.width, self.height, data).context("film size")?;
+            image::RgbImage::from_raw(self.width, self.height, data).context("image size")?;
         let mut bytes = Cursor::new(Vec::new());
         image
             .write_to(&mut bytes, image::ImageFormat::Png)
@@ -168,14 +169,14 @@ impl Comparison {
     }
 }
 
-impl Film {
-    /// Reads an .exr (as `gloam render` writes them) into a film.
-    pub fn read_exr(path: &Path) -> anyhow::Result<Film> {
+impl HdrImage {
+    /// Reads an .exr (as `gloam render` writes them) into an image.
+    pub fn read_exr(path: &Path) -> anyhow::Result<HdrImage> {
         let image = image::open(path)
             .with_context(|| format!("reading {}", path.display()))?
             .into_rgb32f();
         let (width, height) = image.dimensions();
-        Ok(Film {
+        Ok(HdrImage {
             width,
             height,
             pixels: image.pixels().map(|p| Vec3::from_array(p.0)).collect(),
@@ -183,7 +184,7 @@ impl Film {
     }
 
     /// This image against `reference`, which must be the same size.
-    pub fn compare(&self, reference: &Film) -> anyhow::Result<Comparison> {
+    pub fn compare(&self, reference: &HdrImage) -> anyhow::Result<Comparison> {
         if (self.width, self.height) != (reference.width, reference.height) {
             bail!(
                 "the image is {}x{} but the reference is {}x{}",
@@ -252,7 +253,7 @@ mod tests {
 
     #[test]
     fn comparison_finds_a_local_bias_and_refuses_other_sizes() {
-        let reference = Film {
+        let reference = HdrImage {
             width: 8,
             height: 8,
             pixels: vec![Vec3::splat(0.5); 64],
@@ -272,7 +273,10 @@ mod tests {
         assert_eq!(found.region_ratios[3][3], 1.0);
         assert!(found.rmse > 0.0);
         assert!(found.report("a.exr", "b.exr").contains(" 2.000"));
-        let error = Film::new(4, 4).compare(&reference).unwrap_err().to_string();
+        let error = HdrImage::new(4, 4)
+            .compare(&reference)
+            .unwrap_err()
+            .to_string();
         assert!(error.contains("4x4") && error.contains("8x8"), "{error}");
     }
 
@@ -290,14 +294,14 @@ mod tests {
 
     #[test]
     fn resizing_keeps_flat_images_flat_and_samples_between_pixels() {
-        let mut film = Film::new(2, 1);
+        let mut film = HdrImage::new(2, 1);
         film.pixels = vec![Vec3::ZERO, Vec3::ONE];
         let wide = film.resized(4, 1);
         assert_eq!(
             wide.pixels.iter().map(|p| p.x).collect::<Vec<_>>(),
             vec![0.0, 0.25, 0.75, 1.0]
         );
-        let mut flat = Film::new(3, 3);
+        let mut flat = HdrImage::new(3, 3);
         flat.pixels.fill(Vec3::splat(0.5));
         assert!(
             flat.resized(7, 5)
@@ -309,7 +313,7 @@ mod tests {
 
     #[test]
     fn exr_round_trips_radiance_exactly() {
-        let mut film = Film::new(3, 2);
+        let mut film = HdrImage::new(3, 2);
         film.pixels[4] = Vec3::new(17.0, 12.0, 4.0);
         film.pixels[1] = Vec3::new(1e-4, 0.5, 2.25);
         let bytes = film.exr_bytes().unwrap();

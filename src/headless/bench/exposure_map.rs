@@ -3,7 +3,7 @@
 //! A measurement over the simulation, outside the frame (`edit::exposure::compute`, which
 //! the editor's overlay shares): the level's wardens walk their beats for `--time` seconds
 //! and the game's own body points, lights and shadow rays give each cell its gem. Writes the
-//! map as JSON (the schema in the README, `gloam exposure`) and as a PNG, `PNG_SCALE`
+//! map as JSON (its schema: `headless::bench`, `gloam exposure`) and as a PNG, `PNG_SCALE`
 //! pixels a cell, +x right and +z down.
 
 use std::path::PathBuf;
@@ -24,13 +24,13 @@ pub struct Options {
     /// The level.
     pub level: PathBuf,
     /// Seconds of the wardens' beats before the map is taken (their lamps move with them).
-    #[arg(long, default_value_t = 0.0, value_parser = crate::cli::values::non_negative)]
+    #[arg(long, default_value_t = 0.0, value_parser = crate::headless::values::non_negative)]
     pub time: f64,
     /// The side of a cell in metres.
-    #[arg(long, default_value_t = crate::game::nav::CELL, value_parser = crate::cli::values::positive_f32)]
+    #[arg(long, default_value_t = crate::game::nav::CELL, value_parser = crate::headless::values::positive_f32)]
     pub cell: f32,
     /// The gem a route may not rise above.
-    #[arg(long, default_value_t = 0.5, value_parser = crate::cli::values::unit)]
+    #[arg(long, default_value_t = 0.5, value_parser = crate::headless::values::unit)]
     pub threshold: f32,
     /// The map as a PNG.
     #[arg(long, value_name = "MAP.png")]
@@ -102,7 +102,7 @@ fn rows(map: &ExposureMap, values: &[Option<f32>]) -> Value {
     )
 }
 
-/// The JSON report (the README's schema).
+/// The JSON report (its schema: `headless::bench`).
 pub fn map_json(map: &ExposureMap, threshold: f32) -> Value {
     let empty = Storey {
         standing: vec![None; map.width * map.depth],
