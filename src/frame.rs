@@ -1,23 +1,27 @@
 //! The frame driver: runs one displayed frame down the frame line, left to right, and
 //! times every stage under its `Stage`.
 //!
-//! Per frame (`Engine::advance`):
-//! 1. simulate: the clock accumulates real time and runs the game's fixed 60 Hz step as
+//! Per frame, `Engine::advance` runs five steps, each a method of the same name:
+//! 1. `simulate`: the clock accumulates real time and runs the game's fixed 60 Hz step as
 //!    many times as it owes: first the simulation's copy of the level is brought up to
 //!    date (`extract::step_world`, timed under `Gameplay`: the geometry the step's queries
 //!    see), then `Stage::Input`, `Gameplay`, `Animation`, `Transforms`
 //!    (`game::fixed_step_schedules`); then, when something listens (`Engine::hearing`),
 //!    what the player's ears hear of the step (`Stage::Audio`, `audio::Hearing`: the
 //!    mixer's commands, which the window sends to the device and headless replays mix);
-//! 2. extract -> accel: `extract::extract_schedule` makes the ECS into the `RenderScene`
-//!    (`Stage::Extract`), deforms and refits what changed shape (`Animation`,
-//!    `BlasRefit`), rebuilds the TLAS (`TlasBuild`);
-//! 3. render (`Stage::Render`): one frame of samples from the view;
-//! 4. film (`Stage::Film`, `film::Accumulation`): with the filter off, frames add up into
-//!    a converging image while nothing changes; with it on (the window and `bench`), the
-//!    frame goes through temporal reprojection and the a-trous filter.
+//! 2. `extract` (`extract::extract_schedule`): the ECS made into the `RenderScene`
+//!    (`Stage::Extract`), and the meshes that changed shape deformed (`Animation`);
+//! 3. `accel` (`extract::accel_schedule`): the deformed BLASes refit (`BlasRefit`), the
+//!    TLAS rebuilt (`TlasBuild`); the film hears what the frame changed;
+//! 4. `render` (`Stage::Render`): the frame the film orders (`film::Accumulation::
+//!    order_frame`: the view, the sample index, plain or for the filters), rendered;
+//! 5. `film` (`Stage::Film`, `film::Accumulation::develop`): with the filter off, frames
+//!    add up into a converging image while nothing changes; with it on (the window and
+//!    `bench`), the frame goes through temporal reprojection, the a-trous filter and, below
+//!    the shown resolution, the upscaler.
 //!
-//! The window shell (`app`) presents the result and times `Stage::Present`; headless tools
+//! Then present: the window shell (`app`) tone maps the film's image into its pixel
+//! buffer and presents it, timed as `Stage::Present`; headless tools
 //! (`bench`, `render`, `flythrough`, tests) drive the same `Engine`. At construction a
 //! level with wardens gets its navigation grid, built from the simulation's copy of its
 //! geometry (`game::NavGrid`). Each fixed step can record its input (`Engine::recording`) or take
@@ -26,16 +30,16 @@
 use bevy_ecs::prelude::*;
 
 use crate::extract::step_world::{StepWorld, step_world_schedule};
-use crate::extract::{DeformStats, RenderState, extract_schedule};
-use crate::film::Accumulation;
+use crate::extract::{DeformStats, RenderState, accel_schedule, extract_schedule};
+use crate::film::{Accumulation, FrameKind, FrameOrder};
 use crate::game::replay::{Recorder, StepInput};
 use crate::game::{
     Animator, Deformer, GlobalTransform, LevelEntity, MeshNode, PreviousGlobalTransform,
     SIMULATION_HZ, SimulationClock, Transform, ViewCamera, WorldGeometry, fixed_step_schedules,
     pose_schedule, spawn_level,
 };
-use crate::profile::{Stage, StageTimes, since};
-use crate::render::{Camera, RenderScene, RenderSettings};
+use crate::profile::{RayMix, Stage, StageTimes, TileSpan, since};
+use crate::render::{Camera, RenderOutput, RenderScene, RenderSettings};
 use crate::scene::world::{CameraPlacement, Scene};
 
 /// The ECS world, its schedules and the film: one running level.
@@ -45,8 +49,10 @@ pub struct Engine {
     fixed_step: Vec<(Stage, Schedule)>,
     /// Animation applied and transforms propagated, without moving any clock (posing).
     pose: Schedule,
-    /// Extract, deform and refit, TLAS: the scene made ready to trace.
-    extract: Schedule,
+    /// Extract: the ECS made into the render scene, deformed meshes reshaped.
+    extract_schedule: Schedule,
+    /// Accel: deformed BLASes refit, the TLAS rebuilt.
+    accel_schedule: Schedule,
     /// The simulation's copy of the level brought up to date, before each fixed step.
     step_world: Schedule,
     /// The film the frames go into.
@@ -63,6 +69,8 @@ pub struct Engine {
     pub playback: Option<std::collections::VecDeque<StepInput>>,
     /// The player's ears, after each fixed step (none: nothing listens).
     pub hearing: Option<crate::audio::Hearing>,
+    /// The last render's tiles: which thread traced each, and when.
+    tile_spans: Vec<TileSpan>,
 }
 
 impl Engine {
@@ -80,7 +88,8 @@ impl Engine {
             world,
             fixed_step: fixed_step_schedules(),
             pose: pose_schedule(),
-            extract: extract_schedule(),
+            extract_schedule: extract_schedule(),
+            accel_schedule: accel_schedule(),
             step_world: step_world_schedule(),
             film: Accumulation::new(settings),
             owed: 0.0,
@@ -88,6 +97,7 @@ impl Engine {
             recording: None,
             playback: None,
             hearing: None,
+            tile_spans: Vec::new(),
         };
         engine.settle();
         // Where wardens can walk: the level's geometry as the first step will see it (only
@@ -120,7 +130,8 @@ impl Engine {
             // Extract again for the view; the deformation counts stay the first pass's
             // (this pass finds everything already posed).
             let posed = engine.deform_stats();
-            engine.extract.run(&mut engine.world);
+            engine.extract();
+            engine.accel();
             engine.world.insert_resource(posed);
         }
         engine
@@ -136,7 +147,8 @@ impl Engine {
         for (global, mut previous) in settle.iter_mut(&mut self.world) {
             previous.0 = global.0;
         }
-        self.extract.run(&mut self.world);
+        self.extract();
+        self.accel();
         self.film.reset = true;
     }
 
@@ -203,17 +215,28 @@ impl Engine {
         *self.world.resource::<StageTimes>()
     }
 
-    /// Simulates `seconds` of real time in fixed 1/60 s steps (the remainder carries
-    /// over), then renders one frame into the film.
+    /// One displayed frame: `seconds` of real time simulated in fixed 1/60 s steps (the
+    /// remainder carries over), then the frame line's steps in order.
     pub fn advance(&mut self, seconds: f64) {
         // A live profiler's frame boundary (the previous frame's present ends before it).
         profiling::finish_frame!();
         self.simulate(seconds);
-        self.render_frame();
+        self.extract();
+        self.accel();
+        let (order, output) = self.render();
+        self.film(&order, output);
     }
 
-    /// `advance` without the frame: the steps owed, then extract, deform and TLAS, so the
+    /// `advance` without render and film: the steps owed, then extract and accel, so the
     /// scene is ready to trace from `view_camera` (for tools that render it themselves).
+    pub fn prepare(&mut self, seconds: f64) {
+        self.simulate(seconds);
+        self.extract();
+        self.accel();
+    }
+
+    /// Step 1, simulate: the fixed steps `seconds` of real time owe, and how far real time
+    /// has run into the next one (what extract interpolates by). Starts the frame's times.
     pub fn simulate(&mut self, seconds: f64) {
         self.world.insert_resource(StageTimes::default());
         self.owed += seconds.max(0.0);
@@ -223,9 +246,64 @@ impl Engine {
             self.owed -= step;
         }
         self.world.resource_mut::<SimulationClock>().alpha = (self.owed / step) as f32;
-        self.extract.run(&mut self.world);
+    }
+
+    /// Step 2, extract: the ECS made into the render scene, deforming meshes reshaped.
+    fn extract(&mut self) {
+        self.extract_schedule.run(&mut self.world);
+    }
+
+    /// Step 3, accel: the deformed BLASes refit and the TLAS rebuilt; then the film hears
+    /// what this pass changed (every pass, so that instances renumbered between two
+    /// rendered frames still reach the filter's history).
+    fn accel(&mut self) {
+        self.accel_schedule.run(&mut self.world);
         let state = self.world.resource::<RenderState>();
         self.film.scene_changed(&state.changes);
+    }
+
+    /// Step 4, render: the frame the film orders, rendered from the scene as it stands.
+    fn render(&mut self) -> (FrameOrder, RenderOutput) {
+        let scene = &self.world.resource::<RenderState>().scene;
+        let mut times = *self.world.resource::<StageTimes>();
+        let mut order = self.film.order_frame(scene, &mut times);
+        let start = std::time::Instant::now();
+        let mut output = {
+            profiling::scope!("render");
+            let (camera, settings) = (&order.camera, &order.settings);
+            match &mut order.kind {
+                FrameKind::Summed => crate::render::render(scene, camera, settings, &|_| {}),
+                FrameKind::Filtered { earlier } => {
+                    let cache = Some(self.film.cache_for_render());
+                    match earlier.take() {
+                        Some(earlier) => crate::render::render_guided_reusing(
+                            scene, camera, settings, earlier, cache,
+                        ),
+                        None => crate::render::render_guided(scene, camera, settings, cache),
+                    }
+                }
+            }
+        };
+        let render_ms = since(start);
+        times.add(Stage::Render, render_ms);
+        times.render_phases = output.phases.share_of(render_ms);
+        times.rays = RayMix {
+            camera: output.rays.camera,
+            shadow: output.rays.shadow,
+            bounce: output.rays.bounce,
+        };
+        times.cache_ended = output.rays.cache_ended;
+        self.tile_spans = std::mem::take(&mut output.tiles);
+        self.world.insert_resource(times);
+        (order, output)
+    }
+
+    /// Step 5, film: the render's output developed into the image to show.
+    fn film(&mut self, order: &FrameOrder, output: RenderOutput) {
+        let scene = &self.world.resource::<RenderState>().scene;
+        let mut times = *self.world.resource::<StageTimes>();
+        self.film.develop(order, output, scene, &mut times);
+        self.world.insert_resource(times);
     }
 
     /// One fixed step of the simulation and nothing else (no extract, no frame): the
@@ -277,12 +355,9 @@ impl Engine {
         Camera::new(&self.render_scene().camera, width, height)
     }
 
-    /// Render and film: one frame of samples from the view into the film.
-    fn render_frame(&mut self) {
-        let state = self.world.resource::<RenderState>();
-        let mut times = *self.world.resource::<StageTimes>();
-        self.film.render_frame(&state.scene, &mut times);
-        self.world.insert_resource(times);
+    /// The last render's tiles: the thread that traced each, and when.
+    pub fn tile_spans(&self) -> &[TileSpan] {
+        &self.tile_spans
     }
 
     /// The image to show: the film's.

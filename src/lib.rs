@@ -33,15 +33,17 @@
 //! its [`profile::Stage`]:
 //!
 //! ```text
-//! winit events -> Input resource -> game (fixed 60 Hz steps: input, gameplay, animation,
-//! transforms; then what the player hears) -> extract (ECS -> RenderScene; deform, refit
-//! BLASes) -> accel (rebuild the TLAS) -> render (rayon over tiles: camera rays, path
-//! tracing with next event estimation) -> film (accumulate, or reproject, filter and
-//! upscale) -> tone map into pixels' frame buffer -> present
+//! winit events -> Input resource -> simulate (fixed 60 Hz steps: input, gameplay,
+//! animation, transforms; then what the player hears) -> extract (ECS -> RenderScene;
+//! deformed meshes reshaped) -> accel (deformed BLASes refit, the TLAS rebuilt) -> render
+//! (the frame the film orders; rayon over tiles: camera rays, path tracing with next
+//! event estimation) -> film (accumulate, or reproject, filter and upscale) -> present
+//! (tone map into pixels' frame buffer, the interface over it, to the window)
 //! ```
 //!
-//! The frame driver, `frame::Engine`, runs the steps from the simulation to the film in
-//! order and times each; the window and every headless tool drive it. Rendering is
+//! The frame driver, [`frame::Engine`], runs the five steps from simulate to film by name
+//! and in order (`Engine::advance`) and times each; the window and every headless tool
+//! drive it, and the window presents. Rendering is
 //! interpolated between the last two simulation steps, so the frame rate and the
 //! simulation's 60 Hz are independent.
 //!
@@ -60,8 +62,8 @@
 //!   settings files, F12 screenshots, presenting; and the editor's window
 //!   ([`app::editor`]: egui drawn on pixels' wgpu device, the path-traced view an image
 //!   inside it).
-//! - `frame`: the frame driver, which runs the steps below in order and times each under
-//!   its [`profile::Stage`].
+//! - [`frame`]: the frame driver, which runs the steps below in order and times each
+//!   under its [`profile::Stage`].
 //! - [`game`]: the simulation and nothing else: ECS components and resources, input as
 //!   actions, the player, the wardens, the light gem, noise, the goal, clip playback and
 //!   transforms, the fixed-step schedules (one per stage), putting a level into the world
@@ -74,7 +76,7 @@
 //! - [`render`]: the camera, samplers, BSDFs, lights, integrators, the real-time view's
 //!   radiance cache, the guides and the image ([`render::hdr`]: the `HdrImage` buffer,
 //!   tone mapper, EXR/PNG writers and reader, comparison).
-//! - `film`: every film step: accumulation, temporal reprojection, the a-trous filter, the
+//! - [`film`]: every film step: accumulation, temporal reprojection, the a-trous filter, the
 //!   chain that runs them, and temporal upscaling.
 //! - [`scene`]: load time: glTF import, the asset cache, the level format, one scene model
 //!   for levels and bare glTF files, diagnostics, safe file writing, clip sampling, hot
@@ -95,6 +97,7 @@
 //!   call: replays of recordings, the player bot ([`headless::autoplay`]), what a place
 //!   hears (`listen`) and the measurement tools ([`headless::bench`]), with the checks on
 //!   their options' values.
+//! - [`fuzz`]: the fuzz targets' bodies, which the test suite runs over their seeds.
 //! - [`cli`]: the `gloam` command line: it parses flags and calls the library.
 //!
 //! # Rules for code
@@ -159,42 +162,39 @@
 //!   `.ci/run` installs what it needs. So does the glTF Validator test
 //!   (`tests/gltf_validator.rs`: Node and the npm package `gltf-validator`). Outside CI
 //!   (where the `CI` variable is unset) such tests print a notice and skip when their tools
-//!   are missing. Tests that need the shared test data (the Khronos glTF samples, the
-//!   benchmark apartment, in `../shared` beside the clone) print a notice and skip when it
-//!   is absent.
+//!   are missing. Tests that need test data kept outside the repository (the Khronos glTF
+//!   samples, the benchmark apartment) print a notice and skip when it is absent.
 //! - `cargo test --release` stays under 15 minutes on 2 cores; long soaks and benchmarks
 //!   are commands, not tests.
 //!
 //! # Fuzzing
 //!
-//! `tests/fuzz` holds four [cargo-fuzz](https://github.com/rust-fuzz/cargo-fuzz) targets
-//! that go past parsing into what a file feeds: `gltf` (import -> scene -> BLAS and TLAS
-//! builds -> one 8x8 frame), `level` (parse -> validation -> assets -> spawn -> three steps
-//! and a frame), `replay` (a recording replayed headless on first-light) and `settings`
-//! (the settings and best-times files). They need nightly Rust and
+//! `tests/fuzz` holds four [cargo-fuzz](https://github.com/rust-fuzz/cargo-fuzz) targets,
+//! each one call into [`fuzz`], whose bodies go past parsing into what a file feeds:
+//! `gltf` (import -> scene -> BLAS and TLAS builds -> one 8x8 frame), `level` (parse ->
+//! validation -> assets -> spawn -> three steps and a frame), `replay` (a recording's
+//! checks, then its first `fuzz::REPLAY_STEPS` steps replayed headless) and `settings`
+//! (the settings and best-times files). `tests/fuzz_seeds.rs` runs the same bodies over
+//! the seed files in the ordinary suite. The targets need nightly Rust and
 //! `cargo install cargo-fuzz`; CI neither builds nor runs them. Run one from the
-//! repository root, seeded with the shipped files (libFuzzer writes new inputs to the first
-//! folder and reads the others):
+//! repository root, seeded with the shipped files (libFuzzer writes new inputs to the
+//! first folder and reads the others); `-a` keeps overflow checks on, and `-s none` skips
+//! AddressSanitizer, which a panic does not need:
 //!
 //! ```sh
-//! cargo +nightly fuzz run --fuzz-dir tests/fuzz gltf tests/fuzz/corpus/gltf assets/kit \
-//!     -- -max_total_time=600
-//! cargo +nightly fuzz run --fuzz-dir tests/fuzz level tests/fuzz/corpus/level levels \
-//!     -- -max_total_time=600
-//! cargo +nightly fuzz run --fuzz-dir tests/fuzz replay tests/fuzz/corpus/replay \
-//!     tests/recordings -- -max_total_time=600 -timeout=300
-//! cargo +nightly fuzz run --fuzz-dir tests/fuzz settings tests/fuzz/corpus/settings \
-//!     -- -max_total_time=600
+//! cargo +nightly fuzz run -a -s none --fuzz-dir tests/fuzz gltf tests/fuzz/corpus/gltf \
+//!     assets/kit -- -runs=1000000
+//! cargo +nightly fuzz run -a -s none --fuzz-dir tests/fuzz level tests/fuzz/corpus/level \
+//!     levels -- -runs=1000000
+//! cargo +nightly fuzz run -a -s none --fuzz-dir tests/fuzz replay \
+//!     tests/fuzz/corpus/replay tests/recordings -- -runs=1000000
+//! cargo +nightly fuzz run -a -s none --fuzz-dir tests/fuzz settings \
+//!     tests/fuzz/corpus/settings -- -runs=1000000
 //! ```
 //!
-//! The replay target plays whole recordings, a minute or more of play each; under the
-//! fuzzer's AddressSanitizer that is past libFuzzer's default 20 s timeout (a two-minute
-//! recording took over 30 s), hence `-timeout=300` there. The gltf target also takes the
-//! Khronos samples as seeds where the shared test data is present
-//! (`../shared/gltf-samples`, after `assets/kit`). A crash is saved under
-//! `tests/fuzz/artifacts/<target>/`; each one fixed gets a regression test in the ordinary
-//! suite (on stable), as `tests/bad_input.rs` and the source map's tests hold the ones found
-//! so far.
+//! A crash is saved under `tests/fuzz/artifacts/<target>/`; each one fixed gets a
+//! regression test in the ordinary suite (on stable), as `tests/bad_input.rs` and the
+//! source map's tests hold the ones found so far.
 
 pub mod accel;
 pub mod app;
@@ -204,6 +204,7 @@ pub mod edit;
 pub mod extract;
 pub mod film;
 pub mod frame;
+pub mod fuzz;
 pub mod game;
 pub mod headless;
 pub mod profile;

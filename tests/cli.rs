@@ -339,7 +339,9 @@ fn convergence_prints_how_blue_whole_paths_are() {
         .next()
         .and_then(|ratio| ratio.trim().parse().ok())
         .unwrap_or_else(|| panic!("no ratio in: {line}"));
-    assert!(ratio.is_finite() && ratio > 0.0, "{line}");
+    // Blue noise puts less of its error at low frequencies than white noise (where the eye
+    // and the filters see it): measured 0.735 here, with these two seeds.
+    assert!(ratio > 0.0 && ratio < 0.9, "{line}");
 }
 
 #[test]

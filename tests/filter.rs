@@ -57,15 +57,25 @@ fn flythrough_filters_bring_one_sample_closer_to_the_reference() {
     assert!(rmse("temporal") < 0.8 * rmse("raw"), "{report}");
     assert!(rmse("full") < 0.8 * rmse("raw"), "{report}");
     assert!(rmse("full") < 1.05 * rmse("temporal"), "{report}");
-    assert!(report["median_trail_rmse"]["full"].as_f64().unwrap() >= 0.0);
-    // The moving warden's own lamp lights a pool the figures follow.
+    // Behind the moving warden, history must not smear more error than the raw frame has
+    // (measured here: full 0.203 against raw 0.236; the player's view 0.101 against the
+    // resized frame's 0.307).
+    let trail = |kind: &str| report["median_trail_rmse"][kind].as_f64().unwrap();
+    assert!(trail("full") < trail("raw"), "{report}");
+    assert!(trail("player") < trail("resized"), "{report}");
+    // The moving warden's own lamp lights a pool the figures follow: 166 pixels here. The
+    // filters keep most of its light (measured 0.64 to 0.85 of the reference's for every
+    // kind) and cut its error (full 0.195 against raw 0.224; the player's 0.112 against
+    // the resized frame's 0.217).
     let pool = &report["moving_lamp_pool"];
-    assert!(pool["pixels"].as_f64().unwrap() > 0.0, "{report}");
+    assert!(pool["pixels"].as_f64().unwrap() >= 100.0, "{report}");
     for kind in ["raw", "temporal", "full", "resized", "player"] {
         let kept = pool["luminance_kept"][kind].as_f64().unwrap();
-        assert!(kept > 0.0 && kept.is_finite(), "{report}");
-        assert!(pool["rmse_display"][kind].as_f64().unwrap() >= 0.0);
+        assert!((0.5..1.2).contains(&kept), "{kind}: {report}");
     }
+    let pool_rmse = |kind: &str| pool["rmse_display"][kind].as_f64().unwrap();
+    assert!(pool_rmse("full") < pool_rmse("raw"), "{report}");
+    assert!(pool_rmse("player") < pool_rmse("resized"), "{report}");
     assert!(stdout.contains("moving lamp's pool ("), "{stdout}");
     // The player's view: rendered at half the size each way, filtered and upscaled, it
     // must beat the same small frame resized (measured here: 0.0330 against 0.0496, and
@@ -110,8 +120,8 @@ fn flythrough_and_play_reject_bad_flags_in_one_line() {
         ),
         (
             vec!["flythrough", "--alpha-min", "0"],
-            "--alpha-min 0: must be in (0, 1]",
-            1,
+            "'--alpha-min <ALPHA_MIN>': must be above 0 and at most 1",
+            2,
         ),
         (
             vec!["flythrough", "--sigma-luminance=-1"],

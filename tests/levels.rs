@@ -227,12 +227,12 @@ fn every_lamp_shines_from_a_fixture_that_goes_dark_with_it() {
         .expect("the fixture is spawned")
         .0;
     let dark = |engine: &Engine| engine.world.get::<SwitchedOff>(fixture).is_some();
-    engine.simulate(1.0 / 60.0);
+    engine.prepare(1.0 / 60.0);
     assert!(!dark(&engine), "the fixture of a lit lamp glows");
     engine.world.entity_mut(lamp).insert(SwitchedOff);
-    engine.simulate(1.0 / 60.0);
+    engine.prepare(1.0 / 60.0);
     assert!(dark(&engine), "the doused lamp's fixture stays lit");
     engine.world.entity_mut(lamp).remove::<SwitchedOff>();
-    engine.simulate(1.0 / 60.0);
+    engine.prepare(1.0 / 60.0);
     assert!(!dark(&engine), "the relit lamp's fixture stays dark");
 }

@@ -56,7 +56,7 @@ fn state(engine: &Engine, player: Entity) -> Player {
 fn hold(engine: &mut Engine, held: &[Action], seconds: f64) {
     engine.world.resource_mut::<Input>().held = held.iter().copied().collect();
     for _ in 0..(seconds / STEP).round() as usize {
-        engine.simulate(STEP);
+        engine.prepare(STEP);
     }
     engine.world.resource_mut::<Input>().held.clear();
 }
@@ -137,7 +137,7 @@ fn a_jump_rises_half_a_metre_and_lands() {
         .insert(Action::MoveUp);
     let mut highest: f32 = 0.0;
     for _ in 0..90 {
-        engine.simulate(STEP);
+        engine.prepare(STEP);
         highest = highest.max(feet(&engine, player).y);
     }
     assert!((highest - 0.5).abs() < 0.05, "apex {highest}");
@@ -226,7 +226,7 @@ fn the_light_gem_rises_in_a_lamp_pool_and_falls_in_the_dark() {
     let mut last = dark;
     let mut steps = Vec::new();
     for _ in 0..60 {
-        engine.simulate(STEP);
+        engine.prepare(STEP);
         let now = gem(&engine, player);
         steps.push(now - last);
         last = now;

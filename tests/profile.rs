@@ -361,13 +361,15 @@ fn a_lowered_render_is_upscaled_to_the_size_asked_for() {
 
 #[test]
 fn bad_bench_flags_are_one_line_errors() {
-    for (flag, value) in [("--render-scale", "0"), ("--chart", "chart.jpg")] {
+    // A value clap refuses is a usage error (2); a chart the command cannot write, a
+    // failure (1).
+    for (flag, value, code) in [("--render-scale", "0", 2), ("--chart", "chart.jpg", 1)] {
         let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
             .args(["bench", "levels/first-light.ron", flag, value])
             .current_dir(common::repo())
             .output()
             .unwrap();
-        assert_eq!(output.status.code(), Some(1));
+        assert_eq!(output.status.code(), Some(code), "{flag} {value}");
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(
             stderr.contains(value) && stderr.lines().count() == 1,

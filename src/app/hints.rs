@@ -53,17 +53,7 @@ pub struct Hints {
     crouch_shown_at: Option<f32>,
 }
 
-/// What the player is doing now, as the hints read it.
-#[derive(Clone, Copy, Debug)]
-pub struct Moment {
-    /// Seconds since the attempt began.
-    pub seconds: f32,
-    /// The light gem's reading.
-    pub gem: f32,
-    pub crouched: bool,
-    /// The level's shards in all.
-    pub shards: u32,
-}
+pub use crate::game::status::Moment;
 
 impl Hints {
     /// The hint line to show now, if any.

@@ -3,18 +3,16 @@
 //! over its head, noise rings, the lamp prompt, the first level's hints, the captions, the
 //! caught banner, the shards, and in the corner the frame rate and notices.
 //!
-//! Two halves: `HudView::gather` reads what the HUD shows from the level's world (film
-//! pixels for what is placed in the scene), and `paint` lays it out in points, so the
-//! layout is tested without a window.
+//! Two halves: `HudView::gather` asks the game what the HUD shows (`game::status`) and
+//! places what sits in the scene at film pixels, and `paint` lays it out in points, so
+//! the layout is tested without a window.
 
-use bevy_ecs::query::With;
-use bevy_ecs::world::World;
 use egui::{Align2, Color32, FontId, Painter, Pos2, Rect, Stroke, pos2, vec2};
 
-use super::hints;
 use super::interface::Screen;
 use crate::frame::Engine;
 use crate::game::exposure::curve::{GEM_STEPS, gem_cells};
+use crate::game::status::{self, LampInReach};
 use crate::game::{self, WardenState};
 
 /// Text sizes, points (`interface::REFERENCE_WINDOW` has 540 of them top to bottom).
@@ -84,10 +82,10 @@ pub struct Corner {
 }
 
 impl HudView {
-    /// Reads the HUD of the level in `engine`, seen through a `film` (width, height)
-    /// camera. `caught`: the warden that caught the player, while the banner shows;
-    /// `watching`: a recording is being watched (its caught attempt stays on screen);
-    /// `interact`: the label of the control that douses a lamp.
+    /// Reads the HUD of the level in `engine` (`game::status`), seen through a `film`
+    /// (width, height) camera. `caught`: the warden that caught the player, while the
+    /// banner shows; `watching`: a recording is being watched (its caught attempt stays on
+    /// screen); `interact`: the label of the control that douses a lamp.
     pub fn gather(
         engine: &mut Engine,
         film: (u32, u32),
@@ -95,22 +93,15 @@ impl HudView {
         watching: bool,
         interact: &str,
     ) -> HudView {
+        let projection = engine.view_camera(film.0, film.1).projection();
         let world = &mut engine.world;
         let mut view = HudView {
-            gem: world
-                .query::<&game::Exposure>()
-                .iter(world)
-                .next()
-                .map(|exposure| exposure.gem),
+            gem: status::gem(world),
             ..HudView::default()
         };
         // Each warden's state above its head: what it knows, the player knows.
-        let projection = engine.view_camera(film.0, film.1).projection();
-        let world = &mut engine.world;
-        let mut wardens = world.query::<(&game::Warden, &game::GlobalTransform)>();
-        for (warden, placed) in wardens.iter(world) {
-            let head = placed.0.translation + glam::Vec3A::Y * MARK_HEIGHT;
-            let seen = projection.project_lanes(head);
+        for warden in status::warden_heads(world, MARK_HEIGHT) {
+            let seen = projection.project_lanes(warden.head.into());
             if seen.in_front && seen.distance < MARK_RANGE {
                 view.marks.push(Mark {
                     at: (seen.x, seen.y),
@@ -138,89 +129,31 @@ impl HudView {
                 view.rings.push(Ring { points, strength });
             }
         }
-        view.prompt = lamp_prompt(world).map(|verb| format!("{interact}  {verb}"));
+        view.prompt = status::lamp_in_reach(world).map(|lamp| {
+            let verb = match lamp {
+                LampInReach::Lit => "douse the lamp",
+                LampInReach::Doused => "light the lamp",
+            };
+            format!("{interact}  {verb}")
+        });
         view.banner = caught.map(|by| format!("Caught by {by}. The level starts again."));
-        if let Some(progress) = world.get_resource::<game::Progress>() {
-            let progress = progress.clone();
-            let left = (world.query_filtered::<(), With<game::Shard>>().iter(world)).count();
-            let total = progress.shards_taken + left as u32;
-            if total > 0 {
-                view.progress
-                    .push(format!("shards {}/{total}", progress.shards_taken));
-            }
-            // A level with a player and no way out is a free walk (a scene without a
-            // player is only a view).
-            let exits = (world.query_filtered::<(), With<game::Exit>>().iter(world)).count();
-            let players = (world.query_filtered::<(), With<game::Player>>().iter(world)).count();
-            if exits == 0 && players > 0 {
-                view.progress
-                    .push("free walk: this level has no way out".to_string());
-            }
-            if progress.outcome == game::Outcome::Caught && watching {
-                // Only a watched recording shows this: in play the level has restarted.
-                view.banner = Some(format!("Caught by {}.  Esc: menu", caught_by(world)));
-            }
+        if let Some(shards) = status::shards(world)
+            && shards.total > 0
+        {
+            view.progress
+                .push(format!("shards {}/{}", shards.taken, shards.total));
+        }
+        if status::outcome(world).is_some() && status::is_free_walk(world) {
+            view.progress
+                .push("free walk: this level has no way out".to_string());
+        }
+        if status::outcome(world) == Some(game::Outcome::Caught) && watching {
+            // Only a watched recording shows this: in play the level has restarted.
+            let by = status::caught_by(world);
+            view.banner = Some(format!("Caught by {by}.  Esc: menu"));
         }
         view
     }
-}
-
-/// "douse the lamp" or "light the lamp" when a lamp is within reach of the player's aim
-/// (`game::lamps::aimed_lamp`, the question the interact key's press asks).
-fn lamp_prompt(world: &mut World) -> Option<&'static str> {
-    use crate::game::{
-        GlobalTransform, LevelEntity, Player, PlayerEye, PunctualLight, SwitchedOff, WorldGeometry,
-    };
-    let (player, eye) = {
-        let mut players = world.query::<&Player>();
-        let player = players.iter(world).next()?.clone();
-        let mut eyes = world.query_filtered::<&GlobalTransform, With<PlayerEye>>();
-        let eye: glam::Vec3 = eyes.iter(world).next()?.0.translation.into();
-        (player, eye)
-    };
-    let mut lamps = world.query_filtered::<(
-        bevy_ecs::entity::Entity,
-        &GlobalTransform,
-        bevy_ecs::query::Has<SwitchedOff>,
-    ), (With<PunctualLight>, With<LevelEntity>)>();
-    let candidates: Vec<_> = lamps
-        .iter(world)
-        .map(|(lamp, placed, doused)| (lamp, placed.0.translation.into(), doused))
-        .collect();
-    let geometry = world.get_resource::<WorldGeometry>()?;
-    let view = crate::game::lamps::view(&player);
-    let (_, doused) =
-        crate::game::lamps::aimed_lamp(&*geometry.0, eye, view, candidates.into_iter())?;
-    Some(if doused {
-        "light the lamp"
-    } else {
-        "douse the lamp"
-    })
-}
-
-/// What the first level's hints read of the attempt: its clock, the light gem, the crouch,
-/// the shards in all.
-pub fn hint_moment(engine: &mut Engine) -> Option<hints::Moment> {
-    let world = &mut engine.world;
-    let progress = world.get_resource::<game::Progress>()?.clone();
-    let gem = world.query::<&game::Exposure>().iter(world).next()?.gem;
-    let crouched = world.query::<&game::Player>().iter(world).next()?.crouched;
-    let left = (world.query_filtered::<(), With<game::Shard>>().iter(world)).count() as u32;
-    Some(hints::Moment {
-        seconds: (progress.steps as f64 / game::SIMULATION_HZ) as f32,
-        gem,
-        crouched,
-        shards: progress.shards_taken + left,
-    })
-}
-
-/// The name of the warden that caught the player.
-pub fn caught_by(world: &mut World) -> String {
-    let mut wardens = world.query::<(&game::Warden, &bevy_ecs::name::Name)>();
-    wardens
-        .iter(world)
-        .find(|(warden, _)| warden.state == WardenState::Caught)
-        .map_or_else(|| "a warden".to_string(), |(_, name)| name.to_string())
 }
 
 /// Draws `line` with its `anchor` at `at` over a soft shadow; returns the rectangle it

@@ -558,7 +558,7 @@ impl App {
     fn restart_caught(&mut self) {
         let Some(game) = self.game.take() else { return };
         let mut engine = game.engine;
-        let by = hud::caught_by(&mut engine.world);
+        let by = crate::game::status::caught_by(&mut engine.world);
         let internal = (engine.film.settings.width, engine.film.settings.height);
         self.start(game.scene, game.level);
         if let Some(game) = &mut self.game {

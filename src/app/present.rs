@@ -71,7 +71,7 @@ impl App {
                 &interact,
             );
             if game.scene.level.campaign == Some(1) {
-                view.hint = hud::hint_moment(&mut game.engine)
+                view.hint = crate::game::status::moment(&mut game.engine.world)
                     .and_then(|moment| game.hints.line(moment, &controls));
             }
             view.captions = self.captions.lines().map(str::to_string).collect();

@@ -1,8 +1,8 @@
-//! Frame step `extract`, timed as "animation" (deformation) and "blas_refit": meshes that
-//! change shape, read from the ECS (`Skin`, `MorphWeights`, `Deformer` on `MeshNode`s)
-//! and written into their own BLAS.
+//! Frame step `extract`, timed as "animation": meshes that change shape, read from the ECS
+//! (`Skin`, `MorphWeights`, `Deformer` on `MeshNode`s) and written into their own BLAS's
+//! geometry, which the `accel` step then refits.
 //!
-//! Per displayed frame, between `extract_scene` and `update_acceleration`:
+//! Per displayed frame, after `extract_scene`:
 //! 1. change detection, per deforming mesh entity: skinned meshes re-pose when a
 //!    `Transform` of any joint, or of a node between the joints and the entity's root,
 //!    changed since the last frame; morphing meshes when their `MorphWeights` changed;
@@ -10,9 +10,10 @@
 //! 2. deformation, in parallel over meshes and over each mesh's vertices, written straight
 //!    into the mesh's BLAS geometry: morph targets (glTF: weighted position and normal
 //!    deltas), then the procedural deformer, then linear blend skinning;
-//! 3. refit of each deformed BLAS, in parallel: `Blas::refit_geometry`, which rebuilds
-//!    instead when refitting has let the tree decay (the Acceleration issue's policy);
-//! 4. the instances' emissive triangles follow, and the TLAS is marked stale.
+//! 3. each deformed BLAS is listed for the `accel` step (`RenderState::refit`), which
+//!    refits it in parallel with the others (`Blas::refit_geometry`, which rebuilds
+//!    instead when refitting has let the tree decay); the instances' emissive triangles
+//!    are marked to follow, and the TLAS stale.
 //!
 //! Skinning is linear blend skinning as glTF specifies it: v' = sum_i w_i J_i IBM_i v over
 //! every JOINTS_n/WEIGHTS_n set, where J_i is joint i's world matrix and IBM_i its inverse
@@ -29,7 +30,7 @@ use glam::{Mat3A, Mat4, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use super::RenderState;
-use crate::accel::{Blas, RefitOutcome};
+use crate::accel::Blas;
 use crate::game::{Deformer, GlobalTransform, MeshNode, MorphWeights, Skin, Transform};
 use crate::profile::{Stage, StageTimes, since};
 use crate::scene::AssetKey;
@@ -410,7 +411,8 @@ type ChangedNode<'a> = (
     Option<(&'a DeformerDef, f64)>,
 );
 
-/// Extract: deform what changed, refit its BLAS (or rebuild it), flag the TLAS stale.
+/// Extract: deform what changed, straight into its BLAS's geometry, and leave the BLAS
+/// for accel to refit (`RenderState::refit`), the TLAS flagged stale.
 pub fn deform_meshes(
     meshes: Query<DeformingNode>,
     transforms: Query<(Ref<Transform>, &GlobalTransform)>,
@@ -535,25 +537,13 @@ pub fn deform_meshes(
         .sum();
     times.add(Stage::Animation, since(start));
 
-    // 3. Refit (or rebuild) each deformed BLAS.
-    let refit_start = std::time::Instant::now();
-    profiling::scope!("blas_refit");
-    let outcomes: Vec<RefitOutcome> = work
-        .par_iter_mut()
-        .map(|(_, blas)| blas.refit_geometry())
-        .collect();
-    stats.rebuilds = outcomes
-        .iter()
-        .filter(|&&o| o == RefitOutcome::Rebuilt)
-        .count() as u32;
-    stats.refits = stats.deformed - stats.rebuilds;
-    times.add(Stage::BlasRefit, since(refit_start));
-
-    // 4. Their emitters move with them; the TLAS must see their new bounds.
-    let deformed: Vec<Entity> = work.iter().map(|(job, _)| job.entity).collect();
+    // 3. Their BLASes are refit by accel; their emitters move with them, and the TLAS
+    // must see their new bounds.
+    let deformed: Vec<(Entity, u32)> = work.iter().map(|(job, _)| (job.entity, job.blas)).collect();
     drop(work);
     drop(blases);
-    for entity in deformed {
+    for (entity, blas) in deformed {
+        state.refit.push(blas);
         if let Some(&instance) = state.instance_of.get(&entity)
             && let Some(flag) = state.moved.get_mut(instance as usize)
         {

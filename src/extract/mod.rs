@@ -1,9 +1,9 @@
-//! Frame step `extract`: the ECS made into the `RenderScene` that `accel` and `render`
-//! read. The only code that writes a `RenderScene`.
+//! Frame step `extract`, and the ECS side of `accel`: the ECS made into the `RenderScene`
+//! that `accel` and `render` read. The only code that writes a `RenderScene`.
 //!
 //! The world is the source of truth; `RenderState` (a resource) holds the scene made from
-//! it and the caches that keep each frame's work to what changed. Per frame, chained
-//! (`extract_schedule`):
+//! it and the caches that keep each frame's work to what changed. Per frame, chained,
+//! steps 1 and 2 are extract (`extract_schedule`) and step 3 accel (`accel_schedule`):
 //! 1. `extract_scene` (`Stage::Extract`), from change detection:
 //!    - a mesh node spawned or despawned, an `AssetInstance` changed (material
 //!      overrides), a `SwitchedOff` marker added or removed: the instances are assembled
@@ -18,11 +18,10 @@
 //!      transform, interpolated between the last two simulation steps by how far real
 //!      time has run into the next one, and moved punctual lights are moved in place;
 //!    - the view camera, interpolated the same way;
-//! 2. `deform::deform_meshes` (`Stage::Animation`, then `Stage::BlasRefit`): skinning,
-//!    morph targets and procedural deformers for meshes whose pose changed, then their
-//!    BLAS refits;
-//! 3. `update_acceleration` (`Stage::TlasBuild`): the TLAS is rebuilt when anything
-//!    moved, emitters follow their instances (or the light set is built, when step 1
+//! 2. `deform::deform_meshes` (`Stage::Animation`): skinning, morph targets and
+//!    procedural deformers for meshes whose pose changed, written into their BLASes;
+//! 3. `update_acceleration` (`Stage::BlasRefit`, then `Stage::TlasBuild`): the deformed
+//!    BLASes are refit, the TLAS is rebuilt when anything moved, emitters follow their instances (or the light set is built, when step 1
 //!    asked for it: after deformation, so emitters are weighted by the shape they have),
 //!    and static batches re-form once the static instances have kept still for
 //!    `REBATCH_AFTER_FRAMES`.
@@ -44,7 +43,9 @@ use bevy_ecs::prelude::*;
 use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
-use crate::accel::{AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry, Mobility};
+use crate::accel::{
+    AccelScene, Blas, BlasKind, Instance, InstanceMask, MeshGeometry, Mobility, RefitOutcome,
+};
 use crate::game::{
     ActiveCamera, AnimationSource, Animator, AssetInstance, AssetLight, DeformerSource,
     GlobalTransform, LevelInfo, MeshNode, Patrol, PlayerBody, PlayerStart, PreviousGlobalTransform,
@@ -124,6 +125,8 @@ pub struct RenderState {
     pub light_set_builds: u64,
     /// The TLAS must be rebuilt before the next query.
     tlas_stale: bool,
+    /// BLASes whose geometry extract deformed this frame, for accel to refit.
+    pub(crate) refit: Vec<u32>,
     /// Per accel instance: moved or deformed this frame (its emissive triangles follow).
     moved: Vec<bool>,
     /// Materials and textures (append-only base tables).
@@ -170,6 +173,7 @@ impl Default for RenderState {
             changes: SceneChanges::default(),
             light_set_builds: 0,
             tlas_stale: false,
+            refit: Vec::new(),
             moved: Vec::new(),
             materials,
             mesh_blases: HashMap::new(),
@@ -208,10 +212,20 @@ impl RenderState {
     }
 }
 
-/// The extract step's systems, chained, in one schedule.
+/// The extract step's systems, chained, in one schedule: the scene from the ECS, then
+/// the deformed meshes' geometry.
 pub fn extract_schedule() -> Schedule {
     let mut schedule = Schedule::default();
-    schedule.add_systems((extract_scene, deform::deform_meshes, update_acceleration).chain());
+    schedule.add_systems((extract_scene, deform::deform_meshes).chain());
+    schedule
+}
+
+/// The accel step, in one schedule: the deformed BLASes refit, the TLAS rebuilt
+/// (`update_acceleration`). The ECS side of accel lives here because `RenderState`, which
+/// owns the accel scene, is extract's; accel itself never sees the ECS.
+pub fn accel_schedule() -> Schedule {
+    let mut schedule = Schedule::default();
+    schedule.add_systems(update_acceleration);
     schedule
 }
 
@@ -738,14 +752,37 @@ fn emitters(
     found
 }
 
-/// Accel: when any instance moved or deformed, the TLAS is rebuilt over the new instance
-/// boxes and its emissive triangles follow it (or the light set is built anew, when
-/// extract asked for it); static batches re-form once the static instances have kept
-/// still for `REBATCH_AFTER_FRAMES`.
-pub fn update_acceleration(mut state: ResMut<RenderState>, mut times: ResMut<StageTimes>) {
+/// Accel: each BLAS extract deformed is refit in parallel (`Stage::BlasRefit`; or rebuilt,
+/// when refitting has let its tree decay); when any instance moved or deformed, the TLAS
+/// is rebuilt over the new instance boxes and its emissive triangles follow it (or the
+/// light set is built anew, when extract asked for it); static batches re-form once the
+/// static instances have kept still for `REBATCH_AFTER_FRAMES` (`Stage::TlasBuild`).
+pub fn update_acceleration(
+    mut state: ResMut<RenderState>,
+    mut stats: ResMut<DeformStats>,
+    mut times: ResMut<StageTimes>,
+) {
+    let state = &mut *state;
+    if !state.refit.is_empty() {
+        let start = std::time::Instant::now();
+        profiling::scope!("blas_refit");
+        let mut refit = std::mem::take(&mut state.refit);
+        refit.sort_unstable();
+        let outcomes: Vec<RefitOutcome> = (state.scene.accel.blases.iter_mut().enumerate())
+            .filter(|(index, _)| refit.binary_search(&(*index as u32)).is_ok())
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|(_, blas)| blas.refit_geometry())
+            .collect();
+        stats.rebuilds = outcomes
+            .iter()
+            .filter(|&&o| o == RefitOutcome::Rebuilt)
+            .count() as u32;
+        stats.refits = outcomes.len() as u32 - stats.rebuilds;
+        times.add(Stage::BlasRefit, since(start));
+    }
     let start = std::time::Instant::now();
     profiling::scope!("tlas_build");
-    let state = &mut *state;
     if state.tlas_stale {
         state.scene.accel.rebuild_tlas();
         state.tlas_stale = false;

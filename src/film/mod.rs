@@ -11,6 +11,10 @@
 //!   it, and it learns the frame's samples on a pool thread while the next frame's
 //!   simulation runs (`BackgroundCache`).
 //!
+//! The film never calls the renderer: it orders each frame (`Accumulation::order_frame`:
+//! the view, the sample index, plain or for the filters), the frame driver has it
+//! rendered, and the film develops the output (`Accumulation::develop`).
+//!
 //! The image itself (`render::HdrImage`), its tone mapper and its file writers and readers
 //! are in `render::hdr`: render writes that buffer and everything downstream reads it.
 //! Knows nothing of the ECS or windows.
@@ -29,13 +33,10 @@ use glam::Vec3;
 pub use denoise::{FilmPhaseTimes, FilterMode, FrameFilter};
 pub use upscale::{UpscaleSettings, Upscaler};
 
-use crate::profile::{RayMix, Stage, StageTimes, TileSpan, since};
+use crate::profile::{Stage, StageTimes, since};
 use crate::render::cache::CacheSample;
 use crate::render::scene::SceneChanges;
-use crate::render::{
-    Camera, HdrImage, RadianceCache, RenderOutput, RenderScene, RenderSettings, render,
-    render_guided, render_guided_reusing,
-};
+use crate::render::{Camera, HdrImage, RadianceCache, RenderOutput, RenderScene, RenderSettings};
 
 /// The film: frames accumulated since the last change, as a running sum of per-frame
 /// means, or (filter on) the last filtered frame.
@@ -66,8 +67,6 @@ pub struct Accumulation {
     pub reset: bool,
     /// The view the sum was rendered from.
     view: Option<glam::Mat4>,
-    /// The last render's tiles: which thread traced each, and when.
-    tile_spans: Vec<TileSpan>,
 }
 
 impl Accumulation {
@@ -87,7 +86,6 @@ impl Accumulation {
             cache: BackgroundCache::default(),
             reset: true,
             view: None,
-            tile_spans: Vec::new(),
         }
     }
 
@@ -167,15 +165,10 @@ impl Accumulation {
         self.cache.settled();
     }
 
-    /// The last frame's render tiles: the thread that traced each, and when.
-    pub fn tile_spans(&self) -> &[TileSpan] {
-        &self.tile_spans
-    }
-
-    /// Render and film: one frame of samples from `scene`'s camera, added to the running
-    /// sum (or starting it again after a change), or through the filter; the stages'
-    /// times go into `times`.
-    pub fn render_frame(&mut self, scene: &RenderScene, times: &mut StageTimes) {
+    /// What the next frame renders, which the film decides (it knows the sum and the
+    /// filter's history): the view, the settings with the frame's sample index, and how
+    /// to render. A new view, or a change extract reported, starts the sum again.
+    pub fn order_frame(&mut self, scene: &RenderScene, times: &mut StageTimes) -> FrameOrder {
         let view = scene.camera.world_from_camera;
         if self.view != Some(view) {
             self.view = Some(view);
@@ -187,40 +180,44 @@ impl Accumulation {
             self.reset = false;
         }
         let mut settings = self.settings.clone();
-        let filtering = self.filter.mode != FilterMode::Off;
         settings.frame = self.sample_frame();
         let camera = Camera::new(&scene.camera, settings.width, settings.height);
-        let start = std::time::Instant::now();
-        let mut output = {
-            profiling::scope!("render");
-            if filtering {
-                times.cache_learn_ms = self.cache.learnt_ms();
-                let cache = Some(self.cache.settled_or_new());
-                match self.rendered.take() {
-                    Some(earlier) => {
-                        render_guided_reusing(scene, &camera, &settings, earlier, cache)
-                    }
-                    None => render_guided(scene, &camera, &settings, cache),
-                }
-            } else {
-                // What the cache learnt goes stale while the filter is off (the editor's
-                // converging view, where lamps and walls move): it starts afresh.
-                self.cache = BackgroundCache::default();
-                render(scene, &camera, &settings, &|_| {})
+        let kind = if self.filter.mode != FilterMode::Off {
+            times.cache_learn_ms = self.cache.learnt_ms();
+            FrameKind::Filtered {
+                earlier: self.rendered.take(),
             }
+        } else {
+            // What the cache learnt goes stale while the filter is off (the editor's
+            // converging view, where lamps and walls move): it starts afresh.
+            self.cache = BackgroundCache::default();
+            FrameKind::Summed
         };
-        let render_ms = since(start);
-        times.add(Stage::Render, render_ms);
-        times.render_phases = output.phases.share_of(render_ms);
-        times.rays = RayMix {
-            camera: output.rays.camera,
-            shadow: output.rays.shadow,
-            bounce: output.rays.bounce,
-        };
-        times.cache_ended = output.rays.cache_ended;
-        self.tile_spans = std::mem::take(&mut output.tiles);
+        FrameOrder {
+            camera,
+            settings,
+            kind,
+        }
+    }
+
+    /// The radiance cache a filtered frame's render reads (made with the first of them).
+    pub fn cache_for_render(&mut self) -> &RadianceCache {
+        self.cache.settled_or_new()
+    }
+
+    /// The film step: the render's `output` of `order` goes into the running sum, or
+    /// through the filter (and the upscaler, rendering below the shown resolution) into
+    /// the image to show; the stage's time and its steps' go into `times`.
+    pub fn develop(
+        &mut self,
+        order: &FrameOrder,
+        mut output: RenderOutput,
+        scene: &RenderScene,
+        times: &mut StageTimes,
+    ) {
         let start = std::time::Instant::now();
         profiling::scope!("film");
+        let (camera, settings) = (&order.camera, &order.settings);
         if let Some(guides) = &output.guides {
             let instances: Vec<glam::Affine3A> = scene
                 .accel
@@ -239,17 +236,16 @@ impl Accumulation {
             };
             let upscale_ms = if !upscaling {
                 self.filter
-                    .apply_into(&output.image, guides, &camera, &instances, &mut image);
+                    .apply_into(&output.image, guides, camera, &instances, &mut image);
                 0.0
             } else {
                 let filtered = &mut self.filtered_render;
                 self.filter
-                    .apply_into(&output.image, guides, &camera, &instances, filtered);
+                    .apply_into(&output.image, guides, camera, &instances, filtered);
                 let start = std::time::Instant::now();
                 profiling::scope!("film.upscale");
-                self.upscaler.apply_into(
-                    filtered, guides, &camera, &instances, self.shown, &mut image,
-                );
+                self.upscaler
+                    .apply_into(filtered, guides, camera, &instances, self.shown, &mut image);
                 since(start)
             };
             self.filtered = Some(image);
@@ -281,6 +277,24 @@ impl Accumulation {
         times.add(Stage::Film, since(start));
         times.film_phases = [0.0; FilmPhaseTimes::NAMES.len()];
     }
+}
+
+/// The frame the film asks the render for (`Accumulation::order_frame`).
+pub struct FrameOrder {
+    /// The view, at the render's resolution.
+    pub camera: Camera,
+    /// The render settings, with the frame's sample index.
+    pub settings: RenderSettings,
+    pub kind: FrameKind,
+}
+
+/// How a frame is rendered for the film.
+pub enum FrameKind {
+    /// A plain frame, added to the running sum of a still view.
+    Summed,
+    /// A frame for the real-time filters: with the guides they read and the radiance
+    /// cache, reusing the buffers of the `earlier` frame's render when there is one.
+    Filtered { earlier: Option<RenderOutput> },
 }
 
 /// The radiance cache between frames: at hand, or away on a pool thread folding in the

@@ -172,6 +172,7 @@ pub mod sight;
 pub mod sound_events;
 pub mod spawn;
 pub mod state;
+pub mod status;
 pub mod transform;
 pub mod warden;
 pub mod world_query;

@@ -106,7 +106,13 @@ pub fn write_recording(
 pub fn read_recording(path: &Path) -> anyhow::Result<(Recording, PathBuf)> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read recording '{}'", path.display()))?;
-    let recording: Recording = serde_json::from_str(&text).map_err(|error| {
+    parse_recording(path, &text)
+}
+
+/// A recording's `text`, as if read from `path`, checked, with its level found (relative
+/// to `path`'s folder, and hashing as when it was recorded): (recording, level file).
+pub fn parse_recording(path: &Path, text: &str) -> anyhow::Result<(Recording, PathBuf)> {
+    let recording: Recording = serde_json::from_str(text).map_err(|error| {
         anyhow!(
             "{}:{}:{}: not a Gloam recording: {error}",
             path.display(),
@@ -185,26 +191,46 @@ fn run(path: &Path, threads: usize, listen: bool) -> anyhow::Result<(Value, Opti
         .num_threads(threads)
         .build()
         .context("starting the worker threads")?;
-    pool.install(|| {
-        let mut engine = Engine::new(&scene, RenderSettings::real_time(1, 1));
-        spawn_player(&mut engine.world)
-            .with_context(|| format!("{}: the level has no player start", level.display()))?;
-        let mut sound = listen.then(|| {
-            engine.hearing = Some(Hearing::for_level(&level));
-            (Mixer::new(), Stereo::default())
-        });
-        let report = simulate(&mut engine, &recording, sound.as_mut());
-        // The last sounds ring out.
-        if let Some((mixer, stereo)) = &mut sound {
-            stereo.record(mixer, crate::scene::sound_kit::RATE as usize);
+    pool.install(|| play(&scene, &level, &recording, listen, recording.steps.len()))
+}
+
+/// Replays at most `max_steps` of `recording` on `scene`, loaded from `level`, in the
+/// current thread pool: the report (the fuzz target's replay, on a scene loaded once).
+pub fn replay_loaded(
+    scene: &Scene,
+    level: &Path,
+    recording: &Recording,
+    max_steps: usize,
+) -> anyhow::Result<Value> {
+    Ok(play(scene, level, recording, false, max_steps)?.0)
+}
+
+/// The replay itself, in the current thread pool.
+fn play(
+    scene: &Scene,
+    level: &Path,
+    recording: &Recording,
+    listen: bool,
+    max_steps: usize,
+) -> anyhow::Result<(Value, Option<Stereo>)> {
+    let mut engine = Engine::new(scene, RenderSettings::real_time(1, 1));
+    spawn_player(&mut engine.world)
+        .with_context(|| format!("{}: the level has no player start", level.display()))?;
+    let mut sound = listen.then(|| {
+        engine.hearing = Some(Hearing::for_level(level));
+        (Mixer::new(), Stereo::default())
+    });
+    let report = simulate(&mut engine, recording, sound.as_mut(), max_steps);
+    // The last sounds ring out.
+    if let Some((mixer, stereo)) = &mut sound {
+        stereo.record(mixer, crate::scene::sound_kit::RATE as usize);
+    }
+    if let Some(hearing) = &engine.hearing {
+        for warning in &hearing.warnings {
+            eprintln!("warning: {warning}");
         }
-        if let Some(hearing) = &engine.hearing {
-            for warning in &hearing.warnings {
-                eprintln!("warning: {warning}");
-            }
-        }
-        Ok((report, sound.map(|(_, stereo)| stereo)))
-    })
+    }
+    Ok((report, sound.map(|(_, stereo)| stereo)))
 }
 
 /// The divergence a replay report holds, if any.
@@ -216,18 +242,19 @@ pub fn divergence(report: &Value) -> Option<Divergence> {
     })
 }
 
-/// Feeds the recording's steps to the simulation and reports each (and mixes each
-/// step's sound into `sound`, when listening).
+/// Feeds the recording's steps (at most `max_steps`) to the simulation and reports each
+/// (and mixes each step's sound into `sound`, when listening).
 fn simulate(
     engine: &mut Engine,
     recording: &Recording,
     mut sound: Option<&mut (Mixer, Stereo)>,
+    max_steps: usize,
 ) -> Value {
     let mut hash = Fnv64::default();
     let mut steps = Vec::with_capacity(recording.steps.len());
     let mut marks = recording.trail.iter().peekable();
     let mut diverged: Option<Divergence> = None;
-    for (index, input) in recording.steps.iter().enumerate() {
+    for (index, input) in recording.steps.iter().take(max_steps).enumerate() {
         input.apply(&mut engine.world.resource_mut::<Input>());
         engine.step();
         if let (Some((mixer, stereo)), Some(hearing)) = (&mut sound, &mut engine.hearing) {

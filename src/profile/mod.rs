@@ -348,7 +348,7 @@ pub struct FrameSample {
     pub cache_ended: u64,
     /// Milliseconds the radiance cache took to learn the frame before, in the background.
     pub cache_learn_ms: f64,
-    /// The render's tiles, as `Accumulation::tile_spans` gives them; `bench` keeps them,
+    /// The render's tiles, as `frame::Engine::tile_spans` gives them; `bench` keeps them,
     /// the window's running profile does not (they would grow by 900 a frame).
     pub tiles: Vec<TileSpan>,
 }

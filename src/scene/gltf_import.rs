@@ -67,7 +67,51 @@ pub fn import_gltf(path: &Path) -> Result<Asset, LoadError> {
 }
 
 /// Imports glTF or GLB `bytes`; `path` names the file in diagnostics and anchors relative URIs.
+///
+/// Contained: the gltf crate's accessors `unwrap` what its validation is trusted to have
+/// checked, and `validate_root` guards each case fuzzing has found; should a file still
+/// reach a panic inside the import, it becomes this file's diagnostic (and the panic
+/// message is not printed), never a crash of the game, the editor or `gloam check`.
 pub fn import_gltf_bytes(path: &Path, bytes: &[u8]) -> Result<Asset, LoadError> {
+    contained(path, || import_checked(path, bytes))
+}
+
+thread_local! {
+    /// Set while this thread runs a contained import: its panics are reported as a
+    /// diagnostic, not printed.
+    static CONTAINED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `import`, turning a panic inside it into a diagnostic naming `path`.
+fn contained(
+    path: &Path,
+    import: impl FnOnce() -> Result<Asset, LoadError>,
+) -> Result<Asset, LoadError> {
+    static QUIET_HOOK: std::sync::Once = std::sync::Once::new();
+    QUIET_HOOK.call_once(|| {
+        let earlier = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !CONTAINED.with(std::cell::Cell::get) {
+                earlier(info);
+            }
+        }));
+    });
+    let was = CONTAINED.with(|contained| contained.replace(true));
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(import));
+    CONTAINED.with(|contained| contained.set(was));
+    outcome.unwrap_or_else(|panic| {
+        let what = (panic.downcast_ref::<&str>().map(|s| s.to_string()))
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "an unexpected value".to_string());
+        Err(Diagnostic::whole_file(
+            path,
+            format!("the glTF reader failed on this file ({what}); it may be malformed"),
+        )
+        .into())
+    })
+}
+
+fn import_checked(path: &Path, bytes: &[u8]) -> Result<Asset, LoadError> {
     // 1. Split a GLB into its JSON and BIN chunks; a .gltf is all JSON.
     let (json_bytes, glb_bin): (Cow<[u8]>, Option<Cow<[u8]>>) = if bytes.starts_with(b"glTF") {
         // gltf 1.4.1 subtracts the 12-byte header from the declared length unchecked: a
@@ -1697,6 +1741,20 @@ impl Component for u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A panic inside the import (in a dependency's accessor, say) is the file's
+    /// diagnostic, and the thread goes on importing: the next file is read as usual.
+    #[test]
+    fn a_panic_inside_an_import_is_a_diagnostic_naming_the_file() {
+        let path = Path::new("broken.glb");
+        let error = contained(path, || panic!("index out of bounds")).unwrap_err();
+        let line = error.to_string();
+        assert!(line.starts_with("broken.glb"), "{line}");
+        assert!(line.contains("index out of bounds"), "{line}");
+        assert!(!CONTAINED.with(std::cell::Cell::get));
+        let text = br#"{"asset": {"version": "2.0"}}"#;
+        assert!(import_gltf_bytes(Path::new("empty.gltf"), text).is_ok());
+    }
 
     #[test]
     fn strips_and_fans_keep_orientation() {

@@ -149,6 +149,16 @@ impl Scene {
     /// A level already in memory (the editor's, unsaved edits and all) as if loaded from
     /// `path`: its assets are named relative to `path`'s folder and imported.
     pub fn from_level(level: Level, path: &Path) -> Result<Scene, LoadError> {
+        Self::from_level_importing(level, path, &|file| import_gltf(file).map(Arc::new))
+    }
+
+    /// `from_level`, with each asset file imported by `import` (the fuzz targets' memo:
+    /// their assets stay the same from one input to the next).
+    pub fn from_level_importing(
+        level: Level,
+        path: &Path,
+        import: &(dyn Fn(&Path) -> Result<Arc<Asset>, LoadError> + Sync),
+    ) -> Result<Scene, LoadError> {
         // Positions for cross-file problems need the text again (only read on error).
         let text = || std::fs::read_to_string(path).unwrap_or_default();
         let base = path.parent().unwrap_or(Path::new("."));
@@ -181,14 +191,14 @@ impl Scene {
             }
         }
         // Assets import independently; rayon spreads them over the cores.
-        let imported: Vec<Result<Asset, LoadError>> =
-            files.par_iter().map(|file| import_gltf(file)).collect();
+        let imported: Vec<Result<Arc<Asset>, LoadError>> =
+            files.par_iter().map(|file| import(file)).collect();
 
         let mut diagnostics = Vec::new();
         let mut assets = Vec::new();
         for (asset_index, result) in imported.into_iter().enumerate() {
             match result {
-                Ok(asset) => assets.push(Arc::new(asset)),
+                Ok(asset) => assets.push(asset),
                 Err(error) => {
                     let pointer = named_at[asset_index].clone();
                     let file = &files[asset_index];

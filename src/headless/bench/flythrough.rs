@@ -325,7 +325,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         if let Some(mut transform) = engine.world.get_mut::<Transform>(view.0) {
             *transform = camera_path(&view.1, seconds);
         }
-        engine.simulate(step);
+        engine.prepare(step);
         let camera = engine.view_camera(width, height);
         settings.frame = frame;
         let started = Instant::now();

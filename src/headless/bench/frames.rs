@@ -343,7 +343,7 @@ fn measure(
         }
         if frame >= options.warmup {
             let mut sample = engine.stage_times().sample(0.0, frame_ms);
-            sample.tiles = engine.film.tile_spans().to_vec();
+            sample.tiles = engine.tile_spans().to_vec();
             profile.frames.push(sample);
             churn.push((kind, edit_ms));
             if profile.frames.len() % ACCEL_ROUND_FRAMES == 0 {

@@ -1,27 +1,16 @@
-//! A recording file, all the way: parse -> checks -> replayed headless on the level it
-//! names (the shipped first-light, so the hash check passes when the input keeps it).
+//! A recording file, parsed, checked and replayed headless for its first steps:
+//! `gloam::fuzz::replay`. The input is read as `tests/recordings/fuzz.json` (never
+//! written), beside the shipped recordings, so `../../levels/first-light.ron` resolves.
 #![no_main]
 
 use std::path::PathBuf;
-use std::sync::OnceLock;
+use std::sync::LazyLock;
 
 use libfuzzer_sys::fuzz_target;
 
-fn recording_path() -> &'static PathBuf {
-    static PATH: OnceLock<PathBuf> = OnceLock::new();
-    PATH.get_or_init(|| {
-        // Beside the shipped recordings, so `../../levels/first-light.ron` resolves.
-        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../recordings")
-            .join(format!(".fuzz-{}.json", std::process::id()))
-    })
-}
+static PATH: LazyLock<PathBuf> =
+    LazyLock::new(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../recordings/fuzz.json"));
 
 fuzz_target!(|data: &[u8]| {
-    let path = recording_path();
-    if std::fs::write(path, data).is_err() {
-        return;
-    }
-    let _ = gloam::headless::replay::replay(path, 1);
-    let _ = std::fs::remove_file(path);
+    let _ = gloam::fuzz::replay(&PATH, data);
 });
