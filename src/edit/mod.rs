@@ -22,7 +22,6 @@
 
 pub mod audibility;
 pub mod camera;
-pub mod exposure;
 pub mod palette;
 pub mod play_check;
 

@@ -75,7 +75,7 @@
 //!   caught, with the place ringed; or no unseen route, with the lit chokepoints ringed.
 //!   An edit made since greys the answer out ("edited since"); F6 again checks anew.
 //! - **Exposure and audibility maps:** X (or the tool bar's button) lays `gloam exposure`'s
-//!   map over the floor (`edit::exposure`), computed by the rays the game uses: each cell
+//!   map over the floor (`headless::exposure`), computed by the rays the game uses: each cell
 //!   the player can reach from the start in its colour (dark blue hidden, warming to yellow
 //!   as the light gem rises, red above 0.5), standing or crouching. The darkest route from
 //!   the start through every shard to the exit is drawn as a line, and where even that
@@ -114,13 +114,13 @@ use winit::window::{CursorGrabMode, Window};
 use crate::accel::Ray;
 use crate::edit::audibility::{Audibility, CELL as AUDIBILITY_CELL, NoiseKind};
 use crate::edit::camera::FlyCamera;
-use crate::edit::exposure::Exposure;
 use crate::edit::palette::{asset_def, assets_folder};
 use crate::edit::play_check::PlayCheck;
 use crate::edit::{Editor, Reloaded, surface_point};
 use crate::film::FilterMode;
 use crate::frame::Engine;
 use crate::game::LevelEntity;
+use crate::headless::exposure::Exposure;
 use crate::render::RenderSettings;
 use crate::render::hdr::tone_map;
 use crate::scene::Scene;
@@ -727,7 +727,7 @@ impl EditorApp {
             let result = Scene::from_level(level, &path)
                 .map_err(|error| format!("{error}"))
                 .and_then(|scene| {
-                    let exposure = crate::edit::exposure::compute(
+                    let exposure = crate::headless::exposure::compute(
                         &scene,
                         time as f64,
                         crate::game::nav::CELL,

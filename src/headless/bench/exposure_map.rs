@@ -1,6 +1,6 @@
 //! `gloam exposure`: the exposure map of a level, headless, before anyone plays it.
 //!
-//! A measurement over the simulation, outside the frame (`edit::exposure::compute`, which
+//! A measurement over the simulation, outside the frame (`headless::exposure::compute`, which
 //! the editor's overlay shares): the level's wardens walk their beats for `--time` seconds
 //! and the game's own body points, lights and shadow rays give each cell its gem. Writes the
 //! map as JSON (its schema: `headless::bench`, `gloam exposure`) and as a PNG, `PNG_SCALE`
@@ -11,8 +11,8 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use serde_json::{Value, json};
 
-use crate::edit::exposure::{colour, compute};
 use crate::game::exposure_map::{ExposureMap, Storey, Waypoints};
+use crate::headless::exposure::{colour, compute};
 use crate::scene::files::write_atomically;
 use crate::scene::world::Scene;
 

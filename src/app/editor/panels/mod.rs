@@ -19,7 +19,6 @@ use super::dialogs::DialogKind;
 use super::{Command, Leave, view_ray};
 use crate::edit::audibility::{Audibility, NoiseKind};
 use crate::edit::camera::FlyCamera;
-use crate::edit::exposure::Exposure;
 use crate::edit::palette::{Prefab, asset_files, assets_folder};
 use crate::edit::play_check::Checked;
 use crate::edit::{Editor, entity_bounds};
@@ -28,6 +27,7 @@ use crate::frame::Engine;
 use crate::game::Assets;
 use crate::game::LevelEntity;
 use crate::game::level_io::entity_defs;
+use crate::headless::exposure::Exposure;
 use crate::scene::level::{
     CameraDef, EntityDef, ExitDef, KnockDef, LightDef, MaterialOverride, MoverDef, PlayerSpawn,
     ShardDef, WardenDef,

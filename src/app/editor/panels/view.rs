@@ -129,7 +129,7 @@ impl Panels {
                 };
                 let x = map.origin.0 + (column % map.width) as f32 * map.cell_size;
                 let z = map.origin.1 + (column / map.width) as f32 * map.cell_size;
-                let [r, g, b] = crate::edit::exposure::colour(*value, threshold);
+                let [r, g, b] = crate::headless::exposure::colour(*value, threshold);
                 floor_cell(
                     &mut mesh,
                     projection,
