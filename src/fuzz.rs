@@ -21,10 +21,12 @@ use crate::render::RenderSettings;
 use crate::scene::Scene;
 use crate::scene::model::Asset;
 
-/// The recording steps the replay body plays, at most: 10 s of play. The bytes of a
-/// recording reach its parsing, its checks and the steps its inputs drive; a whole
-/// recording of a minute or more per input would put a million inputs out of reach.
-pub const REPLAY_STEPS: usize = 600;
+/// The recording steps the replay body plays, at most: 2 s of play. The bytes of a
+/// recording reach its parsing, its checks and the steps its inputs drive, and what a bad
+/// input value does to the simulation (a NaN look, a huge move) shows within a few steps.
+/// At 600 steps the target ran 76 inputs a second; whole recordings, a minute or more
+/// each, would put a million inputs out of reach.
+pub const REPLAY_STEPS: usize = 120;
 
 /// A glTF/GLB file (JSON glTF unless it starts with the GLB magic), all the way: import
 /// -> scene -> BLAS and TLAS builds -> one 8x8 frame. `Err` is the first refusal.

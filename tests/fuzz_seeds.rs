@@ -105,14 +105,17 @@ fn the_replay_body_replays_every_shipped_recording_and_refuses_a_broken_one() {
             "{}: {steps} of {recorded} steps reported",
             recording.display()
         );
-        if recorded <= gloam::fuzz::REPLAY_STEPS {
-            assert!(
-                report["diverged"].is_null(),
-                "{}: {}",
-                recording.display(),
-                report["diverged"]
-            );
-        }
+        // Cut short, a replay may differ only in how it ends: every state on the way
+        // matches the recording's trail.
+        let diverged = &report["diverged"];
+        assert!(
+            diverged.is_null()
+                || diverged["part"]
+                    .as_str()
+                    .is_some_and(|part| part.starts_with("still running")),
+            "{}: {diverged}",
+            recording.display()
+        );
     }
     let error = gloam::fuzz::replay(&path, b"{\"version\": 1").expect_err("a cut recording");
     assert!(error.contains("fuzz.json:1:"), "{error}");
