@@ -918,3 +918,37 @@ fn an_animation_channel_with_an_unknown_path_or_node_is_refused() {
         ],
     );
 }
+
+/// Found by fuzzing the replay target: a recorded turn past f32's range (-2.4e57 rad)
+/// read as -inf, and the player's rays went nowhere, into an index out of bounds in the
+/// TLAS walk. The recording is refused at the step; the game ignores such a turn.
+#[test]
+fn a_recording_with_an_infinite_turn_is_refused_at_its_step() {
+    let shipped = common::repo().join("tests/recordings/first-light-won.json");
+    let mut recording: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&shipped).unwrap()).unwrap();
+    recording["steps"][21][2] = serde_json::json!(-2.3841858e57);
+    let text = serde_json::to_string(&recording).unwrap();
+    // Beside the shipped recordings, so its level resolves (the file is never written).
+    let path = common::repo().join("tests/recordings/infinite-turn.json");
+    let error = gloam::headless::replay::parse_recording(&path, &text)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.ends_with(
+            "infinite-turn.json: step 22: its look turn is not a finite number of radians"
+        ),
+        "{error}"
+    );
+
+    let scene = gloam::scene::Scene::load(&common::repo().join("levels/first-light.ron")).unwrap();
+    let mut engine =
+        gloam::frame::Engine::new(&scene, gloam::render::RenderSettings::real_time(1, 1));
+    gloam::game::spawn_player(&mut engine.world).unwrap();
+    engine.world.resource_mut::<gloam::game::Input>().look =
+        glam::Vec2::new(f32::NEG_INFINITY, f32::NAN);
+    engine.step();
+    let mut players = engine.world.query::<&gloam::game::Player>();
+    let player = players.iter(&engine.world).next().unwrap();
+    assert!(player.yaw.is_finite() && player.pitch.is_finite());
+}

@@ -302,10 +302,15 @@ pub fn move_player(
     let world: &dyn WorldQuery = geometry.as_ref().map_or(&empty, |g| g.0.as_ref());
     for (mut player, mut transform, children) in &mut bodies {
         let player = &mut *player;
-        // 1. Look.
+        // 1. Look. Rule: the view angles stay finite whatever the input says (a corrupt
+        // recording's turn of -2.4e57 rad became -inf and sent the eye's rays nowhere;
+        // found by fuzzing): a turn that would leave them infinite is no turn.
         let limit = 89f32.to_radians();
-        player.yaw -= look.x;
-        player.pitch = (player.pitch + look.y).clamp(-limit, limit);
+        let (yaw, pitch) = (player.yaw - look.x, player.pitch + look.y);
+        if yaw.is_finite() && pitch.is_finite() {
+            player.yaw = yaw;
+            player.pitch = pitch.clamp(-limit, limit);
+        }
         if pressed.contains(&Action::Noclip) {
             player.noclip = !player.noclip;
             player.velocity = Vec3::ZERO;

@@ -127,6 +127,16 @@ pub fn parse_recording(path: &Path, text: &str) -> anyhow::Result<(Recording, Pa
             recording.version
         );
     }
+    // A number past f32's range reads as infinite: no player's turn is that.
+    if let Some(step) =
+        (recording.steps.iter()).position(|input| !(input.2.is_finite() && input.3.is_finite()))
+    {
+        bail!(
+            "{}: step {}: its look turn is not a finite number of radians",
+            path.display(),
+            step + 1
+        );
+    }
     let folder = path.parent().unwrap_or(Path::new("."));
     let level = folder.join(&recording.level);
     let bytes = std::fs::read(&level).with_context(|| {
