@@ -18,8 +18,8 @@ use std::sync::{Arc, LazyLock, Mutex};
 
 use crate::frame::Engine;
 use crate::render::RenderSettings;
-use crate::scene::Scene;
 use crate::scene::model::Asset;
+use crate::scene::{AssetCache, Scene};
 
 /// The recording steps the replay body plays, at most: 2 s of play. The bytes of a
 /// recording reach its parsing, its checks and the steps its inputs drive, and what a bad
@@ -86,15 +86,11 @@ pub fn settings(data: &[u8]) -> Result<(), String> {
     settings.or(best).map_err(|error| error.to_string())
 }
 
-/// Each asset file imported once per process.
+/// Each asset file imported once per process (the game's own `AssetCache`).
 fn memoised_import(file: &Path) -> Result<Arc<Asset>, crate::scene::LoadError> {
-    static ASSETS: LazyLock<Mutex<HashMap<PathBuf, Arc<Asset>>>> = LazyLock::new(Default::default);
-    if let Some(asset) = lock(&ASSETS).get(file) {
-        return Ok(Arc::clone(asset));
-    }
-    let asset = Arc::new(crate::scene::gltf_import::import_gltf(file)?);
-    lock(&ASSETS).insert(file.to_owned(), Arc::clone(&asset));
-    Ok(asset)
+    static ASSETS: LazyLock<Mutex<AssetCache>> =
+        LazyLock::new(|| Mutex::new(AssetCache::new(PathBuf::new())));
+    lock(&ASSETS).load_file(file)
 }
 
 /// Each level loaded once per process.
