@@ -244,6 +244,7 @@ impl Engine {
         while self.owed >= step {
             self.step();
             self.owed -= step;
+            self.world.resource_mut::<StageTimes>().steps += 1;
         }
         self.world.resource_mut::<SimulationClock>().alpha = (self.owed / step) as f32;
     }

@@ -314,8 +314,10 @@ fn reports_hold_their_schemas_and_the_stages_add_up() {
 #[test]
 fn the_same_bench_does_the_same_work_every_run() {
     let dir = common::scratch_dir("bench-repeat");
-    let (first, _) = bench(&dir, "one", &["--threads", "1"]);
-    let (second, _) = bench(&dir, "two", &["--threads", "2"]);
+    // The camera path runs one step a frame; a play-through runs the steps each frame's
+    // time owes, which a loaded machine changes.
+    let (first, _) = bench(&dir, "one", &["--threads", "1", "--view", "camera"]);
+    let (second, _) = bench(&dir, "two", &["--threads", "2", "--view", "camera"]);
     let rays = |report: &Value| report["rays_per_frame"].as_array().unwrap().clone();
     assert_eq!(rays(&first).len(), 24);
     assert!(rays(&first).iter().all(|r| r.as_u64().unwrap() > 0));
@@ -329,7 +331,8 @@ fn the_same_bench_does_the_same_work_every_run() {
         "the radiance cache learns the same on any thread count"
     );
     // The portable kernels give the same bits, so the same paths and the same rays.
-    let (portable, _) = bench(&dir, "portable", &["--threads", "2", "--simd", "portable"]);
+    let portable_flags = ["--threads", "2", "--simd", "portable", "--view", "camera"];
+    let (portable, _) = bench(&dir, "portable", &portable_flags);
     assert_eq!(
         (&first["simd"], &portable["simd"]),
         (&"native".into(), &"portable".into())
@@ -357,6 +360,81 @@ fn a_lowered_render_is_upscaled_to_the_size_asked_for() {
         .as_f64()
         .unwrap();
     assert!(upscale > 0.0, "film.upscale took no time");
+}
+
+/// Runs `gloam bench` with `args` from the repository, writing its JSON report; the report.
+fn bench_json(dir: &Path, name: &str, args: &[&str]) -> Value {
+    let json = dir.join(format!("{name}.json"));
+    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .arg("bench")
+        .args(args)
+        .args(["--json", json.to_str().unwrap()])
+        .current_dir(common::repo())
+        .output()
+        .expect("run gloam bench");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+}
+
+#[test]
+fn bench_sees_a_level_through_the_players_eyes_and_plays_it_to_the_end() {
+    let dir = common::scratch_dir("bench-view");
+    let small = ["--width", "32", "--height", "18", "--warmup", "1"];
+    // A level with a player start: its won recording, played from the start, every frame
+    // running at least one step.
+    let mut args = vec!["levels/first-light.ron", "--frames", "3"];
+    args.extend_from_slice(&small);
+    let played = bench_json(&dir, "player", &args);
+    assert_eq!(played["view"], "player");
+    assert_eq!(played["replay"], "tests/recordings/first-light-won.json");
+    assert_eq!(played["frames"], 3);
+    assert!(played["steps"].as_u64().unwrap() >= 3, "{played}");
+    // Asked for, or with no player to see through, the camera path: one step a frame.
+    args.extend_from_slice(&["--view", "camera"]);
+    let camera = bench_json(&dir, "camera", &args);
+    assert_eq!(camera["view"], "camera");
+    assert!(camera.get("replay").is_none(), "{camera}");
+    assert_eq!(camera["steps"], 3);
+    let mut args = vec!["levels/cornell.ron", "--frames", "2"];
+    args.extend_from_slice(&small);
+    assert_eq!(bench_json(&dir, "cornell", &args)["view"], "camera");
+    // A recording with no --frames runs to the end of its inputs, and no further.
+    let recording = "tests/recordings/first-light-caught.json";
+    let text = std::fs::read_to_string(common::repo().join(recording)).unwrap();
+    let steps = serde_json::from_str::<Value>(&text).unwrap()["steps"]
+        .as_array()
+        .unwrap()
+        .len() as u64;
+    let args = [
+        "--replay", recording, "--width", "8", "--height", "8", "--warmup", "0",
+    ];
+    let whole = bench_json(&dir, "whole", &args);
+    let (frames, ran) = (
+        whole["frames"].as_u64().unwrap(),
+        whole["steps"].as_u64().unwrap(),
+    );
+    assert_eq!(whole["replay"], recording);
+    assert!((steps..=steps + 1).contains(&ran), "{ran} steps of {steps}");
+    assert!(
+        frames >= 1 && frames <= steps,
+        "{frames} frames for {steps} steps"
+    );
+    // No player to play as: a one-line error naming the level.
+    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .args(["bench", "levels/cornell.ron", "--view", "player"])
+        .current_dir(common::repo())
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("cornell.ron") && stderr.contains("no player start"),
+        "{stderr}"
+    );
 }
 
 #[test]

@@ -99,6 +99,7 @@ pub use options::PlayOptions;
 use options::{
     StageLog, adapt_resolution, frame_settings, play_engine, play_headless, set_field_of_view,
 };
+pub use present::HeadlessPresent;
 use resolution::ResolutionController;
 use settings::{BestTimes, PadButton, Settings};
 

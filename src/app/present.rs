@@ -14,7 +14,6 @@ use super::{
 use crate::film::FilterMode;
 use crate::game::Action;
 use crate::profile::overlay;
-use crate::render::hdr::tone_map;
 
 impl App {
     /// Shows the frame: the film tone mapped into pixels' buffer (the profiler overlay
@@ -37,11 +36,7 @@ impl App {
             Some(engine) => {
                 // The buffer keeps the configured size: the filtered film is upscaled to
                 // it already; still frames summed at a lowered resolution are resized.
-                let image = engine.film.image().resized(width, height);
-                for (rgba, radiance) in frame.chunks_exact_mut(4).zip(&image.pixels) {
-                    let [r, g, b] = tone_map(*radiance, brightness);
-                    rgba.copy_from_slice(&[r, g, b, 255]);
-                }
+                (engine.film.image()).tone_map_into(frame, width, height, brightness);
             }
             None => {
                 for (index, rgba) in frame.chunks_exact_mut(4).enumerate() {
@@ -212,5 +207,70 @@ impl App {
             },
             if self.vsync { "" } else { " novsync" }
         ))
+    }
+}
+
+/// The window's present without a window, for `gloam bench` (`headless::bench::frames`):
+/// what `App::present` does on the CPU, with default settings and the player's HUD. The
+/// film is tone mapped into a frame buffer of the size shown; the HUD is gathered, laid out
+/// in an egui pass and tessellated, level 1's hint line included. The GPU's part (uploading
+/// the buffer, scaling it to the window, drawing the shapes) needs a device and is not here.
+pub struct HeadlessPresent {
+    settings: settings::Settings,
+    buffer: Vec<u8>,
+    interface: egui::Context,
+    hints: hints::Hints,
+}
+
+impl HeadlessPresent {
+    pub fn new() -> HeadlessPresent {
+        HeadlessPresent {
+            settings: settings::Settings::default(),
+            buffer: Vec::new(),
+            interface: egui::Context::default(),
+            hints: hints::Hints::default(),
+        }
+    }
+}
+
+impl Default for HeadlessPresent {
+    fn default() -> Self {
+        HeadlessPresent::new()
+    }
+}
+
+impl crate::headless::bench::frames::Present for HeadlessPresent {
+    fn present(&mut self, engine: &mut crate::frame::Engine, width: u32, height: u32) {
+        let settings = &self.settings;
+        self.buffer.resize(width as usize * height as usize * 4, 0);
+        (engine.film.image()).tone_map_into(&mut self.buffer, width, height, settings.brightness);
+        let controls = hints::Controls {
+            keys: &settings.keys,
+            pad: &settings.pad,
+            device: hints::Device::Keyboard,
+        };
+        let interact = controls.label(Action::Interact);
+        let mut view = hud::HudView::gather(engine, (width, height), None, false, &interact);
+        let first_level = engine
+            .world
+            .get_resource::<crate::game::LevelInfo>()
+            .is_some_and(|info| info.campaign == Some(1));
+        if first_level {
+            view.hint = crate::game::status::moment(&mut engine.world)
+                .and_then(|moment| self.hints.line(moment, &controls));
+        }
+        let screen = interface::Screen::new(
+            (width, height),
+            (0, 0, width, height),
+            (width, height),
+            settings.ui_scale,
+        );
+        let output = self.interface.run_ui(screen.input(), |ui| {
+            hud::paint(ui.painter(), &screen, &view);
+        });
+        let shapes = self
+            .interface
+            .tessellate(output.shapes, screen.pixels_per_point);
+        std::hint::black_box((&self.buffer, shapes));
     }
 }

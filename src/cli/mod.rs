@@ -138,8 +138,9 @@ pub enum Command {
     /// samplers, and path against reference integrator at equal time.
     #[command(allow_negative_numbers = true)]
     Convergence(convergence::Options),
-    /// Headless frame-time profile along a fixed camera path: per-stage mean, p50, p95,
-    /// p99 and max; JSON, CSV, Chrome trace and PNG chart reports.
+    /// Headless frame-time profile of a level as it is played (the player's view of its
+    /// won recording; a scene without a player, a fixed camera path): per-stage mean, p50,
+    /// p95, p99 and max; JSON, CSV, Chrome trace and PNG chart reports.
     #[command(allow_negative_numbers = true)]
     Bench(frames::Options),
     /// Fly through a level at 1 spp with a warden patrolling, and print each frame's RMSE
@@ -461,7 +462,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::SUCCESS)
         }
         Command::Bench(options) => {
-            frames::run(&options)?;
+            frames::run(&options, &mut crate::app::HeadlessPresent::new())?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Flythrough(options) => {

@@ -38,10 +38,23 @@ use crate::render::hdr::HdrImage;
 /// faster (1.430 against 1.429 ms), its few bands shared out less evenly.
 const HALF_BAND_ROWS: usize = 16;
 
-/// The render's resolution per axis against the shown one that `flythrough`'s player's
-/// view takes unless told: about where the game's adaptive resolution settles on two
-/// cores at 640 x 360 (0.4 to 0.5).
-pub const DEFAULT_RENDER_SCALE: f32 = 0.5;
+/// The most pixels a frame is rendered at before the upscaler takes over: 640 x 360's.
+/// Up to that a frame is rendered at the size shown; past it, at the scale that brings
+/// it there (1280 x 720 at 0.5 per axis), on two cores the most a 33 ms frame holds with
+/// the filters (native 640 x 360: about 40 ms when this rule was set).
+pub const NATIVE_PIXELS: u32 = 640 * 360;
+
+/// The render's resolution per axis against the shown `width` x `height`: 1 up to
+/// `NATIVE_PIXELS`, else the scale that renders that many. The game's rule for the size
+/// shown, which `bench` and `flythrough` take unless told.
+pub fn render_scale_for(width: u32, height: u32) -> f32 {
+    let shown = f64::from(width) * f64::from(height);
+    if shown <= f64::from(NATIVE_PIXELS) {
+        1.0
+    } else {
+        (f64::from(NATIVE_PIXELS) / shown).sqrt() as f32
+    }
+}
 
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
 #[derive(Clone, Debug, PartialEq)]
@@ -1089,6 +1102,20 @@ mod tests {
 
     const SHOWN: (u32, u32) = (32, 16);
     const RENDER: (u32, u32) = (16, 8);
+
+    #[test]
+    fn sizes_up_to_640_by_360_render_natively_and_larger_ones_render_that_many_pixels() {
+        assert_eq!(render_scale_for(320, 180), 1.0);
+        assert_eq!(render_scale_for(640, 360), 1.0);
+        assert_eq!(render_scale_for(1280, 720), 0.5);
+        assert!((render_scale_for(1920, 1080) - 1.0 / 3.0).abs() < 1e-6);
+        // A shape of the same pixel count as 640 x 360 stays native too.
+        assert_eq!(render_scale_for(480, 480), 1.0);
+        let (width, height) = (961, 541);
+        let scale = render_scale_for(width, height);
+        let rendered = (width as f32 * scale) * (height as f32 * scale);
+        assert!((rendered - NATIVE_PIXELS as f32).abs() < 1.0, "{rendered}");
+    }
 
     fn camera(x: f32, (width, height): (u32, u32)) -> Camera {
         let placement = CameraPlacement {

@@ -189,6 +189,8 @@ pub struct StageTimes {
     /// Milliseconds the radiance cache took to learn the frame before (in the background,
     /// off the frame's own stages: `film::Accumulation`).
     pub cache_learn_ms: f64,
+    /// Fixed simulation steps the frame ran (the real time it simulated, in 1/60 s steps).
+    pub steps: u32,
 }
 
 /// The rays a frame's render traced, by kind.
@@ -236,6 +238,7 @@ impl StageTimes {
             rays: self.rays,
             cache_ended: self.cache_ended,
             cache_learn_ms: self.cache_learn_ms,
+            steps: self.steps,
             tiles: Vec::new(),
         }
     }
@@ -348,6 +351,8 @@ pub struct FrameSample {
     pub cache_ended: u64,
     /// Milliseconds the radiance cache took to learn the frame before, in the background.
     pub cache_learn_ms: f64,
+    /// Fixed simulation steps the frame ran.
+    pub steps: u32,
     /// The render's tiles, as `frame::Engine::tile_spans` gives them; `bench` keeps them,
     /// the window's running profile does not (they would grow by 900 a frame).
     pub tiles: Vec<TileSpan>,
@@ -411,6 +416,11 @@ pub struct Profile {
     /// renderer's rays per second: `gloam bench` times a round between windows of frames,
     /// so on a loaded machine both sides of each ratio see the same load.
     pub accel_rounds: Vec<AccelRound>,
+    /// Whose eyes the frames were seen through (`gloam bench --view`: "player" or
+    /// "camera"), when a bench run says.
+    pub view: Option<String>,
+    /// The play-through's inputs: a recording's path, or "autoplay" (the bot's run).
+    pub replay: Option<String>,
 }
 
 /// How much of a run's time went to the film (`Profile::film_share`), as fractions of
@@ -643,7 +653,14 @@ impl Profile {
             "rays_per_frame": self.frames.iter().map(|f| f.rays.total()).collect::<Vec<_>>(),
             "cache_ended_share": self.cache_ended_share(),
             "cache_learn_ms": self.series(|frame| frame.cache_learn_ms).json(),
+            "steps": self.frames.iter().map(|frame| u64::from(frame.steps)).sum::<u64>(),
         });
+        if let Some(view) = &self.view {
+            report["view"] = json!(view);
+        }
+        if let Some(replay) = &self.replay {
+            report["replay"] = json!(replay);
+        }
         if let Some(share) = self.film_share() {
             report["film_share"] = json!({ "film": share.film, "upscale": share.upscale });
         }
@@ -1148,6 +1165,7 @@ mod tests {
             },
             cache_ended: 0,
             cache_learn_ms: 0.0,
+            steps: 1,
             tiles: vec![
                 TileSpan {
                     thread: 0,

@@ -46,6 +46,20 @@ impl HdrImage {
         self.pixels.iter().copied().sum::<Vec3>() / self.pixels.len().max(1) as f32
     }
 
+    /// This image tone mapped (`tone_map`) into `rgba`, a `width` x `height` buffer of 8-bit
+    /// RGBA pixels (opaque), resized bilinearly first when the sizes differ (a still frame
+    /// summed at a lowered resolution): what a window shows of it.
+    pub fn tone_map_into(&self, rgba: &mut [u8], width: u32, height: u32, exposure: f32) {
+        if (width, height) != (self.width, self.height) {
+            let resized = self.resized(width, height);
+            return resized.tone_map_into(rgba, width, height, exposure);
+        }
+        for (rgba, radiance) in rgba.chunks_exact_mut(4).zip(&self.pixels) {
+            let [r, g, b] = tone_map(*radiance, exposure);
+            rgba.copy_from_slice(&[r, g, b, 255]);
+        }
+    }
+
     /// Bilinearly resampled to `width` x `height`, pixel centres aligned (the window shows
     /// a lowered internal resolution this way).
     pub fn resized(&self, width: u32, height: u32) -> HdrImage {

@@ -122,7 +122,6 @@ use crate::frame::Engine;
 use crate::game::LevelEntity;
 use crate::headless::exposure::Exposure;
 use crate::render::RenderSettings;
-use crate::render::hdr::tone_map;
 use crate::scene::Scene;
 use crate::scene::files::absolute;
 use crate::scene::level::EntityDef;
@@ -877,11 +876,7 @@ impl EditorApp {
         let Some(pixels) = &mut self.pixels else {
             return;
         };
-        let image = self.engine.film.image().resized(view.width, view.height);
-        for (rgba, radiance) in pixels.frame_mut().chunks_exact_mut(4).zip(&image.pixels) {
-            let [r, g, b] = tone_map(*radiance, 1.0);
-            rgba.copy_from_slice(&[r, g, b, 255]);
-        }
+        (self.engine.film.image()).tone_map_into(pixels.frame_mut(), view.width, view.height, 1.0);
         let Some(gui) = self.gui.as_mut() else { return };
         let presented = pixels.render_with(|encoder, target, context| {
             gui.paint(encoder, target, context);

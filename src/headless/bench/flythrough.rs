@@ -30,7 +30,7 @@ use serde_json::json;
 
 use super::frames::camera_path;
 use crate::film::denoise::{FilterMode, FrameFilter};
-use crate::film::upscale::{DEFAULT_RENDER_SCALE, UpscaleSettings, Upscaler};
+use crate::film::upscale::{UpscaleSettings, Upscaler, render_scale_for};
 use crate::frame::Engine;
 use crate::game::{Patrol, Transform, ViewCamera};
 use crate::render::hdr::display_value;
@@ -77,7 +77,8 @@ pub struct Options {
     #[arg(long, value_parser = crate::headless::values::share)]
     pub alpha_min: Option<f32>,
     /// The player's view renders at this scale of --width x --height per axis and is
-    /// upscaled (0.5 when omitted).
+    /// upscaled. Default: the game's rule for the size shown (`film::render_scale_for`:
+    /// native up to 640 x 360's pixels).
     #[arg(long, value_parser = crate::headless::values::share)]
     pub render_scale: Option<f32>,
     /// Tuning: the upscaler's history cap, in samples.
@@ -213,11 +214,9 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             "--sigma-luminance {sigma}: must be positive"
         );
     }
-    let render_scale = options.render_scale.unwrap_or(DEFAULT_RENDER_SCALE);
-    anyhow::ensure!(
-        render_scale > 0.0,
-        "--render-scale {render_scale}: must be above 0"
-    );
+    let render_scale = options
+        .render_scale
+        .unwrap_or_else(|| render_scale_for(options.width, options.height));
     if options.every == 0 || options.reference_spp == 0 {
         anyhow::bail!("--every and --reference-spp must be at least 1");
     }

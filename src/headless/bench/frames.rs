@@ -1,19 +1,24 @@
-//! `gloam bench`: a headless frame-time profile of a level along a fixed camera path.
+//! `gloam bench`: a headless frame-time profile of a level, seen as it is played.
 //!
-//! A measurement tool around the game's own frame loop. Loads the level into an `Engine`,
-//! then for each frame: moves the view along a scripted path (a slow sway and dolly around
-//! the level's camera), advances exactly one 60 Hz simulation step (so every run does the
-//! same work: same poses, same rays), and records the stage times the schedules measured.
+//! A measurement tool around the game's own frame loop. Loads the level into an `Engine`
+//! and chooses whose eyes the frames are seen through (`View`): a level with a player start
+//! is played through (`--replay FILE`, else the level's won recording in
+//! `tests/recordings/`, else the bot's run: `PlayThrough`); a glTF, a level without one, or
+//! `--view camera` has its camera moved along a scripted path instead. Per frame:
+//! 1. the fixed steps the last frame's time owes run, as in play (a play-through feeds each
+//!    its recorded input; the camera path runs exactly one 60 Hz step a frame, so every run
+//!    does the same work);
+//! 2. extract, accel, render and film (`Engine::advance`);
+//! 3. present: the shell's own (`Present`), timed as `Stage::Present`.
+//!
 //! Warm-up frames are run first and dropped. After every `ACCEL_ROUND_FRAMES` measured
 //! frames the level's accel alone traces a round of `raybench`'s rays on the same threads,
 //! set beside the renderer's rays per second over those frames. The `profile` module
-//! prints the table and writes the JSON, CSV, Chrome trace and PNG chart. With `--replay`,
-//! the frames are a real play-through instead: the player fed one recorded step's input a
-//! frame. With `--churn-instances` and `--churn-lights`, every other frame spawns things
-//! into the world and the next despawns them, and extract + accel is reported per kind of
-//! frame.
+//! prints the table and writes the JSON, CSV, Chrome trace and PNG chart. With
+//! `--churn-instances` and `--churn-lights`, every other frame spawns things into the world
+//! and the next despawns them, and extract + accel is reported per kind of frame.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context as _;
@@ -21,8 +26,8 @@ use bevy_ecs::prelude::{Entity, With};
 use glam::{Quat, Vec3};
 
 use crate::frame::Engine;
-use crate::game::replay::Recording;
-use crate::game::{AssetInstance, Input, LevelEntity, Transform, ViewCamera, spawn, spawn_player};
+use crate::game::replay::{Recording, StepInput};
+use crate::game::{AssetInstance, LevelEntity, Transform, ViewCamera, spawn, spawn_player};
 use crate::profile::{AccelRound, Profile, Stage};
 use crate::render::RenderSettings;
 use crate::scene::level::{EntityDef, InstanceDef, LightDef};
@@ -33,16 +38,17 @@ pub struct Options {
     /// The level (or glTF) to profile; levels/first-light.ron when omitted.
     #[arg(value_name = "SCENE")]
     pub level: Option<PathBuf>,
-    /// Frames measured (after the warm-up).
-    #[arg(long, default_value_t = 240, value_parser = crate::headless::values::count())]
-    pub frames: u32,
+    /// Frames measured (after the warm-up): a play-through's run to the end of its inputs,
+    /// the camera path's 240.
+    #[arg(long, value_parser = crate::headless::values::count())]
+    pub frames: Option<u32>,
     /// Frames run first and not measured (caches, page faults, the first BLAS refits).
     #[arg(long, default_value_t = 30, value_parser = crate::headless::values::count_or_zero())]
     pub warmup: u32,
-    /// The render width, in pixels.
+    /// The width shown, in pixels.
     #[arg(long, default_value_t = 480, value_parser = crate::headless::values::count())]
     pub width: u32,
-    /// The render height, in pixels.
+    /// The height shown, in pixels.
     #[arg(long, default_value_t = 270, value_parser = crate::headless::values::count())]
     pub height: u32,
     /// Worker threads (default: all cores), for scaling studies.
@@ -66,9 +72,10 @@ pub struct Options {
     pub chart: Option<PathBuf>,
     /// Render at this scale of --width x --height per axis, and upscale the filtered
     /// frames to it (`film::upscale`), as the game does when its adaptive resolution
-    /// lowers the render's; 1 renders at --width x --height.
-    #[arg(long, default_value_t = 1.0, value_parser = crate::headless::values::share)]
-    pub render_scale: f32,
+    /// lowers the render's; 1 renders at --width x --height. Default: the game's own rule
+    /// for the size shown (`film::render_scale_for`: native up to 640 x 360's pixels).
+    #[arg(long, value_parser = crate::headless::values::share)]
+    pub render_scale: Option<f32>,
     /// The film's filters, as in `play` (their cost is the `film` stage).
     #[arg(long, value_enum, default_value_t = crate::film::FilterMode::Full)]
     pub filter: crate::film::FilterMode,
@@ -81,11 +88,119 @@ pub struct Options {
     /// ... and this many point lights with them.
     #[arg(long, default_value_t = 0, value_parser = crate::headless::values::count_or_zero())]
     pub churn_lights: u32,
-    /// Profile a real play-through: the player at the recording's level start, fed one
-    /// recorded step's input a frame, seen through its eyes (the measured frames end
-    /// with the inputs). The recording names its level; LEVEL, if given, must be it.
-    #[arg(long, value_name = "FILE")]
+    /// Whose eyes the frames are seen through: the player's, in a play-through of the
+    /// level; or the level's camera, moved along a scripted path. Default: the player
+    /// when the level has a player start.
+    #[arg(long, value_enum)]
+    pub view: Option<View>,
+    /// The play-through to profile: this recording's inputs, step by step, rather than the
+    /// level's won recording (`tests/recordings/<level>-won.json`) or the bot's run. The
+    /// recording names its level; LEVEL, if given, must be it.
+    #[arg(long, value_name = "FILE", conflicts_with = "view")]
     pub replay: Option<PathBuf>,
+}
+
+/// Whose eyes `gloam bench` sees through (`--view`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum View {
+    /// The player's, playing the level through.
+    Player,
+    /// The level's camera, along the scripted path (`camera_path`).
+    Camera,
+}
+
+impl View {
+    pub fn name(self) -> &'static str {
+        match self {
+            View::Player => "player",
+            View::Camera => "camera",
+        }
+    }
+}
+
+/// The inputs of a play-through, step by step, and where they came from (the report's
+/// `replay`: the recording's path, or `autoplay`).
+struct PlayThrough {
+    steps: Vec<StepInput>,
+    source: String,
+}
+
+/// Seconds of play the bot is given when a level has no won recording.
+const BOT_SECONDS: f64 = 300.0;
+
+/// A play-through of `level`: `--replay`'s recording, else the won recording shipped
+/// beside the levels (`<levels>/../tests/recordings/<level>-won.json`), else the bot's run.
+fn play_through(
+    level: &Path,
+    scene: &Scene,
+    replay: Option<(Recording, &Path)>,
+) -> anyhow::Result<PlayThrough> {
+    if let Some((recording, path)) = replay {
+        return Ok(PlayThrough {
+            steps: recording.steps,
+            source: path.display().to_string(),
+        });
+    }
+    if let Some(path) = won_recording(level) {
+        let (recording, recorded_on) = crate::headless::replay::read_recording(&path)?;
+        let same = std::fs::canonicalize(&recorded_on).ok() == std::fs::canonicalize(level).ok();
+        anyhow::ensure!(
+            same,
+            "{} was recorded on '{}', not '{}'",
+            path.display(),
+            recorded_on.display(),
+            level.display()
+        );
+        return Ok(PlayThrough {
+            steps: recording.steps,
+            source: path.display().to_string(),
+        });
+    }
+    println!(
+        "{}: no won recording beside it; the bot plays it first",
+        level.display()
+    );
+    let run = crate::headless::autoplay::autoplay(scene, BOT_SECONDS)
+        .with_context(|| format!("{}: the bot's run", level.display()))?;
+    println!(
+        "the bot's run: {} after {:.1} s",
+        run.outcome.name(),
+        run.seconds
+    );
+    Ok(PlayThrough {
+        steps: run.recorded.steps,
+        source: "autoplay".to_owned(),
+    })
+}
+
+/// The won recording shipped for `level`, if there is one: in the repository's
+/// `tests/recordings/`, beside the levels' folder (named relative to the working folder
+/// when it is under it).
+fn won_recording(level: &Path) -> Option<PathBuf> {
+    let stem = level.file_stem()?.to_str()?;
+    let root = crate::scene::files::absolute(level)
+        .parent()?
+        .parent()?
+        .to_path_buf();
+    let path = root
+        .join("tests")
+        .join("recordings")
+        .join(format!("{stem}-won.json"));
+    let here = std::env::current_dir()
+        .ok()
+        .map(|dir| crate::scene::files::absolute(&dir));
+    let shown = here
+        .and_then(|here| path.strip_prefix(here).ok().map(Path::to_path_buf))
+        .unwrap_or_else(|| path.clone());
+    path.is_file().then_some(shown)
+}
+
+/// What the shell shows after the film each frame, timed as `Stage::Present`: the game
+/// window's present without a window (the bench cannot see the window's shell, so the
+/// command line hands it one).
+pub trait Present {
+    /// Shows `engine`'s developed frame at the size shown, `width` x `height`.
+    fn present(&mut self, engine: &mut Engine, width: u32, height: u32);
 }
 
 /// What a measured frame did to the world (`--churn-*`).
@@ -110,21 +225,22 @@ pub fn camera_path(start: &Transform, seconds: f64) -> Transform {
     }
 }
 
-/// The render's resolution: --width x --height at --render-scale.
+/// The render's resolution: --width x --height at --render-scale (or the game's rule).
 fn render_size(options: &Options) -> (u32, u32) {
-    let scaled = |n: u32| ((n as f32 * options.render_scale).round() as u32).max(1);
+    let scale = options
+        .render_scale
+        .unwrap_or_else(|| crate::film::render_scale_for(options.width, options.height));
+    let scaled = |n: u32| ((n as f32 * scale).round() as u32).max(1);
     (scaled(options.width), scaled(options.height))
 }
 
-pub fn run(options: &Options) -> anyhow::Result<()> {
-    if options.width == 0 || options.height == 0 || options.frames == 0 {
+/// Frames measured along the camera path when `--frames` is not given.
+const CAMERA_PATH_FRAMES: u32 = 240;
+
+pub fn run(options: &Options, present: &mut (dyn Present + Send)) -> anyhow::Result<()> {
+    if options.width == 0 || options.height == 0 || options.frames == Some(0) {
         anyhow::bail!("--width, --height and --frames must be at least 1");
     }
-    anyhow::ensure!(
-        options.render_scale > 0.0,
-        "--render-scale {}: must be above 0",
-        options.render_scale
-    );
     for path in [&options.json, &options.csv, &options.trace]
         .into_iter()
         .flatten()
@@ -146,7 +262,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         anyhow::bail!("--threads must be at least 1");
     }
     crate::simd::use_kernels(options.simd);
-    let (recording, level) = match &options.replay {
+    let (replay, level) = match &options.replay {
         Some(path) => {
             let (recording, level) = crate::headless::replay::read_recording(path)?;
             if let Some(named) = &options.level {
@@ -160,7 +276,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
                     );
                 }
             }
-            (Some(recording), level)
+            (Some((recording, path.as_path())), level)
         }
         None => (
             None,
@@ -171,12 +287,39 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         ),
     };
     let scene = Scene::load(&level)?;
+    let has_player = scene
+        .level
+        .entities
+        .iter()
+        .any(|e| e.player_spawn.is_some());
+    let view = match options.view {
+        Some(View::Player) if !has_player => {
+            anyhow::bail!("--view player: {} has no player start", level.display())
+        }
+        Some(view) => view,
+        None if has_player => View::Player,
+        None => View::Camera,
+    };
+    let play = match view {
+        View::Player => Some(play_through(&level, &scene, replay)?),
+        View::Camera => None,
+    };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .context("starting the worker threads")?;
-    let (profile, churn) =
-        pool.install(|| measure(&scene, &level, recording.as_ref(), threads, options))?;
+    let (mut profile, churn) = pool.install(|| {
+        measure(
+            &scene,
+            &level,
+            play.as_ref().map(|play| play.steps.as_slice()),
+            threads,
+            options,
+            present,
+        )
+    })?;
+    profile.view = Some(view.name().to_owned());
+    profile.replay = play.map(|play| play.source);
     print!("{}", profile.table());
     // Extract + accel (extract, blas_refit, tlas_build) per kind of frame.
     let world_ms = |frame: &crate::profile::FrameSample| {
@@ -237,14 +380,16 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
 /// each about 40 ms of tracing on two threads.
 const ACCEL_ROUND_FRAMES: usize = 30;
 
-/// Runs the warm-up and the measured frames; returns the profile of the measured ones and
-/// what each did to the world, with the milliseconds the spawn or despawn calls took.
+/// Runs the warm-up and the measured frames (a play-through's `steps`, or the camera
+/// path); returns the profile of the measured ones and what each did to the world, with
+/// the milliseconds the spawn or despawn calls took.
 fn measure(
     scene: &Scene,
-    level: &std::path::Path,
-    recording: Option<&Recording>,
+    level: &Path,
+    steps: Option<&[StepInput]>,
     threads: usize,
     options: &Options,
+    present: &mut (dyn Present + Send),
 ) -> anyhow::Result<(Profile, Vec<(Churn, f64)>)> {
     let mut engine = Engine::new(
         scene,
@@ -257,16 +402,27 @@ fn measure(
     engine.hearing = Some(crate::audio::Hearing::for_level(level));
     let (render_width, render_height) = render_size(options);
     engine.film.set_resolution(render_width, render_height);
-    // A replay is seen through the player's eyes; otherwise the view takes its path.
-    let view = if recording.is_some() {
-        spawn_player(&mut engine.world)
-            .with_context(|| format!("{}: the level has no player start", level.display()))?;
-        None
-    } else {
-        let mut views = engine
-            .world
-            .query_filtered::<(Entity, &Transform), With<ViewCamera>>();
-        views.iter(&engine.world).next().map(|(e, t)| (e, *t))
+    // A play-through is seen through the player's eyes, each fixed step fed its recorded
+    // input; otherwise the view takes its path.
+    let camera = match steps {
+        Some(steps) => {
+            spawn_player(&mut engine.world)
+                .with_context(|| format!("{}: the level has no player start", level.display()))?;
+            engine.playback = Some(steps.iter().copied().collect());
+            None
+        }
+        None => {
+            let mut views = engine
+                .world
+                .query_filtered::<(Entity, &Transform), With<ViewCamera>>();
+            views.iter(&engine.world).next().map(|(e, t)| (e, *t))
+        }
+    };
+    let frames = match (options.frames, steps) {
+        (Some(frames), _) => frames,
+        // To the end of the inputs: never more frames than steps.
+        (None, Some(steps)) => u32::try_from(steps.len()).unwrap_or(u32::MAX),
+        (None, None) => CAMERA_PATH_FRAMES,
     };
     let churn_asset = if options.churn_instances > 0 {
         let mut instances = engine.world.query::<(&LevelEntity, &AssetInstance)>();
@@ -291,8 +447,8 @@ fn measure(
         height: options.height,
         render_size: Some(render_size(options)),
         threads,
-        frames: Vec::with_capacity(options.frames as usize),
-        accel_rounds: Vec::new(),
+        frames: Vec::with_capacity(frames as usize),
+        ..Profile::default()
     };
     // The level's accel alone, timed on the same threads in a round after every window of
     // `ACCEL_ROUND_FRAMES` measured frames (the two never share the cores, and each window
@@ -304,19 +460,23 @@ fn measure(
             rays: accel_alone.round(),
         });
     };
-    let mut churn: Vec<(Churn, f64)> = Vec::with_capacity(options.frames as usize);
+    let mut churn: Vec<(Churn, f64)> = Vec::with_capacity(frames as usize);
     let mut spawned: Vec<Entity> = Vec::new();
     let step = 1.0 / crate::game::SIMULATION_HZ;
-    let bar = super::progress::bar(u64::from(options.warmup + options.frames), "frames");
-    for frame in 0..options.warmup + options.frames {
-        bar.inc(1);
-        if let Some(recording) = recording {
-            let Some(input) = recording.steps.get(frame as usize) else {
-                break; // the play-through ends here
-            };
-            input.apply(&mut engine.world.resource_mut::<Input>());
+    // The real time the next frame simulates: as in play, the last frame's whole time (a
+    // play-through), and at least one step's, as the game's default vsync holds frames to
+    // a 60 Hz display's; one step a frame on the camera path, so every run does the same
+    // work.
+    let mut owed_seconds = step;
+    let bar = super::progress::bar(u64::from(options.warmup + frames), "frames");
+    for frame in 0..options.warmup + frames {
+        if let Some(playback) = &engine.playback
+            && playback.is_empty()
+        {
+            break; // the play-through ends here
         }
-        if let Some((entity, start)) = view {
+        bar.inc(1);
+        if let Some((entity, start)) = camera {
             let placed = camera_path(&start, frame as f64 * step);
             if let Some(mut transform) = engine.world.get_mut::<Transform>(entity) {
                 *transform = placed;
@@ -335,14 +495,24 @@ fn measure(
             Churn::Despawned
         };
         let edit_ms = edit_started.elapsed().as_secs_f64() * 1e3;
+        // Never past the end of the inputs (the engine's own remainder is under a step).
+        if let Some(playback) = &engine.playback {
+            owed_seconds = owed_seconds.min(playback.len() as f64 * step);
+        }
         let started = Instant::now();
-        engine.advance(step);
-        let frame_ms = started.elapsed().as_secs_f64() * 1e3;
+        engine.advance(owed_seconds);
+        let presented = Instant::now();
+        present.present(&mut engine, options.width, options.height);
+        let present_ms = presented.elapsed().as_secs_f64() * 1e3;
+        let frame_seconds = started.elapsed().as_secs_f64();
+        if steps.is_some() {
+            owed_seconds = frame_seconds.max(step);
+        }
         if let Some(hearing) = &mut engine.hearing {
             drop(hearing.take());
         }
         if frame >= options.warmup {
-            let mut sample = engine.stage_times().sample(0.0, frame_ms);
+            let mut sample = engine.stage_times().sample(present_ms, frame_seconds * 1e3);
             sample.tiles = engine.tile_spans().to_vec();
             profile.frames.push(sample);
             churn.push((kind, edit_ms));
@@ -352,7 +522,7 @@ fn measure(
             }
         }
     }
-    // The last window (a replay may end early, or the count not divide evenly).
+    // The last window (a play-through may end early, or the count not divide evenly).
     if profile
         .accel_rounds
         .last()
@@ -363,6 +533,12 @@ fn measure(
         accel_round(&mut profile);
     }
     bar.finish_and_clear();
+    anyhow::ensure!(
+        !profile.frames.is_empty(),
+        "{}: the play-through ended within the {} warm-up frames",
+        level.display(),
+        options.warmup
+    );
     Ok((profile, churn))
 }
 

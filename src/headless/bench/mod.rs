@@ -8,8 +8,17 @@
 //!
 //! # `gloam bench`: the frame-time profile
 //!
-//! The level's frames, headless, along a fixed camera path with exactly one 60 Hz step a
-//! frame (or, with `--replay FILE`, a real play-through), so every run does the same work.
+//! The level's frames, headless, as they are played: seen through the player's eyes in a
+//! play-through of the level (`--replay FILE`, else the level's won recording in
+//! `tests/recordings/`, else the bot's run), each frame simulating the fixed steps its
+//! predecessor's time owes (as in play, at least one: the game's vsync holds frames to 60
+//! Hz) and presenting its image as the window does (tone mapping into a frame buffer, the
+//! HUD laid out and tessellated; the GPU's upload is not timed), to the end of the inputs
+//! unless `--frames` stops it sooner. A glTF, a level without a player start, or `--view
+//! camera` is seen through the level's camera instead, along a fixed path with exactly one
+//! 60 Hz step a frame, so every such run does the same work. Without `--render-scale` the
+//! frames are rendered by the game's rule for the size shown (`film::render_scale_for`:
+//! native up to 640 x 360's pixels, fewer and upscaled past it).
 //! It prints mean, p50, p95, p99 and max per stage (`input`, `gameplay`, `animation`,
 //! `transforms`, `audio`, `extract`, `blas_refit`, `tlas_build`, `render`, `film`,
 //! `present`: [`crate::profile::Stage`]) and per frame, and Mrays/s. Three stages are
@@ -50,6 +59,9 @@
 //! ```text
 //! {"scene", "frames", "width", "height", "render_width", "render_height", "threads",
 //!  "simd": "native" | "portable",
+//!  "view": "player" | "camera",
+//!  "replay": the play-through's recording, or "autoplay" (the bot's run; player view only),
+//!  "steps": fixed simulation steps the measured frames ran,
 //!  "stages": {"<stage>": {"mean_ms", "p50_ms", "p95_ms", "p99_ms", "max_ms"}},
 //!  "frame": {the same five}, "mrays_per_s",
 //!  "gameplay_phases", "render_phases", "film_phases": {"<phase>": {the same five}},
