@@ -104,6 +104,11 @@ pub(super) fn frame_settings(options: &PlayOptions) -> RenderSettings {
 pub(super) fn play_engine(scene: &Scene, options: &PlayOptions) -> Engine {
     let mut engine = Engine::new(scene, frame_settings(options));
     engine.film.filter.mode = options.filter;
+    // Rendered by the game's rule for the configured size (native up to 640 x 360's
+    // pixels); the resolution controller works down from there.
+    let scale = crate::film::render_scale_for(options.width, options.height);
+    let (width, height) = crate::film::scaled_size(options.width, options.height, scale);
+    engine.film.set_resolution(width, height);
     // A playable level is seen through the player's eyes; a showcase scene from its camera.
     if scene.level.playable {
         crate::game::spawn_player(&mut engine.world);

@@ -43,9 +43,11 @@ impl ResolutionController {
         SCALES[self.step]
     }
 
-    /// The internal resolution for a configured `width` x `height` (at least 16 x 16).
+    /// The internal resolution for a configured `width` x `height`: the ladder's step of
+    /// the game's rule for that size (`film::render_scale_for`; at least 16 x 16).
     pub fn size(&self, width: u32, height: u32) -> (u32, u32) {
-        let scaled = |n: u32| ((n as f32 * self.scale()).round() as u32).max(16.min(n));
+        let scale = self.scale() * crate::film::render_scale_for(width, height);
+        let scaled = |n: u32| ((n as f32 * scale).round() as u32).max(16.min(n));
         (scaled(width), scaled(height))
     }
 
@@ -147,6 +149,9 @@ mod tests {
         // Steady there: no change in many frames (0.7 would predict 39 ms, over 28).
         assert_eq!(run(&mut controller, 80.0, 300), 0);
         assert_eq!(controller.size(480, 270), (288, 162));
+        // A window past 640 x 360's pixels starts from the game's rule for its size.
+        assert_eq!(ResolutionController::new(33.0).size(1280, 720), (640, 360));
+        assert_eq!(controller.size(1280, 720), (384, 216));
     }
 
     #[test]

@@ -56,6 +56,13 @@ pub fn render_scale_for(width: u32, height: u32) -> f32 {
     }
 }
 
+/// The render's resolution for the shown `width` x `height` at `scale` per axis (at least
+/// one pixel each way).
+pub fn scaled_size(width: u32, height: u32, scale: f32) -> (u32, u32) {
+    let scaled = |n: u32| ((n as f32 * scale).round() as u32).max(1);
+    (scaled(width), scaled(height))
+}
+
 /// How the history is kept; the defaults are what `gloam flythrough` measured best.
 #[derive(Clone, Debug, PartialEq)]
 pub struct UpscaleSettings {

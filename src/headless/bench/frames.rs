@@ -230,8 +230,7 @@ fn render_size(options: &Options) -> (u32, u32) {
     let scale = options
         .render_scale
         .unwrap_or_else(|| crate::film::render_scale_for(options.width, options.height));
-    let scaled = |n: u32| ((n as f32 * scale).round() as u32).max(1);
-    (scaled(options.width), scaled(options.height))
+    crate::film::scaled_size(options.width, options.height, scale)
 }
 
 /// Frames measured along the camera path when `--frames` is not given.
