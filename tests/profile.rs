@@ -393,6 +393,9 @@ fn bench_sees_a_level_through_the_players_eyes_and_plays_it_to_the_end() {
     assert_eq!(played["replay"], "tests/recordings/first-light-won.json");
     assert_eq!(played["frames"], 3);
     assert!(played["steps"].as_u64().unwrap() >= 3, "{played}");
+    // Present (the film tone mapped into a frame buffer, the HUD laid out) is timed.
+    let present = played["stages"]["present"]["p50_ms"].as_f64().unwrap();
+    assert!(present > 0.0, "{played}");
     // Asked for, or with no player to see through, the camera path: one step a frame.
     args.extend_from_slice(&["--view", "camera"]);
     let camera = bench_json(&dir, "camera", &args);
