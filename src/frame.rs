@@ -363,7 +363,7 @@ impl Engine {
 
     /// The image to show: the film's.
     pub fn image(&self) -> crate::render::HdrImage {
-        self.film.image()
+        self.film.image().into_owned()
     }
 }
 

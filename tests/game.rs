@@ -209,7 +209,7 @@ fn filtered_frames_with_the_cache_learning_in_the_background_are_the_same_on_any
                     engine.advance(1.0 / 60.0);
                     ended += engine.stage_times().cache_ended;
                 }
-                (engine.film.image().pixels, ended)
+                (engine.image().pixels, ended)
             })
     };
     let (one, ended) = frames(1);

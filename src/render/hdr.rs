@@ -55,14 +55,13 @@ impl HdrImage {
             let resized = self.resized(width, height);
             return resized.tone_map_into(rgba, width, height, exposure);
         }
-        // A row per job: on the window's thread the whole frame took 24 ms at 1280 x 720
-        // (perf, the-keep), most of it in `powf` before the codes were thresholds.
-        let row = width as usize;
+        // A row per job (`DisplayCodes` has the figures).
+        let (row, codes) = (width as usize, &*DISPLAY_CODES);
         rgba.par_chunks_mut(row * 4)
             .zip(self.pixels.par_chunks(row))
             .for_each(|(rgba, pixels)| {
                 for (rgba, radiance) in rgba.chunks_exact_mut(4).zip(pixels) {
-                    let [r, g, b] = tone_map(*radiance, exposure);
+                    let [r, g, b] = tone_map_by(codes, *radiance, exposure);
                     rgba.copy_from_slice(&[r, g, b, 255]);
                 }
             });
@@ -247,6 +246,18 @@ pub fn tone_map(radiance: Vec3, exposure: f32) -> [u8; 3] {
     tone_curve(radiance, exposure).to_array().map(display_code)
 }
 
+/// `tone_map` with the code tables already in hand (a frame's worth of pixels).
+#[inline]
+fn tone_map_by(codes: &DisplayCodes, radiance: Vec3, exposure: f32) -> [u8; 3] {
+    // Each channel spelled out: an array's `map` here stayed a call (`try_map`, perf).
+    let linear = tone_curve(radiance, exposure);
+    [
+        codes.code(linear.x),
+        codes.code(linear.y),
+        codes.code(linear.z),
+    ]
+}
+
 /// Linear radiance to the display's sRGB-encoded values in [0, 1], before quantisation:
 /// what a viewer sees, so image errors are measured on it.
 pub fn display_value(radiance: Vec3, exposure: f32) -> Vec3 {
@@ -255,6 +266,7 @@ pub fn display_value(radiance: Vec3, exposure: f32) -> Vec3 {
 
 /// The tone curve (Narkowicz 2015, "ACES Filmic Tone Mapping Curve"): exposed linear
 /// radiance to linear display values in [0, 1].
+#[inline]
 fn tone_curve(radiance: Vec3, exposure: f32) -> Vec3 {
     let x = (radiance * exposure).max(Vec3::ZERO);
     let mapped = (x * (x * 2.51 + 0.03)) / (x * (x * 2.43 + 0.59) + 0.14);
@@ -262,48 +274,74 @@ fn tone_curve(radiance: Vec3, exposure: f32) -> Vec3 {
 }
 
 /// The 8-bit code of a linear display value `linear` in [0, 1] (NaN: 0): the nearest code
-/// to its sRGB encoding, `(srgb_encode(linear) * 255 + 0.5) as u8`, found as the count of
-/// `CODE_THRESHOLDS` at or below it: eight comparisons in place of a `powf`, and the same
-/// byte for every f32 (the encoding rises monotonically; test
-/// `codes_from_thresholds_are_the_encoders_own`).
+/// to its sRGB encoding, `(srgb_encode(linear) * 255 + 0.5) as u8`, without the `powf`
+/// (`DisplayCodes`).
 #[inline]
 fn display_code(linear: f32) -> u8 {
-    let thresholds = &*CODE_THRESHOLDS;
-    // Branch-free binary search over the 255 thresholds (padded to 256 with infinity).
-    let mut code = 0usize;
-    let mut step = 128;
-    while step > 0 {
-        if thresholds[code + step - 1] <= linear {
-            code += step;
-        }
-        step /= 2;
-    }
-    code as u8
+    DISPLAY_CODES.code(linear)
 }
 
-/// `CODE_THRESHOLDS[k - 1]`: the least f32 in [0, 1] whose code is at least `k` (k in
-/// 1..=255), each found by bisecting the f32s' bit patterns (ordered as the values are,
-/// for non-negative floats); then infinity, which nothing reaches.
-static CODE_THRESHOLDS: std::sync::LazyLock<[f32; 256]> = std::sync::LazyLock::new(|| {
-    let code = |linear: f32| (srgb_encode(linear) * 255.0 + 0.5) as u8;
-    let mut thresholds = [f32::INFINITY; 256];
-    for (k, threshold) in thresholds.iter_mut().enumerate().take(255) {
-        let wanted = k as u8 + 1;
-        // The least bits in (low, high] whose code reaches `wanted`: code(low) falls
-        // short (0.0's code is 0) and code(high) reaches it (1.0's is 255).
-        let (mut low, mut high) = (0f32.to_bits(), 1f32.to_bits());
-        while high - low > 1 {
-            let middle = low + (high - low) / 2;
-            if code(f32::from_bits(middle)) >= wanted {
-                high = middle;
-            } else {
-                low = middle;
+static DISPLAY_CODES: std::sync::LazyLock<DisplayCodes> =
+    std::sync::LazyLock::new(DisplayCodes::new);
+
+/// The encoder's 8-bit codes by table: the same byte as `powf` for every f32 (the encoding
+/// rises monotonically; test `codes_from_tables_are_the_encoders_own`). With `powf` the
+/// tone mapping of a 1280 x 720 frame took 24 ms of the window's thread (perf, the-keep);
+/// with the tables, in parallel rows, 1.5 ms (`bench`'s `present`).
+struct DisplayCodes {
+    /// `thresholds[k - 1]`: the least f32 in [0, 1] whose code is at least `k` (k in
+    /// 1..=255); then infinity, which nothing reaches.
+    thresholds: [f32; 256],
+    /// The code at the start of each bucket of f32s sharing their top 16 bits (for
+    /// [0, 1], the exponent and 7 mantissa bits: at most one threshold lies inside any
+    /// bucket, the steepest being near 0.003 where 128 buckets span about 7 codes).
+    bucket_codes: Vec<u8>,
+}
+
+impl DisplayCodes {
+    fn new() -> DisplayCodes {
+        let code = |linear: f32| (srgb_encode(linear) * 255.0 + 0.5) as u8;
+        let mut thresholds = [f32::INFINITY; 256];
+        for (k, threshold) in thresholds.iter_mut().enumerate().take(255) {
+            let wanted = k as u8 + 1;
+            // The least bits in (low, high] whose code reaches `wanted`, bisecting the bit
+            // patterns (ordered as the values are, for non-negative floats): code(low)
+            // falls short (0.0's code is 0) and code(high) reaches it (1.0's is 255).
+            let (mut low, mut high) = (0f32.to_bits(), 1f32.to_bits());
+            while high - low > 1 {
+                let middle = low + (high - low) / 2;
+                if code(f32::from_bits(middle)) >= wanted {
+                    high = middle;
+                } else {
+                    low = middle;
+                }
             }
+            *threshold = f32::from_bits(high);
         }
-        *threshold = f32::from_bits(high);
+        let buckets = (1f32.to_bits() >> 16) as usize + 1;
+        let bucket_codes = (0..buckets)
+            .map(|bucket| code(f32::from_bits((bucket as u32) << 16)))
+            .collect();
+        DisplayCodes {
+            thresholds,
+            bucket_codes,
+        }
     }
-    thresholds
-});
+
+    #[inline]
+    fn code(&self, linear: f32) -> u8 {
+        // NaN and anything not above 0 is code 0; past 1, code 255.
+        if !(linear > 0.0) {
+            return 0;
+        }
+        let linear = linear.min(1.0);
+        let code = self.bucket_codes[(linear.to_bits() >> 16) as usize];
+        // The bucket's start code, raised past the one threshold its range may hold
+        // (never two: the test walks every bucket). Without a branch: about half the
+        // pixels cross it, and as a loop the mispredictions took half the time.
+        code + u8::from(self.thresholds[code as usize] <= linear)
+    }
+}
 
 /// The sRGB opto-electronic transfer function (IEC 61966-2-1).
 pub fn srgb_encode(linear: f32) -> f32 {
@@ -348,13 +386,13 @@ mod tests {
     }
 
     #[test]
-    fn codes_from_thresholds_are_the_encoders_own() {
+    fn codes_from_tables_are_the_encoders_own() {
         let by_encoder = |linear: f32| (srgb_encode(linear) * 255.0 + 0.5) as u8;
         let check = |linear: f32| {
             assert_eq!(display_code(linear), by_encoder(linear), "{linear:e}");
         };
         // Around every threshold, to a few ulps either side ...
-        for &threshold in CODE_THRESHOLDS.iter().take(255) {
+        for &threshold in DISPLAY_CODES.thresholds.iter().take(255) {
             let bits = threshold.to_bits();
             for bits in bits.saturating_sub(4)..=(bits + 4).min(1f32.to_bits()) {
                 check(f32::from_bits(bits));
@@ -364,8 +402,21 @@ mod tests {
         for bits in (0..=1f32.to_bits()).step_by(97) {
             check(f32::from_bits(bits));
         }
+        // ... and every bucket's first and last f32.
+        // (none of which spans more than one threshold, so a code costs one comparison).
+        for bucket in 0..=(1f32.to_bits() >> 16) {
+            let (first, last) = (
+                f32::from_bits(bucket << 16),
+                f32::from_bits((bucket << 16) | 0xffff).min(1.0),
+            );
+            check(first);
+            check(last);
+            assert!(display_code(last) - display_code(first) <= 1, "{first:e}");
+        }
         assert_eq!(display_code(f32::NAN), 0);
+        assert_eq!(display_code(-1.0), 0);
         assert_eq!(display_code(1.0), 255);
+        assert_eq!(display_code(2.0), 255);
     }
 
     #[test]
