@@ -141,25 +141,29 @@ fn play_through(
             source: path.display().to_string(),
         });
     }
-    if let Some(path) = won_recording(level) {
-        let (recording, recorded_on) = crate::headless::replay::read_recording(&path)?;
-        let same = std::fs::canonicalize(&recorded_on).ok() == std::fs::canonicalize(level).ok();
-        anyhow::ensure!(
-            same,
-            "{} was recorded on '{}', not '{}'",
-            path.display(),
-            recorded_on.display(),
+    match won_recording(level).map(|path| (crate::headless::replay::read_recording(&path), path)) {
+        Some((Ok((recording, recorded_on)), path)) => {
+            let same =
+                std::fs::canonicalize(&recorded_on).ok() == std::fs::canonicalize(level).ok();
+            anyhow::ensure!(
+                same,
+                "{} was recorded on '{}', not '{}'",
+                path.display(),
+                recorded_on.display(),
+                level.display()
+            );
+            return Ok(PlayThrough {
+                steps: recording.steps,
+                source: path.display().to_string(),
+            });
+        }
+        // A level edited since its recording was made: the bot plays it as it is now.
+        Some((Err(error), _)) => println!("{error:#}; the bot plays the level first"),
+        None => println!(
+            "{}: no won recording beside it; the bot plays it first",
             level.display()
-        );
-        return Ok(PlayThrough {
-            steps: recording.steps,
-            source: path.display().to_string(),
-        });
+        ),
     }
-    println!(
-        "{}: no won recording beside it; the bot plays it first",
-        level.display()
-    );
     let run = crate::headless::autoplay::autoplay(scene, BOT_SECONDS)
         .with_context(|| format!("{}: the bot's run", level.display()))?;
     println!(
