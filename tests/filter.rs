@@ -34,6 +34,10 @@ fn flythrough_filters_bring_one_sample_closer_to_the_reference() {
         "108",
         "--reference-spp",
         "64",
+        // The player's view rendered at half size and upscaled (192x108 alone would be
+        // rendered natively, by the game's rule): what this test holds the upscaler to.
+        "--render-scale",
+        "0.5",
         "--json",
         &json,
         "--out",
