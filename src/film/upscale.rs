@@ -38,10 +38,11 @@ use crate::render::hdr::HdrImage;
 /// faster (1.430 against 1.429 ms), its few bands shared out less evenly.
 const HALF_BAND_ROWS: usize = 16;
 
-/// The most pixels a frame is rendered at before the upscaler takes over: 640 x 360's.
-/// Up to that a frame is rendered at the size shown; past it, at the scale that brings
-/// it there (1280 x 720 at 0.5 per axis), on two cores the most a 33 ms frame holds with
-/// the filters (native 640 x 360: about 40 ms when this rule was set).
+/// The most pixels a frame is rendered at before the upscaler takes over: 640 x 360's,
+/// the image quality the game holds its shown pixels to. Up to that a frame is rendered at
+/// the size shown; past it, at the scale that brings it there (1280 x 720 at 0.5 per
+/// axis). Where frames run over the frame-time target, the window's resolution controller
+/// lowers the render from there (`app::resolution`).
 pub const NATIVE_PIXELS: u32 = 640 * 360;
 
 /// The render's resolution per axis against the shown `width` x `height`: 1 up to
