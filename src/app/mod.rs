@@ -485,9 +485,7 @@ impl App {
         }
         self.resolution = target.map(ResolutionController::new);
         // The game's rule for the configured size (native up to 640 x 360's pixels).
-        let (width, height) = (self.options.width, self.options.height);
-        let scale = crate::film::render_scale_for(width, height);
-        let (width, height) = crate::film::scaled_size(width, height, scale);
+        let (width, height) = crate::film::render_size_for(self.options.width, self.options.height);
         if let Some(engine) = self.engine_mut() {
             engine.film.set_resolution(width, height);
         }

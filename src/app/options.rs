@@ -106,8 +106,7 @@ pub(super) fn play_engine(scene: &Scene, options: &PlayOptions) -> Engine {
     engine.film.filter.mode = options.filter;
     // Rendered by the game's rule for the configured size (native up to 640 x 360's
     // pixels); the resolution controller works down from there.
-    let scale = crate::film::render_scale_for(options.width, options.height);
-    let (width, height) = crate::film::scaled_size(options.width, options.height, scale);
+    let (width, height) = crate::film::render_size_for(options.width, options.height);
     engine.film.set_resolution(width, height);
     // A playable level is seen through the player's eyes; a showcase scene from its camera.
     if scene.level.playable {

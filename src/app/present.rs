@@ -57,18 +57,13 @@ impl App {
                 .filter(|(at, _)| at.elapsed().as_secs_f32() < CAUGHT_BANNER_SECONDS)
                 .map(|(_, by)| by.as_str());
             let watching = self.options.watch.is_some();
-            let interact = controls.label(Action::Interact);
-            let mut view = hud::HudView::gather(
+            let mut view = player_hud(
                 &mut game.engine,
                 (width, height),
-                caught,
-                watching,
-                &interact,
+                (caught, watching),
+                &controls,
+                &mut game.hints,
             );
-            if game.scene.level.campaign == Some(1) {
-                view.hint = crate::game::status::moment(&mut game.engine.world)
-                    .and_then(|moment| game.hints.line(moment, &controls));
-            }
             view.captions = self.captions.lines().map(str::to_string).collect();
             view
         });
@@ -210,6 +205,29 @@ impl App {
     }
 }
 
+/// The HUD over the player's view of `engine` at film size `film`: what it gathers, with
+/// the banner of who caught the player and whether a recording is being watched
+/// (`caught`, `watching`), and the campaign's first level's hint line.
+fn player_hud(
+    engine: &mut crate::frame::Engine,
+    film: (u32, u32),
+    (caught, watching): (Option<&str>, bool),
+    controls: &hints::Controls,
+    hints: &mut hints::Hints,
+) -> hud::HudView {
+    let interact = controls.label(Action::Interact);
+    let mut view = hud::HudView::gather(engine, film, caught, watching, &interact);
+    let first_level = engine
+        .world
+        .get_resource::<crate::game::LevelInfo>()
+        .is_some_and(|info| info.campaign == Some(1));
+    if first_level {
+        view.hint = crate::game::status::moment(&mut engine.world)
+            .and_then(|moment| hints.line(moment, controls));
+    }
+    view
+}
+
 /// The window's present without a window, for `gloam bench` (`headless::bench::frames`):
 /// what `App::present` does on the CPU, with default settings and the player's HUD. The
 /// film is tone mapped into a frame buffer of the size shown; the HUD is gathered, laid out
@@ -249,16 +267,13 @@ impl crate::headless::bench::frames::Present for HeadlessPresent {
             pad: &settings.pad,
             device: hints::Device::Keyboard,
         };
-        let interact = controls.label(Action::Interact);
-        let mut view = hud::HudView::gather(engine, (width, height), None, false, &interact);
-        let first_level = engine
-            .world
-            .get_resource::<crate::game::LevelInfo>()
-            .is_some_and(|info| info.campaign == Some(1));
-        if first_level {
-            view.hint = crate::game::status::moment(&mut engine.world)
-                .and_then(|moment| self.hints.line(moment, &controls));
-        }
+        let view = player_hud(
+            engine,
+            (width, height),
+            (None, false),
+            &controls,
+            &mut self.hints,
+        );
         let screen = interface::Screen::new(
             (width, height),
             (0, 0, width, height),

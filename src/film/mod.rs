@@ -31,7 +31,7 @@ use std::sync::mpsc;
 use glam::Vec3;
 
 pub use denoise::{FilmPhaseTimes, FilterMode, FrameFilter};
-pub use upscale::{UpscaleSettings, Upscaler, render_scale_for, scaled_size};
+pub use upscale::{UpscaleSettings, Upscaler, render_scale_for, render_size_for, scaled_size};
 
 use crate::profile::{Stage, StageTimes, since};
 use crate::render::cache::CacheSample;

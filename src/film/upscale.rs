@@ -57,6 +57,12 @@ pub fn render_scale_for(width: u32, height: u32) -> f32 {
     }
 }
 
+/// The render's resolution for the shown `width` x `height` by the game's rule
+/// (`render_scale_for`).
+pub fn render_size_for(width: u32, height: u32) -> (u32, u32) {
+    scaled_size(width, height, render_scale_for(width, height))
+}
+
 /// The render's resolution for the shown `width` x `height` at `scale` per axis (at least
 /// one pixel each way).
 pub fn scaled_size(width: u32, height: u32, scale: f32) -> (u32, u32) {

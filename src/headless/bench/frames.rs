@@ -143,15 +143,7 @@ fn play_through(
     }
     match won_recording(level).map(|path| (crate::headless::replay::read_recording(&path), path)) {
         Some((Ok((recording, recorded_on)), path)) => {
-            let same =
-                std::fs::canonicalize(&recorded_on).ok() == std::fs::canonicalize(level).ok();
-            anyhow::ensure!(
-                same,
-                "{} was recorded on '{}', not '{}'",
-                path.display(),
-                recorded_on.display(),
-                level.display()
-            );
+            ensure_recorded_on(&path, &recorded_on, level)?;
             return Ok(PlayThrough {
                 steps: recording.steps,
                 source: path.display().to_string(),
@@ -175,6 +167,19 @@ fn play_through(
         steps: run.recorded.steps,
         source: "autoplay".to_owned(),
     })
+}
+
+/// An error unless the recording at `path`, made on `recorded_on`, was made on `level`.
+fn ensure_recorded_on(path: &Path, recorded_on: &Path, level: &Path) -> anyhow::Result<()> {
+    let same = std::fs::canonicalize(recorded_on).ok() == std::fs::canonicalize(level).ok();
+    anyhow::ensure!(
+        same,
+        "{} was recorded on '{}', not '{}'",
+        path.display(),
+        recorded_on.display(),
+        level.display()
+    );
+    Ok(())
 }
 
 /// The won recording shipped for `level`, if there is one: in the repository's
@@ -269,15 +274,7 @@ pub fn run(options: &Options, present: &mut (dyn Present + Send)) -> anyhow::Res
         Some(path) => {
             let (recording, level) = crate::headless::replay::read_recording(path)?;
             if let Some(named) = &options.level {
-                let same = std::fs::canonicalize(named).ok() == std::fs::canonicalize(&level).ok();
-                if !same {
-                    anyhow::bail!(
-                        "{} was recorded on '{}', not '{}'",
-                        path.display(),
-                        level.display(),
-                        named.display()
-                    );
-                }
+                ensure_recorded_on(path, &level, named)?;
             }
             (Some((recording, path.as_path())), level)
         }
@@ -290,11 +287,7 @@ pub fn run(options: &Options, present: &mut (dyn Present + Send)) -> anyhow::Res
         ),
     };
     let scene = Scene::load(&level)?;
-    let has_player = scene
-        .level
-        .entities
-        .iter()
-        .any(|e| e.player_spawn.is_some());
+    let has_player = scene.player_spawn().is_some();
     let view = match options.view {
         Some(View::Player) if !has_player => {
             anyhow::bail!("--view player: {} has no player start", level.display())
