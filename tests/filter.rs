@@ -96,6 +96,54 @@ fn flythrough_filters_bring_one_sample_closer_to_the_reference() {
     }
 }
 
+/// Through the player's eyes: the level's won recording plays from `--from`, two steps a
+/// frame, and the figures are of what the player sees; with no mover there is no trail.
+#[test]
+fn flythrough_sees_through_the_players_eyes() {
+    let dir = common::scratch_dir("flythrough-player");
+    let json = dir.join("fly.json").display().to_string();
+    let output = gloam(&[
+        "flythrough",
+        "levels/the-keep.ron",
+        "--view",
+        "player",
+        "--from",
+        "10",
+        "--frames",
+        "6",
+        "--warmup",
+        "4",
+        "--every",
+        "2",
+        "--width",
+        "96",
+        "--height",
+        "54",
+        "--reference-spp",
+        "16",
+        "--json",
+        &json,
+    ]);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(
+        stdout.contains("the player's view: tests/recordings/the-keep-won.json, from 10.0 s"),
+        "{stdout}"
+    );
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["view"], "player");
+    assert_eq!(report["compared"].as_array().unwrap().len(), 1);
+    let rmse = |kind: &str| report["median_rmse_display"][kind].as_f64().unwrap();
+    assert!(rmse("raw") > 0.0 && rmse("full") < rmse("raw"), "{report}");
+    assert!(report["median_trail_rmse"]["raw"].is_null(), "{report}");
+    assert!(report["moving_lamp_pool"].is_null(), "{report}");
+    assert!(stdout.contains("no mover in the player's view"), "{stdout}");
+}
+
 #[test]
 fn flythrough_and_play_reject_bad_flags_in_one_line() {
     for (args, expected, code) in [
@@ -115,6 +163,21 @@ fn flythrough_and_play_reject_bad_flags_in_one_line() {
                 "1",
             ],
             "no entity named \"nobody\"",
+            1,
+        ),
+        (
+            vec!["flythrough", "--from", "3"],
+            "--from 3: only the player's view (--view player) plays through a level",
+            1,
+        ),
+        (
+            vec!["flythrough", "--view", "player", "--mover", "warden 1"],
+            "--mover: the player's view has the wardens' own beats, no mover",
+            1,
+        ),
+        (
+            vec!["flythrough", "--view", "player", "--from", "100000"],
+            "lasts",
             1,
         ),
         (

@@ -1,9 +1,14 @@
 //! `gloam flythrough`: how close the real-time filters bring one sample per pixel to the
-//! converged image, frame by frame, along a scripted flight through a level.
+//! converged image, frame by frame, along a scripted flight through a level or through the
+//! player's eyes as the level is played.
 //!
-//! Per frame: the view follows `bench`'s camera path, one warden patrols back and forth
-//! across the view (the moving object), one 60 Hz step runs, and one frame is rendered at
-//! 1 spp with its guides. That same frame goes through three film steps: raw, temporal
+//! Per frame, along the camera path (`--view camera`, the default): the view follows
+//! `bench`'s camera path, one warden patrols back and forth across the view (the moving
+//! object), one 60 Hz step runs, and one frame is rendered at 1 spp with its guides. Through
+//! the player's eyes (`--view player`): the level's won recording plays (or the bot's run,
+//! as `bench` finds it), from `--from` seconds in, `PLAYER_FRAME_STEPS` steps a frame as at
+//! the game's 30 fps target; the wardens keep their own beats, so no mover is added and the
+//! trail and pool figures are left out (NaN, null in the JSON) unless one walks through. That same frame goes through three film steps: raw, temporal
 //! only, and temporal + spatial (each with its own history). Beside them, what the player
 //! sees: a second frame rendered at `--render-scale` of the resolution, filtered
 //! (temporal + spatial) and upscaled to it (`film::upscale`), as the game shows it. Every `--every` frames after
@@ -28,11 +33,11 @@ use bevy_ecs::prelude::Entity;
 use glam::Affine3A;
 use serde_json::json;
 
-use super::frames::camera_path;
+use super::frames::{View, camera_path, play_through};
 use crate::film::denoise::{FilterMode, FrameFilter};
 use crate::film::upscale::{UpscaleSettings, Upscaler, render_scale_for};
 use crate::frame::Engine;
-use crate::game::{Patrol, Transform, ViewCamera};
+use crate::game::{Patrol, Transform, ViewCamera, spawn_player};
 use crate::render::hdr::display_value;
 use crate::render::light::{Light, luminance};
 use crate::render::{Guides, HdrImage, RadianceCache, RenderSettings, render, render_guided};
@@ -61,9 +66,18 @@ pub struct Options {
     /// Samples per pixel of each reference.
     #[arg(long, default_value_t = 256, value_parser = crate::headless::values::count())]
     pub reference_spp: u32,
-    /// The level entity that patrols across the view (by name); "warden 1" when omitted.
+    /// The level entity that patrols across the camera path's view (by name); "warden 1"
+    /// when omitted.
     #[arg(long)]
     pub mover: Option<String>,
+    /// Whose eyes the frames are seen through: the level's camera along a scripted path
+    /// (the default: a warden patrols across it for the ghosting figures), or the player's,
+    /// playing the level's won recording (or the bot's run) as `bench` does.
+    #[arg(long, value_enum, default_value_t = View::Camera)]
+    pub view: View,
+    /// With `--view player`: seconds of the play-through run before the first frame.
+    #[arg(long, default_value_t = 0.0, value_parser = crate::headless::values::non_negative)]
+    pub from: f64,
     /// Write every figure here as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -101,6 +115,10 @@ const IMAGES: [&str; 5] = ["raw", "temporal", "full", "resized", "player"];
 
 /// Trail length for the ghosting measure, in frames.
 const TRAIL_FRAMES: usize = 8;
+
+/// Fixed steps a frame through the player's eyes: two 60 Hz steps, the game's 30 fps
+/// frame-time target (the camera path runs one).
+const PLAYER_FRAME_STEPS: u32 = 2;
 
 /// The RMSE of one image against the reference, on display values and linear radiance,
 /// over all pixels and over the mover's trail.
@@ -200,7 +218,12 @@ fn errors(image: &HdrImage, reference: &HdrImage, trail: &[bool]) -> Errors {
     Errors {
         display: (display / n).sqrt(),
         linear: (linear / n).sqrt(),
-        trail: (trail_sum / (3 * trail_count.max(1)) as f64).sqrt(),
+        // No trail (nothing moved out of view): no figure.
+        trail: if trail_count == 0 {
+            f64::NAN
+        } else {
+            (trail_sum / (3 * trail_count) as f64).sqrt()
+        },
     }
 }
 
@@ -235,33 +258,67 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     let (width, height) = (options.width, options.height);
     let mut engine = Engine::new(&scene, RenderSettings::real_time(width, height));
 
-    // The view and the mover, by their level entities.
-    let mut views = engine
-        .world
-        .query_filtered::<(Entity, &Transform), bevy_ecs::query::With<ViewCamera>>();
-    let view = views
-        .iter(&engine.world)
-        .next()
-        .map(|(e, t)| (e, *t))
-        .context("the level has no view camera")?;
+    // Camera path: the view and the mover, by their level entities. Player: the player,
+    // fed the play-through's inputs step by step.
     let mover_name = options.mover.as_deref().unwrap_or("warden 1");
-    let mut roots = engine
-        .world
-        .query::<(Entity, &bevy_ecs::prelude::Name, &Transform)>();
-    let (mover, mover_start) = roots
-        .iter(&engine.world)
-        .find(|(_, name, _)| name.as_str() == mover_name)
-        .map(|(e, _, t)| (e, *t))
-        .with_context(|| format!("{}: no entity named {mover_name:?}", level.display()))?;
-    // A 1.5 m beat either side of where it stands, a 4-second round trip.
-    engine
-        .world
-        .entity_mut(mover)
-        .insert(Patrol::new(mover_start, 1.5, 4.0));
-    let mover_instances = instances_under(&engine, mover);
-    if mover_instances.is_empty() {
-        anyhow::bail!("{}: {mover_name:?} has no mesh to move", level.display());
-    }
+    let (flight, mover) = match options.view {
+        View::Camera => {
+            anyhow::ensure!(
+                options.from == 0.0,
+                "--from {}: only the player's view (--view player) plays through a level",
+                options.from
+            );
+            let mut views = engine
+                .world
+                .query_filtered::<(Entity, &Transform), bevy_ecs::query::With<ViewCamera>>();
+            let view = views
+                .iter(&engine.world)
+                .next()
+                .map(|(e, t)| (e, *t))
+                .context("the level has no view camera")?;
+            let mut roots = engine
+                .world
+                .query::<(Entity, &bevy_ecs::prelude::Name, &Transform)>();
+            let (mover, mover_start) = roots
+                .iter(&engine.world)
+                .find(|(_, name, _)| name.as_str() == mover_name)
+                .map(|(e, _, t)| (e, *t))
+                .with_context(|| format!("{}: no entity named {mover_name:?}", level.display()))?;
+            // A 1.5 m beat either side of where it stands, a 4-second round trip.
+            engine
+                .world
+                .entity_mut(mover)
+                .insert(Patrol::new(mover_start, 1.5, 4.0));
+            let mover_instances = instances_under(&engine, mover);
+            if mover_instances.is_empty() {
+                anyhow::bail!("{}: {mover_name:?} has no mesh to move", level.display());
+            }
+            (Some(view), Some((mover, mover_instances)))
+        }
+        View::Player => {
+            anyhow::ensure!(
+                options.mover.is_none(),
+                "--mover: the player's view has the wardens' own beats, no mover"
+            );
+            let play = play_through(&level, &scene, None)?;
+            spawn_player(&mut engine.world)
+                .with_context(|| format!("{}: the level has no player start", level.display()))?;
+            let steps = play.steps.len() as f64 / crate::game::SIMULATION_HZ;
+            anyhow::ensure!(
+                options.from < steps,
+                "--from {}: the play-through ({}) lasts {steps:.1} s",
+                options.from,
+                play.source
+            );
+            engine.playback = Some(play.steps.iter().copied().collect());
+            println!(
+                "the player's view: {}, from {:.1} s",
+                play.source, options.from
+            );
+            engine.prepare(options.from);
+            (None, None)
+        }
+    };
 
     let mut temporal = FrameFilter::new(FilterMode::Temporal);
     let mut full = FrameFilter::new(FilterMode::Full);
@@ -305,6 +362,10 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     let (mut pool_pixels, mut pool_rows): (Vec<f64>, Vec<[Pool; IMAGES.len()]>) =
         (Vec::new(), Vec::new());
     let step = 1.0 / crate::game::SIMULATION_HZ;
+    let frame_seconds = match options.view {
+        View::Camera => step,
+        View::Player => f64::from(PLAYER_FRAME_STEPS) * step,
+    };
     println!(
         "player's view: {}x{} rendered, upscaled to {width}x{height}",
         render_size.0, render_size.1
@@ -320,11 +381,12 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     let bar = super::progress::bar(u64::from(options.frames), "frames");
     for frame in 0..options.frames {
         bar.inc(1);
-        let seconds = frame as f64 * step;
-        if let Some(mut transform) = engine.world.get_mut::<Transform>(view.0) {
-            *transform = camera_path(&view.1, seconds);
+        if let Some((view, start)) = &flight
+            && let Some(mut transform) = engine.world.get_mut::<Transform>(*view)
+        {
+            *transform = camera_path(start, frame as f64 * step);
         }
-        engine.prepare(step);
+        engine.prepare(frame_seconds);
         let camera = engine.view_camera(width, height);
         settings.frame = frame;
         let started = Instant::now();
@@ -389,7 +451,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         );
         let resized_image = resized_render.resized(width, height);
 
-        let covered = mover_mask(guides, &mover_instances);
+        let covered = mover_mask(guides, mover.as_ref().map_or(&[], |(_, m)| m.as_slice()));
         let trail: Vec<bool> = (0..covered.len())
             .map(|i| !covered[i] && trail_masks.iter().any(|mask| mask[i]))
             .collect();
@@ -417,7 +479,9 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
         let compared = images.map(|image| errors(image, &reference, &trail));
         // The mover's own lamp (a warden carries one): the first lit punctual light under
         // it, looked up each time as the light set may have been renumbered.
-        let pools = match lamps_under(&engine, mover).first().copied() {
+        let lamp =
+            (mover.as_ref()).and_then(|(mover, _)| lamps_under(&engine, *mover).first().copied());
+        let pools = match lamp {
             Some(lamp) => {
                 let unlit = render_without(&mut engine, lamp, &camera, &reference_settings)?;
                 let in_pool = pool_mask(&reference, &unlit);
@@ -521,6 +585,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             listed(kept, 2),
             listed(display, 4)
         ),
+        None if mover.is_none() => println!("moving lamp's pool: no mover in the player's view"),
         None => println!("moving lamp's pool: {mover_name:?} carries no lamp"),
     }
 
@@ -538,6 +603,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
             |e: &Errors| json!({"display": e.display, "linear": e.linear, "trail": e.trail});
         let report = json!({
             "level": level.display().to_string(),
+            "view": options.view.name(),
             "width": width, "height": height, "frames": options.frames,
             "render_scale": render_scale,
             "player_render_size": [render_size.0, render_size.1],

@@ -120,9 +120,9 @@ impl View {
 
 /// The inputs of a play-through, step by step, and where they came from (the report's
 /// `replay`: the recording's path, or `autoplay`).
-struct PlayThrough {
-    steps: Vec<StepInput>,
-    source: String,
+pub(super) struct PlayThrough {
+    pub(super) steps: Vec<StepInput>,
+    pub(super) source: String,
 }
 
 /// Seconds of play the bot is given when a level has no won recording.
@@ -130,7 +130,7 @@ const BOT_SECONDS: f64 = 300.0;
 
 /// A play-through of `level`: `--replay`'s recording, else the won recording shipped
 /// beside the levels (`<levels>/../tests/recordings/<level>-won.json`), else the bot's run.
-fn play_through(
+pub(super) fn play_through(
     level: &Path,
     scene: &Scene,
     replay: Option<(Recording, &Path)>,
