@@ -17,8 +17,10 @@ use glam::{Vec2, Vec3, Vec3A};
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
-use obvhs::bvh2::builder::build_bvh2;
+use obvhs::bvh2::leaf_collapser::collapse;
 use obvhs::bvh2::node::Bvh2Node;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
+use obvhs::ploc::PlocBuilder;
 use obvhs::ray::{Ray as ObvhsRay, RayHit};
 use obvhs::rt_triangle::RtTriangle;
 use rayon::prelude::*;
@@ -180,7 +182,7 @@ impl Blas {
         let mut bvh = if triangles.is_empty() {
             Bvh2::default()
         } else {
-            build_bvh2(&triangles, params, &mut Default::default())
+            build_bvh2(&triangles, &params)
         };
         if kind == BlasKind::Deforming {
             // Parents before children: `refit_all` then takes its single-sweep path (obvhs
@@ -633,6 +635,60 @@ fn subtree_ranges(nodes: &[Bvh2Node], wanted: usize) -> Vec<std::ops::Range<usiz
     ranges
 }
 
+/// obvhs's BVH2 build, its steps as its `build_bvh2` takes them (PLOC, reinsertion, leaf
+/// collapse, reinsertion again; Meister & Bittner 2018), with the traversal stack sized for
+/// the tree built. Rule: obvhs's traversals size their stacks by `Bvh2::max_depth` (96
+/// levels unless told), and a full stack overwrites its top, dropping a subtree; a
+/// pathological mesh (thousands of coincident triangles in a fuzzed file built 106 levels)
+/// goes deeper, so `max_depth` is set from the tree. (obvhs's own helper asserts the depth
+/// instead, in builds with debug assertions: a panic on a bad file.)
+fn build_bvh2(triangles: &[RtTriangle], params: &BvhBuildParams) -> Bvh2 {
+    let mut bvh = PlocBuilder::with_capacity(triangles.len()).build(
+        params.ploc_search_distance,
+        triangles,
+        (0..triangles.len() as u32).collect(),
+        params.sort_precision,
+        params.search_depth_threshold,
+    );
+    let mut reinsertion = ReinsertionOptimizer::default();
+    reinsertion.run(&mut bvh, params.reinsertion_batch_ratio, None);
+    collapse(
+        &mut bvh,
+        params.max_prims_per_leaf.clamp(1, 255),
+        params.collapse_traversal_cost,
+    );
+    reinsertion.run(
+        &mut bvh,
+        params.reinsertion_batch_ratio * params.post_collapse_reinsertion_batch_ratio_multiplier,
+        None,
+    );
+    bvh.max_depth = bvh.max_depth.max(tree_depth(&bvh) + 1);
+    bvh
+}
+
+/// Levels from the root to the deepest leaf (1 for a lone leaf), walked without recursion:
+/// a degenerate tree can be as deep as it has primitives.
+fn tree_depth(bvh: &Bvh2) -> usize {
+    let Some(root) = bvh.nodes.first() else {
+        return 0;
+    };
+    let mut deepest = 0;
+    let mut pending = vec![(root, 1)];
+    while let Some((node, depth)) = pending.pop() {
+        deepest = deepest.max(depth);
+        if !node.is_leaf() {
+            let first = node.first_index as usize;
+            pending.extend(
+                [first, first + 1]
+                    .iter()
+                    .filter_map(|&child| bvh.nodes.get(child))
+                    .map(|child| (child, depth + 1)),
+            );
+        }
+    }
+    deepest
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -679,6 +735,37 @@ mod tests {
             let first = n.first_index as usize;
             expected_box(blas, first).union(&expected_box(blas, first + 1))
         }
+    }
+
+    /// Triangles nested like a telescope (each 1.25 times the one before, centred on the
+    /// axis and farther off) build a tree deeper than obvhs's default 96-level traversal
+    /// stack (136 levels): the stack is sized for the tree built (`build_bvh2`'s rule; a
+    /// fuzzed file broke it by two levels, here the build's own reinsertion keeps it), and
+    /// a ray down the axis still finds the smallest, nearest triangle, at the bottom of the
+    /// tree, through obvhs's BVH2 walk.
+    #[test]
+    fn a_tree_deeper_than_the_default_stack_is_walked_whole() {
+        let mut geometry = MeshGeometry::default();
+        for i in 0..300 {
+            let size = 1.25f32.powi(i);
+            let z = -size;
+            let base = geometry.positions.len() as u32;
+            geometry.positions.extend([
+                Vec3::new(-size, -size, z),
+                Vec3::new(size, -size, z),
+                Vec3::new(0.0, size, z),
+            ]);
+            geometry.triangles.push([base, base + 1, base + 2]);
+        }
+        geometry.materials = vec![0; geometry.triangles.len()];
+        let mut blas = Blas::build(geometry, BlasKind::Static);
+        let depth = tree_depth(&blas.bvh);
+        assert!(depth > 96, "the tree is {depth} levels deep");
+        assert!(blas.bvh.max_depth > depth, "{} levels", blas.bvh.max_depth);
+        blas.set_traversal(Traversal::Bvh2);
+        let ray = ObvhsRay::new_inf(Vec3A::ZERO, Vec3A::NEG_Z);
+        let (t, triangle, _) = blas.intersect(&ray, &crate::accel::Opaque).unwrap();
+        assert_eq!((t, triangle), (1.0, 0));
     }
 
     #[test]
