@@ -119,7 +119,11 @@
 //!
 //! # `gloam flythrough`: image quality of the real-time film
 //!
-//! What [`flythrough`] compares, and how. `--json FILE` has every figure: `level`, `width`,
+//! What [`flythrough`] compares, and how: along the level's camera path with a warden
+//! patrolling across it (`--view camera`, the default), or through the player's eyes in a
+//! play-through of the level, as `bench` plays it (`--view player`, from `--from` seconds
+//! in, two steps a frame; no mover, so the trail figures are NaN and `moving_lamp_pool`
+//! null). `--json FILE` has every figure: `level`, `view`, `width`,
 //! `height`, `frames`, `render_scale`, `player_render_size`, `reference_spp`, the median
 //! RMSE of each image (`median_rmse_display`, `median_rmse_linear`, `median_trail_rmse`),
 //! `ratio_full_to_raw`, `ratio_temporal_to_raw`, `ratio_player_to_full`,
