@@ -8,11 +8,13 @@
 //! the player's eyes (`--view player`): the level's won recording plays (or the bot's run,
 //! as `bench` finds it), from `--from` seconds in, `PLAYER_FRAME_STEPS` steps a frame as at
 //! the game's 30 fps target; the wardens keep their own beats, so no mover is added and the
-//! trail and pool figures are left out (NaN, null in the JSON) unless one walks through. That same frame goes through three film steps: raw, temporal
-//! only, and temporal + spatial (each with its own history). Beside them, what the player
-//! sees: a second frame rendered at `--render-scale` of the resolution, filtered
-//! (temporal + spatial) and upscaled to it (`film::upscale`), as the game shows it. Every `--every` frames after
-//! the warm-up, a converged reference of the same instant (`--reference-spp`, another seed)
+//! trail and pool figures are left out (NaN, null in the JSON).
+//!
+//! That same frame goes through three film steps: raw, temporal only, and temporal +
+//! spatial (each with its own history). Beside them, what the player sees: a second frame
+//! rendered at `--render-scale` of the resolution, filtered (temporal + spatial) and
+//! upscaled to it (`film::upscale`), as the game shows it. Every `--every` frames after the
+//! warm-up, a converged reference of the same instant (`--reference-spp`, another seed)
 //! is rendered and each result's RMSE against it printed, on display values (tone mapped,
 //! sRGB-encoded, in [0, 1]: the error a player sees; linear radiance would be dominated by
 //! the lamps) and on linear radiance. Ghosting is the RMSE over the warden's trail: pixels
