@@ -638,10 +638,11 @@ fn subtree_ranges(nodes: &[Bvh2Node], wanted: usize) -> Vec<std::ops::Range<usiz
 /// obvhs's BVH2 build, its steps as its `build_bvh2` takes them (PLOC, reinsertion, leaf
 /// collapse, reinsertion again; Meister & Bittner 2018), with the traversal stack sized for
 /// the tree built. Rule: obvhs's traversals size their stacks by `Bvh2::max_depth` (96
-/// levels unless told), and a full stack overwrites its top, dropping a subtree; a
-/// pathological mesh (thousands of coincident triangles in a fuzzed file built 106 levels)
-/// goes deeper, so `max_depth` is set from the tree. (obvhs's own helper asserts the depth
-/// instead, in builds with debug assertions: a panic on a bad file.)
+/// levels unless told, and what its reinsertion finds while it runs), and a full stack
+/// overwrites its top, dropping a subtree; a fuzzed GLB's mesh came out 106 levels deep
+/// against the 104 obvhs had set, so `max_depth` is set from the tree built. (obvhs's own
+/// helper asserts the depth instead, in builds with debug assertions: a panic on a bad
+/// file.)
 fn build_bvh2(triangles: &[RtTriangle], params: &BvhBuildParams) -> Bvh2 {
     let mut bvh = PlocBuilder::with_capacity(triangles.len()).build(
         params.ploc_search_distance,
@@ -741,8 +742,8 @@ mod tests {
     /// axis and farther off) build a tree deeper than obvhs's default 96-level traversal
     /// stack (136 levels): the stack is sized for the tree built (`build_bvh2`'s rule; a
     /// fuzzed file broke it by two levels, here the build's own reinsertion keeps it), and
-    /// a ray down the axis still finds the smallest, nearest triangle, at the bottom of the
-    /// tree, through obvhs's BVH2 walk.
+    /// a ray down the axis still finds the smallest, nearest triangle through obvhs's BVH2
+    /// walk.
     #[test]
     fn a_tree_deeper_than_the_default_stack_is_walked_whole() {
         let mut geometry = MeshGeometry::default();
