@@ -37,7 +37,7 @@ use serde_json::json;
 
 use super::frames::{View, camera_path, play_through};
 use crate::film::denoise::{FilterMode, FrameFilter};
-use crate::film::upscale::{UpscaleSettings, Upscaler, render_scale_for};
+use crate::film::upscale::{UpscaleSettings, Upscaler, render_scale_for, scaled_size};
 use crate::frame::Engine;
 use crate::game::{Patrol, Transform, ViewCamera, spawn_player};
 use crate::render::hdr::display_value;
@@ -330,10 +330,7 @@ pub fn run(options: &Options) -> anyhow::Result<()> {
     if let Some(max_history) = options.max_history {
         upscaler.settings.max_history = max_history;
     }
-    let render_size = (
-        ((width as f32 * render_scale).round() as u32).max(1),
-        ((height as f32 * render_scale).round() as u32).max(1),
-    );
+    let render_size = scaled_size(width, height, render_scale);
     for filter in [&mut temporal, &mut full] {
         if let Some(alpha) = options.alpha_min {
             filter.temporal.settings.alpha_min = alpha;
