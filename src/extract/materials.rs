@@ -13,7 +13,7 @@ use glam::Vec3;
 use crate::render::material::{RenderMaterial, Texture, TextureSlot};
 use crate::scene::AssetKey;
 use crate::scene::level::MaterialOverride;
-use crate::scene::model::{Asset, ColorEncoding, Material, TextureRef};
+use crate::scene::model::{Asset, ColorEncoding, Filter, Material, TextureRef, Wrap};
 
 /// The materials and textures the render scene reads, as extract grows and rebuilds them.
 #[derive(Default)]
@@ -89,13 +89,8 @@ impl MaterialTable {
         let texture = *self.texture_index.entry(key).or_insert_with(|| {
             let gltf_texture = &asset.textures[reference.texture];
             let sampler = gltf_texture.sampler;
-            textures.push(Texture::from_image(
-                &asset.images[gltf_texture.image],
-                reference.encoding,
-                sampler.wrap_u,
-                sampler.wrap_v,
-                sampler.magnify,
-            ));
+            let decoded = decoded_image(asset, gltf_texture.image, reference.encoding);
+            textures.push(decoded.with_sampler(sampler.wrap_u, sampler.wrap_v, sampler.magnify));
             textures.len() as u32 - 1
         });
         Some(TextureSlot {
@@ -123,5 +118,102 @@ impl MaterialTable {
         };
         made.paired_tap = made.pairs_taps(&self.textures);
         made
+    }
+}
+
+/// Image `image` of `asset` decoded to linear texels with its mip pyramid, once per process
+/// while the asset lives: every engine made over the same loaded assets (a level started
+/// again, each replay a test or the fuzzer runs, the editor's play-tests) shares the
+/// pyramids rather than decoding every image anew, which was over half the time of making
+/// one (`perf`, a replay of first-light's first 120 steps). The cache holds a `Weak` to
+/// each asset, which keeps its address from being reused, so an entry found by address
+/// is that asset's; entries of assets that are gone are dropped as others are added.
+fn decoded_image(asset: &Arc<Asset>, image: usize, encoding: ColorEncoding) -> Texture {
+    use std::sync::{LazyLock, Mutex, Weak};
+    type Key = (usize, usize, bool);
+    static DECODED: LazyLock<Mutex<HashMap<Key, (Weak<Asset>, Texture)>>> =
+        LazyLock::new(Default::default);
+    let key = (
+        Arc::as_ptr(asset) as usize,
+        image,
+        encoding == ColorEncoding::Srgb,
+    );
+    // A poisoned lock (a panic elsewhere while it was held) still holds whole entries.
+    let lock = || {
+        DECODED
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    };
+    if let Some((_, texture)) = lock().get(&key) {
+        return texture.clone();
+    }
+    // Decoded outside the lock: engines on other threads go on meanwhile.
+    let texture = Texture::from_image(
+        &asset.images[image],
+        encoding,
+        Wrap::Repeat,
+        Wrap::Repeat,
+        Filter::Linear,
+    );
+    let mut decoded = lock();
+    decoded.retain(|_, (owner, _)| owner.strong_count() > 0);
+    decoded.insert(key, (Arc::downgrade(asset), texture.clone()));
+    texture
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{Affine2, Vec2, Vec4};
+
+    use super::*;
+    use crate::render::material::FINEST;
+    use crate::scene::model::{Image, Sampler, Texture as GltfTexture};
+
+    /// An asset of one material whose base colour is a 2 x 2 image of `grey`.
+    fn asset_of_grey(grey: u8) -> Arc<Asset> {
+        let mut asset = Asset::default();
+        asset.images.push(Image {
+            name: String::new(),
+            width: 2,
+            height: 2,
+            rgba8: vec![[grey, grey, grey, 255]; 4],
+        });
+        asset.textures.push(GltfTexture {
+            image: 0,
+            sampler: Sampler::default(),
+        });
+        asset.materials.push(Material {
+            base_color_texture: Some(TextureRef {
+                texture: 0,
+                uv_set: 0,
+                encoding: ColorEncoding::Srgb,
+                uv_transform: Affine2::IDENTITY,
+            }),
+            ..Material::default()
+        });
+        Arc::new(asset)
+    }
+
+    /// Two tables (two engines) over one loaded asset read one decoded pyramid; a new asset
+    /// after the first is gone is decoded from its own image.
+    #[test]
+    fn tables_over_one_asset_share_its_decoded_images() {
+        let white = asset_of_grey(255);
+        let (mut first, mut second) = (MaterialTable::new(), MaterialTable::new());
+        first.offset(&white);
+        second.offset(&white);
+        assert!(first.textures[0].shares_pyramid_with(&second.textures[0]));
+        assert_eq!(
+            first.textures[0].sample(Vec2::splat(0.5), FINEST),
+            Vec4::ONE
+        );
+        drop((first, second, white));
+        let black = asset_of_grey(0);
+        let mut third = MaterialTable::new();
+        third.offset(&black);
+        assert_eq!(
+            third.textures[0].sample(Vec2::splat(0.5), FINEST),
+            Vec4::new(0.0, 0.0, 0.0, 1.0)
+        );
     }
 }

@@ -6,6 +6,8 @@
 //! material's ior. In-between values are a mixture of those lobes; one lobe is chosen per
 //! hit with probability equal to its weight, which is an unbiased estimate of the mixture.
 
+use std::sync::Arc;
+
 use glam::{Affine2, Vec2, Vec3, Vec4};
 
 use super::bsdf::Bsdf;
@@ -17,8 +19,9 @@ use crate::scene::model::{AlphaMode, ColorEncoding, Filter, Image, Wrap};
 #[derive(Clone, Debug)]
 pub struct Texture {
     /// Level 0 (the image itself) first, then each level half the one before (rounded
-    /// down, at least one texel), down to 1 x 1.
-    levels: Vec<MipLevel>,
+    /// down, at least one texel), down to 1 x 1. Shared by the textures that read one
+    /// image with other samplers (`with_sampler`).
+    levels: Arc<[MipLevel]>,
     wrap_u: Wrap,
     wrap_v: Wrap,
     filter: Filter,
@@ -137,19 +140,39 @@ impl Texture {
             levels.push(above.halved());
         }
         let log2_size = 0.5 * ((width as f32) * (height as f32)).log2();
-        const SHORT_ROAD_SIDE: u32 = 1 << 23;
         Texture {
-            repeats: complete
-                && (wrap_u, wrap_v) == (Wrap::Repeat, Wrap::Repeat)
-                && filter == Filter::Linear
-                && width < SHORT_ROAD_SIDE
-                && height < SHORT_ROAD_SIDE,
-            levels,
+            levels: levels.into(),
             wrap_u,
             wrap_v,
             filter,
             log2_size,
+            repeats: false,
         }
+        .with_sampler(wrap_u, wrap_v, filter)
+    }
+
+    /// The same texels and pyramid (shared, not copied), read with another sampler.
+    pub fn with_sampler(&self, wrap_u: Wrap, wrap_v: Wrap, filter: Filter) -> Texture {
+        const SHORT_ROAD_SIDE: u32 = 1 << 23;
+        let (width, height) = self.size();
+        Texture {
+            repeats: !self.levels[0].texels.is_empty()
+                && (wrap_u, wrap_v) == (Wrap::Repeat, Wrap::Repeat)
+                && filter == Filter::Linear
+                && width < SHORT_ROAD_SIDE
+                && height < SHORT_ROAD_SIDE,
+            levels: Arc::clone(&self.levels),
+            wrap_u,
+            wrap_v,
+            filter,
+            log2_size: self.log2_size,
+        }
+    }
+
+    /// Whether `other` reads this texture's very texels (one decoded image, two samplers or
+    /// two engines).
+    pub fn shares_pyramid_with(&self, other: &Texture) -> bool {
+        Arc::ptr_eq(&self.levels, &other.levels)
     }
 
     /// Level 0's size in texels.
