@@ -1511,6 +1511,19 @@ mod tests {
         ray.origin + ray.direction * (5.0 / -ray.direction.z)
     }
 
+    /// Render pixel (x, y)'s sample in frame `frame`: a point of the pixel from a small
+    /// hash of the three.
+    fn jittered(x: u32, y: u32, frame: u32) -> Vec2 {
+        let hash = |salt: u32| {
+            let mut h = (x * 73_856_093) ^ (y * 19_349_663) ^ (frame * 83_492_791) ^ salt;
+            h ^= h >> 13;
+            h = h.wrapping_mul(0x5bd1_e995);
+            h ^= h >> 15;
+            (h & 0xffff) as f32 / 65_536.0
+        };
+        Vec2::new(x as f32 + hash(1), y as f32 + hash(2))
+    }
+
     /// One frame rendered at `RENDER`, each pixel's sample jittered (a small hash of the
     /// frame and pixel), as the renderer's guides and remodulated image give it.
     fn frame(camera: &Camera, frame: u32) -> (HdrImage, Guides) {
@@ -1520,15 +1533,7 @@ mod tests {
         );
         for y in 0..RENDER.1 {
             for x in 0..RENDER.0 {
-                let hash = |salt: u32| {
-                    let mut h = (x * 73_856_093) ^ (y * 19_349_663) ^ (frame * 83_492_791) ^ salt;
-                    h ^= h >> 13;
-                    h = h.wrapping_mul(0x5bd1_e995);
-                    h ^= h >> 15;
-                    (h & 0xffff) as f32 / 65_536.0
-                };
-                let film_point = Vec2::new(x as f32 + hash(1), y as f32 + hash(2));
-                let position = on_wall(camera, film_point);
+                let position = on_wall(camera, jittered(x, y, frame));
                 let index = (y * RENDER.0 + x) as usize;
                 film.pixels[index] = stripes(position);
                 let pixel = GuidePixel {
@@ -1719,6 +1724,26 @@ mod tests {
         }
     }
 
+    /// Render pixel `index` of a frame: a grey of `shade` on `instance` at `position`,
+    /// facing the camera.
+    fn paint_grey(
+        (film, guides): (&mut HdrImage, &mut Guides),
+        index: usize,
+        camera: &Camera,
+        (position, instance, shade): (Vec3A, u32, f32),
+    ) {
+        film.pixels[index] = Vec3::splat(shade);
+        let pixel = GuidePixel {
+            position,
+            normal: Vec3A::Z,
+            depth: (position - camera.position).length(),
+            instance,
+            albedo: Vec3::splat(shade),
+            unfiltered: Vec3::ZERO,
+        };
+        guides.set(index, &pixel);
+    }
+
     /// Dark bars 0.8 shown pixels (0.4 render pixels) wide, a metre in front of the light
     /// wall (instance 1 before instance 0), centred on shown columns 7, 15 and
     /// 23 when the camera is at x = 0: one frame rendered as `frame` renders the wall.
@@ -1732,17 +1757,7 @@ mod tests {
         );
         for y in 0..RENDER.1 {
             for x in 0..RENDER.0 {
-                let hash = |salt: u32| {
-                    let mut h = (x * 73_856_093) ^ (y * 19_349_663) ^ (frame * 83_492_791) ^ salt;
-                    h ^= h >> 13;
-                    h = h.wrapping_mul(0x5bd1_e995);
-                    h ^= h >> 15;
-                    (h & 0xffff) as f32 / 65_536.0
-                };
-                let ray = camera.ray(
-                    Vec2::new(x as f32 + hash(1), y as f32 + hash(2)),
-                    Vec2::ZERO,
-                );
+                let ray = camera.ray(jittered(x, y, frame), Vec2::ZERO);
                 let on_bars =
                     ray.origin + ray.direction * ((BARS_Z - ray.origin.z) / ray.direction.z);
                 let bar = [7.0f32, 15.0, 23.0]
@@ -1751,24 +1766,14 @@ mod tests {
                 let (position, instance, shade) = if bar {
                     (on_bars, 1, 0.05)
                 } else {
-                    (
-                        on_wall(camera, Vec2::new(x as f32 + hash(1), y as f32 + hash(2))),
-                        0,
-                        0.8,
-                    )
+                    (on_wall(camera, jittered(x, y, frame)), 0, 0.8)
                 };
                 let index = (y * RENDER.0 + x) as usize;
-                film.pixels[index] = Vec3::splat(shade);
-                guides.set(
+                paint_grey(
+                    (&mut film, &mut guides),
                     index,
-                    &GuidePixel {
-                        position,
-                        normal: Vec3A::Z,
-                        depth: (position - camera.position).length(),
-                        instance,
-                        albedo: Vec3::splat(shade),
-                        unfiltered: Vec3::ZERO,
-                    },
+                    camera,
+                    (position, instance, shade),
                 );
             }
         }
@@ -1846,17 +1851,11 @@ mod tests {
                 let ray = camera.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), Vec2::ZERO);
                 let position = ray.origin + ray.direction * (3.0 / -ray.direction.z);
                 let index = (y * RENDER.0 + x) as usize;
-                image.pixels[index] = Vec3::splat(0.5);
-                guides.set(
+                paint_grey(
+                    (&mut image, &mut guides),
                     index,
-                    &GuidePixel {
-                        position,
-                        normal: Vec3A::Z,
-                        depth: (position - camera.position).length(),
-                        instance: 2,
-                        albedo: Vec3::splat(0.5),
-                        unfiltered: Vec3::ZERO,
-                    },
+                    &camera,
+                    (position, 2, 0.5),
                 );
             }
         }
