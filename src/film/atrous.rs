@@ -27,6 +27,7 @@ use crate::render::guides::{
 use crate::render::planes::{
     BAND_ROWS, BLUE, GREEN, PlaneRows, RED, SIGNAL_PLANES, SharedRuns, SignalPlanes, VARIANCE,
 };
+use crate::scene::model::luminance;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct AtrousSettings {
@@ -116,19 +117,13 @@ const TAPS: [(isize, isize, f32, bool); 8] = [
     (1, 1, 0.0625, true),
 ];
 
-/// Rec.709 luminance of one pixel's three planes.
-#[inline(always)]
-fn luminance(r: f32, g: f32, b: f32) -> f32 {
-    0.2126 * r + 0.7152 * g + 0.0722 * b
-}
-
 /// `out` = the luminance of the rows `red`, `green` and `blue`.
 #[inline(always)]
 fn luminance_row([red, green, blue]: [&[f32]; 3], out: &mut [f32]) {
     let width = out.len();
     let (red, green, blue) = (&red[..width], &green[..width], &blue[..width]);
     for x in 0..width {
-        out[x] = luminance(red[x], green[x], blue[x]);
+        out[x] = luminance(Vec3::new(red[x], green[x], blue[x]));
     }
 }
 

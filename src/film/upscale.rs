@@ -37,6 +37,7 @@ use super::reproject::{LastTransforms, Motion};
 use crate::render::camera::{Camera, Projection};
 use crate::render::guides::{DEPTH, Guides, NO_INSTANCE, POSITION_X, POSITION_Y, POSITION_Z};
 use crate::render::hdr::HdrImage;
+use crate::scene::model::luminance;
 
 /// Render rows per parallel job at half scale (twice as many shown rows), more than the
 /// filters' `BAND_ROWS`: each band scatters the two sample rows above its first again, a
@@ -570,7 +571,13 @@ impl Upscaler {
             // (a sample finds a bar in one of them a frame): each is locked too, at the
             // point as far off through its centre.
             let rows = [y.saturating_sub(1), y, (y + 1).min(render_height - 1)];
-            let [runs_down, runs_across] = feature_runs(rows.map(|r| guides.row(r, DEPTH)), x);
+            // Its neighbours left and right are behind it: it runs down; above and below:
+            // across.
+            let [runs_down, runs_across, ..] = in_front_across(
+                rows.map(|r| guides.row(r, DEPTH)),
+                1.0 / (1.0 - IN_FRONT),
+                x,
+            );
             let (first, end) = (
                 (Vec2::new(x as f32, y as f32) * to_shown).as_uvec2(),
                 (Vec2::new(x as f32 + 1.0, y as f32 + 1.0) * to_shown)
@@ -579,13 +586,14 @@ impl Upscaler {
                     .min(glam::UVec2::new(self.width, self.height)),
             );
             let (px, py) = ((pixel % width) as u32, (pixel / width) as u32);
-            let along: Vec<(u32, u32)> = match (runs_down, runs_across) {
-                (true, false) => (first.y..end.y).map(|sy| (px, sy)).collect(),
-                (false, true) => (first.x..end.x).map(|sx| (sx, py)).collect(),
-                _ => Vec::new(),
+            let (down, across) = match (runs_down, runs_across) {
+                (true, false) => (first.y..end.y, 0..0),
+                (false, true) => (0..0, first.x..end.x),
+                _ => (0..0, 0..0),
             };
+            let along = down.map(|sy| (px, sy)).chain(across.map(|sx| (sx, py)));
             let distance = (point - shown.position).length();
-            for (sx, sy) in along.into_iter().filter(|&at| at != (px, py)) {
+            for (sx, sy) in along.filter(|&at| at != (px, py)) {
                 let centre = Vec2::new(sx as f32 + 0.5, sy as f32 + 0.5);
                 let [dx, dy, dz] = shown.pinhole_direction_lanes(centre);
                 let lock = Lock {
@@ -658,47 +666,52 @@ impl Upscaler {
 fn stands_in_front_across([above, here, below]: [&[f32]; 3], across: &mut [bool]) {
     let width = here.len();
     let farther = 1.0 / (1.0 - IN_FRONT);
-    // `&` and `|`, not their short-circuits, and no call: no branches, so the loop over
-    // the row's inside runs in lanes.
-    #[inline(always)]
-    fn test(rows: [&[f32]; 3], farther: f32, (x, left, right): (usize, usize, usize)) -> bool {
-        let [above, here, below] = rows;
-        let far = here[x] * farther;
-        (here[left] > far) & (here[right] > far)
-            | (above[x] > far) & (below[x] > far)
-            | (above[left] > far) & (below[right] > far)
-            | (above[right] > far) & (below[left] > far)
-    }
     let rows = [above, here, below];
-    let edge = |x: usize| (x, x.saturating_sub(1), (x + 1).min(width - 1));
+    let any = |[a, b, c, d]: [bool; 4]| a | b | c | d;
     if width < 3 {
         for (x, across) in across.iter_mut().enumerate() {
-            *across = test(rows, farther, edge(x));
+            *across = any(in_front_across(rows, farther, x));
         }
         return;
     }
-    across[0] = test(rows, farther, edge(0));
-    across[width - 1] = test(rows, farther, edge(width - 1));
+    across[0] = any(in_front_across(rows, farther, 0));
+    across[width - 1] = any(in_front_across(rows, farther, width - 1));
     // Cut to one length, so the loop runs without bounds checks.
     let (above, here, below) = (&above[..width], &here[..width], &below[..width]);
     for (x, across) in across[1..width - 1].iter_mut().enumerate() {
         let far = here[x + 1] * farther;
-        *across = (here[x] > far) & (here[x + 2] > far)
-            | (above[x + 1] > far) & (below[x + 1] > far)
-            | (above[x] > far) & (below[x + 2] > far)
-            | (above[x + 2] > far) & (below[x] > far);
+        let [left, right] = [x, x + 2];
+        *across = any(axes_in_front(
+            [above, here, below],
+            far,
+            (x + 1, left, right),
+        ));
     }
 }
 
-/// Which way a thin feature at column `x` of the middle of three render rows (their
-/// `depth`) runs, by the neighbours it stands in front of across it: down (those left and
-/// right of it are farther), across (those above and below).
-fn feature_runs([above, here, below]: [&[f32]; 3], x: usize) -> [bool; 2] {
-    let (left, right) = (x.saturating_sub(1), (x + 1).min(here.len() - 1));
-    let far = here[x] / (1.0 - IN_FRONT);
+/// Across which axes (left and right, above and below, and the two diagonals) the pixel
+/// in column `x` of the middle of three render rows (their `depth`, the film's edge
+/// repeated) stands `farther` times nearer than both neighbours, as a thin feature does.
+#[inline(always)]
+fn in_front_across(rows: [&[f32]; 3], farther: f32, x: usize) -> [bool; 4] {
+    let (left, right) = (x.saturating_sub(1), (x + 1).min(rows[1].len() - 1));
+    axes_in_front(rows, rows[1][x] * farther, (x, left, right))
+}
+
+/// `in_front_across`'s test, given the depth `far` beyond which a neighbour counts as
+/// behind. `&`, not its short-circuit, and no call: no branches, so the loop over a row's
+/// inside runs in lanes.
+#[inline(always)]
+fn axes_in_front(
+    [above, here, below]: [&[f32]; 3],
+    far: f32,
+    (x, left, right): (usize, usize, usize),
+) -> [bool; 4] {
     [
-        here[left] > far && here[right] > far,
-        above[x] > far && below[x] > far,
+        (here[left] > far) & (here[right] > far),
+        (above[x] > far) & (below[x] > far),
+        (above[left] > far) & (below[right] > far),
+        (above[right] > far) & (below[left] > far),
     ]
 }
 
@@ -710,19 +723,15 @@ fn feature_runs([above, here, below]: [&[f32]; 3], x: usize) -> [bool; 2] {
 fn is_thin_feature(samples: [&[Sample]; 3], depth: [&[f32]; 3], x: usize) -> bool {
     let width = samples[1].len();
     let columns = [x.saturating_sub(1), x, (x + 1).min(width - 1)];
-    let luminance: [f32; 9] = std::array::from_fn(|k| {
-        samples[k / 3][columns[k % 3]]
-            .colour
-            .truncate()
-            .dot(LUMINANCE)
-    });
-    let nucleus = luminance[4];
+    let luminances: [f32; 9] =
+        std::array::from_fn(|k| luminance(samples[k / 3][columns[k % 3]].colour.truncate()));
+    let nucleus = luminances[4];
     if !(nucleus > 0.0) {
         return false;
     }
     // Bit k for the 3 x 3's k-th pixel (row by row): alike the nucleus (bit 4 is it).
     let mut alike = 0u16;
-    for (k, &value) in luminance.iter().enumerate() {
+    for (k, &value) in luminances.iter().enumerate() {
         if value.max(nucleus) < ALIKE * value.min(nucleus) {
             alike |= 1 << k;
         }
@@ -741,15 +750,12 @@ fn is_thin_feature(samples: [&[Sample]; 3], depth: [&[f32]; 3], x: usize) -> boo
     let (mut low, mut high) = (f32::INFINITY, f32::NEG_INFINITY);
     let mut nearest_unlike = f32::INFINITY;
     for k in (0..9).filter(|&k| alike & (1 << k) == 0) {
-        low = low.min(luminance[k]);
-        high = high.max(luminance[k]);
+        low = low.min(luminances[k]);
+        high = high.max(luminances[k]);
         nearest_unlike = nearest_unlike.min(depth[k / 3][columns[k % 3]]);
     }
     (nucleus > high || nucleus < low) && depth[1][x] < nearest_unlike * (1.0 - IN_FRONT)
 }
-
-/// Rec. 709 luminance weights.
-const LUMINANCE: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);
 
 /// What step 2 reads.
 struct Blend<'a> {
