@@ -945,9 +945,6 @@ impl TriangleSurface<'_> {
     }
 }
 
-/// Interleaved walkers per stream (accel/stream.rs).
-const WALKERS: usize = 2;
-
 /// Trees at least this large (nodes and blocks) are walked in the stream; smaller ones
 /// mostly hit the caches, so the rays walk them at once.
 const STREAMED_TREE_BYTES: usize = 512 * 1024;
@@ -967,13 +964,13 @@ fn run_jobs<'a>(
         return unsafe { run_jobs_avx2(count, job, occluded) };
     }
     let _ = kernels;
-    occluded_jobs::<Portable, WALKERS>(count, job, occluded);
+    occluded_jobs::<Portable>(count, job, occluded);
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn run_jobs_avx2<'a>(count: usize, job: impl Fn(usize) -> Job<'a>, occluded: &mut [bool]) {
-    occluded_jobs::<super::wide::avx2::Avx2, WALKERS>(count, job, occluded);
+    occluded_jobs::<super::wide::avx2::Avx2>(count, job, occluded);
 }
 
 /// The world box of an object box under an affine transform (Arvo 1990, "Transforming
