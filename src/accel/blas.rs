@@ -195,8 +195,17 @@ impl Blas {
         let mut bvh = if build_triangles.is_empty() {
             Bvh2::default()
         } else {
-            build_bvh2(&build_triangles, build_ids, &params)
+            build_bvh2(&build_triangles, &params)
         };
+        // Rule: obvhs's PLOC makes each leaf's first index its primitive's id, which its
+        // leaf collapse then reads as a place in `primitive_indices`: the two agree only for
+        // ids 0..n. So the tree is built over the kept triangles' places, and their ids are
+        // put in afterwards (ids given to PLOC sent a fuzzed GLB's collapse out of bounds).
+        if build_ids.len() < triangles.len() {
+            for id in &mut bvh.primitive_indices {
+                *id = build_ids[*id as usize];
+            }
+        }
         if kind == BlasKind::Deforming {
             // Parents before children: `refit_all` then takes its single-sweep path (obvhs
             // measures it ~3x faster than the stack-ordered fallback).
@@ -656,11 +665,11 @@ fn subtree_ranges(nodes: &[Bvh2Node], wanted: usize) -> Vec<std::ops::Range<usiz
 /// against the 104 obvhs had set, so `max_depth` is set from the tree built. (obvhs's own
 /// helper asserts the depth instead, in builds with debug assertions: a panic on a bad
 /// file.)
-fn build_bvh2(triangles: &[RtTriangle], ids: Vec<u32>, params: &BvhBuildParams) -> Bvh2 {
+fn build_bvh2(triangles: &[RtTriangle], params: &BvhBuildParams) -> Bvh2 {
     let mut bvh = PlocBuilder::with_capacity(triangles.len()).build(
         params.ploc_search_distance,
         triangles,
-        ids,
+        (0..triangles.len() as u32).collect(),
         params.sort_precision,
         params.search_depth_threshold,
     );
@@ -810,6 +819,48 @@ mod tests {
         let ray = ObvhsRay::new_inf(Vec3A::new(0.0, 0.0, 0.0), Vec3A::NEG_Z);
         let (t, triangle, _) = blas.intersect(&ray, &crate::accel::Opaque).unwrap();
         assert_eq!((t, triangle), (2.0, 0));
+    }
+
+    /// Triangles with no area between real ones: every real triangle stays in the static
+    /// tree under its own id, and a ray down onto its centre finds it, through both the
+    /// BVH2 and the wide tree.
+    #[test]
+    fn triangles_without_area_between_real_ones_leave_every_real_one_found() {
+        let flat = grid(10, |_, _| 0.0);
+        let mut geometry = flat.clone();
+        geometry.triangles.clear();
+        let segment_start = geometry.positions.len() as u32;
+        geometry
+            .positions
+            .extend([Vec3::new(0.05, 0.0, 0.05), Vec3::new(0.05, 0.0, 0.95)]);
+        let mut real = Vec::new();
+        for (i, triangle) in flat.triangles.iter().enumerate() {
+            // A segment along z before each real triangle, and a point after every third.
+            geometry
+                .triangles
+                .push([segment_start, segment_start + 1, segment_start]);
+            real.push(geometry.triangles.len() as u32);
+            geometry.triangles.push(*triangle);
+            if i % 3 == 0 {
+                geometry.triangles.push([triangle[2]; 3]);
+            }
+        }
+        geometry.materials = vec![0; geometry.triangles.len()];
+        let mut blas = Blas::build(geometry, BlasKind::Static);
+        let mut kept = blas.ordered_ids.clone();
+        kept.sort_unstable();
+        assert_eq!(kept, real);
+        for traversal in [Traversal::Bvh2, Traversal::Wide(Kernels::Best)] {
+            blas.set_traversal(traversal);
+            for &id in &real {
+                let [a, b, c] = blas.geometry.triangle_vertices(id as usize);
+                let centre = (a + b + c) / 3.0;
+                let ray = ObvhsRay::new_inf(centre + Vec3A::Y, Vec3A::NEG_Y);
+                let (t, triangle, _) = blas.intersect(&ray, &crate::accel::Opaque).unwrap();
+                assert_eq!(triangle, id, "{traversal:?}");
+                assert!((t - 1.0).abs() < 1e-6, "{traversal:?}: t = {t}");
+            }
+        }
     }
 
     #[test]
