@@ -30,6 +30,9 @@ use super::wide::{LEAF, Lanes, RayLanes, STACK, WIDTH, WideBvh, WideNode, leaf_b
 /// One ray's walk of one BLAS.
 #[derive(Clone, Copy)]
 pub(super) struct Job<'a> {
+    /// Rule: a tree with nodes (callers make no job for an empty one), so a step need not
+    /// ask: asking at every step was 4.5% of a shadow ray's instructions (588 against 562
+    /// a ray, dream-apartment, callgrind).
     pub(super) tree: &'a WideBvh,
     /// The ray in the tree's space.
     pub(super) ray: RayLanes,
@@ -59,6 +62,7 @@ struct Walk<'a> {
 impl<'a> Walk<'a> {
     #[inline(always)]
     fn new(job: Job<'a>) -> Walk<'a> {
+        debug_assert!(!job.tree.nodes.is_empty(), "a job on an empty tree");
         Walk {
             tree: job.tree,
             ray: job.ray,
@@ -176,9 +180,6 @@ fn step<K: Lanes>(
     depth: &mut usize,
     stack: &mut [MaybeUninit<u32>; STACK],
 ) -> Step {
-    if tree.nodes.is_empty() {
-        return Step::Clear;
-    }
     if *current & LEAF == 0 {
         let node = &tree.nodes[*current as usize];
         let (hits, _) = K::node(node, ray, t_max);

@@ -654,6 +654,9 @@ impl AccelScene {
                 return;
             }
             if let (true, Some((tree, _))) = (instance.is_identity, blas.packet_tree()) {
+                if tree.nodes.is_empty() {
+                    return;
+                }
                 let job = |index: usize| Job {
                     tree,
                     ray: world(&rays[index]),
@@ -676,6 +679,7 @@ impl AccelScene {
             let first_job = jobs.len();
             let visit = |slot: usize, _| {
                 let stream = |tree: &'a WideBvh, object: &RayLanes| {
+                    // A tree this large has nodes (`Job::tree`'s rule).
                     let large = tree.bytes() >= STREAMED_TREE_BYTES;
                     if large {
                         let (ray, t_max) = (*object, ray.t_max);
