@@ -780,9 +780,25 @@ impl App {
     }
 }
 
-/// The view's render resolution when none is asked for (`play`, `edit`, play-tests).
-pub const DEFAULT_WIDTH: u32 = 480;
-pub const DEFAULT_HEIGHT: u32 = 270;
+/// The game's resolution shown when none is asked for (`play`, play-tests): the frame
+/// buffer the window scales. The render's own follows from it by the game's rule
+/// (`film::render_scale_for`: 640 x 360 here, upscaled), lowered further by the adaptive
+/// resolution (`resolution`) to hold the frame-time target.
+pub const DEFAULT_WIDTH: u32 = 1280;
+pub const DEFAULT_HEIGHT: u32 = 720;
+
+/// The editor's view, rendered at this size when none is asked for (`edit`): its image
+/// converges while nothing moves, so it is not upscaled.
+pub const EDITOR_WIDTH: u32 = 480;
+pub const EDITOR_HEIGHT: u32 = 270;
+
+/// The window's size for a frame buffer of `width` x `height`: doubled when narrower than
+/// 960 pixels (a 480 x 270 buffer in a 960 x 540 window), else the buffer's own (1280 x
+/// 720).
+fn window_size(width: u32, height: u32) -> LogicalSize<u32> {
+    let scale = if width < 960 { 2 } else { 1 };
+    LogicalSize::new(width * scale, height * scale)
+}
 
 /// Opens a window of `size` titled `title`, with a pixels surface over it holding a
 /// `buffer` (width, height) frame buffer.
@@ -836,7 +852,7 @@ impl ApplicationHandler for App {
             Some(game) => format!("Gloam - {}", game.level.display()),
             None => "Gloam".to_string(),
         };
-        let size = LogicalSize::new(width * 2, height * 2);
+        let size = window_size(width, height);
         match open_window(event_loop, title, size, (width, height), self.vsync) {
             Ok((window, pixels)) => {
                 if self.context.settings.fullscreen {

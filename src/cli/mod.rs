@@ -43,10 +43,12 @@ pub enum Command {
     Play {
         /// The level to play; the menu opens when omitted.
         level: Option<PathBuf>,
-        /// Internal render width, in pixels; the window scales it.
+        /// The width shown, in pixels (the frame buffer the window scales). The render's
+        /// is lower past 640 x 360's pixels and upscaled, and lowered further to hold the
+        /// frame-time target.
         #[arg(long, default_value_t = crate::app::DEFAULT_WIDTH, value_parser = crate::headless::values::count())]
         width: u32,
-        /// Internal render height, in pixels.
+        /// The height shown, in pixels.
         #[arg(long, default_value_t = crate::app::DEFAULT_HEIGHT, value_parser = crate::headless::values::count())]
         height: u32,
         /// Render this many frames, then keep showing the image and print `ready`.
@@ -109,10 +111,10 @@ pub enum Command {
         /// The level file to edit.
         level: PathBuf,
         /// The view's render width, in pixels.
-        #[arg(long, default_value_t = crate::app::DEFAULT_WIDTH, value_parser = crate::headless::values::count())]
+        #[arg(long, default_value_t = crate::app::EDITOR_WIDTH, value_parser = crate::headless::values::count())]
         width: u32,
         /// The render height, in pixels.
-        #[arg(long, default_value_t = crate::app::DEFAULT_HEIGHT, value_parser = crate::headless::values::count())]
+        #[arg(long, default_value_t = crate::app::EDITOR_HEIGHT, value_parser = crate::headless::values::count())]
         height: u32,
         /// Quit after this many frames and print the frame times (idle, converging,
         /// dragging).

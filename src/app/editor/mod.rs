@@ -290,8 +290,8 @@ impl EditOptions {
     pub fn for_level(level: PathBuf) -> EditOptions {
         EditOptions {
             level,
-            width: super::DEFAULT_WIDTH,
-            height: super::DEFAULT_HEIGHT,
+            width: super::EDITOR_WIDTH,
+            height: super::EDITOR_HEIGHT,
             frames: None,
         }
     }
