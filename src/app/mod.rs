@@ -19,7 +19,9 @@
 //!    (`scene::watch`), the level starts again from the files; one that does not load
 //!    leaves the level playing with its `file:line:column: message` on screen until fixed.
 //!
-//! The internal resolution adapts to hold the frame-time target (the setting, or
+//! The configured resolution is 1280 x 720 unless `--width` and `--height` say otherwise
+//! ([`DEFAULT_WIDTH`]); the render's starts at the game's rule for it (640 x 360,
+//! `film::render_scale_for`) and adapts to hold the frame-time target (the setting, or
 //! `--target-ms`), a step at a time down and up a ladder of scales ([`resolution`]). The
 //! first run (no settings file yet) times its first frames at the full resolution and
 //! keeps the frame-time target they choose (`resolution::first_run_target`), and says so
