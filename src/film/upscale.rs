@@ -911,10 +911,7 @@ impl<'a> Blend<'a> {
             catmull_rom_weights(fraction.x),
             catmull_rom_weights(fraction.y),
         );
-        let bounds = match self.bounds.get(under) {
-            Some(&[low, high]) => (low, high),
-            None => self.bounds_at(under_x, row.under as usize),
-        };
+        let bounds = self.bounds_of(under_x, row.under as usize);
         let (first_x, y1) = (left as i32 as usize, top as i32 as usize);
         for (k, (x, (next, shown))) in span.zip(next.iter_mut().zip(shown)).enumerate() {
             let centre = Vec2::new(x as f32 + 0.5, centre_y);
@@ -1355,11 +1352,7 @@ impl<'a> Blend<'a> {
         let under = row.under as usize * self.render_width + column.under as usize;
         let moved = self.samples[under].moved;
         if let Some(last) = self.last_at(centre - moved) {
-            let (x, y) = (column.under as usize, row.under as usize);
-            let bounds = match self.bounds.get(y * self.render_width + x) {
-                Some(&[low, high]) => (low, high),
-                None => self.bounds_at(x, y),
-            };
+            let bounds = self.bounds_of(column.under as usize, row.under as usize);
             self.add_history(last, bounds, &mut sum, &mut weight);
         }
         self.finish(sum, weight, (centre.x as usize, centre.y as usize))
@@ -1406,6 +1399,15 @@ impl<'a> Blend<'a> {
             }
         }
         (sum, weight)
+    }
+
+    /// `bounds_at(x, y)`, from the table when this frame worked it out (`Upscaler::blend`).
+    #[inline(always)]
+    fn bounds_of(&self, x: usize, y: usize) -> (Vec4, Vec4) {
+        match self.bounds.get(y * self.render_width + x) {
+            Some(&[low, high]) => (low, high),
+            None => self.bounds_at(x, y),
+        }
     }
 
     /// The least and greatest colour of the 3 x 3 samples around render pixel (x, y), the

@@ -263,10 +263,15 @@ pub fn display_value(radiance: Vec3, exposure: f32) -> Vec3 {
 /// radiance to linear display values in [0, 1].
 #[inline]
 fn tone_curve(radiance: Vec3, exposure: f32) -> Vec3 {
+    let [a, b, c, d, e] = ACES_FIT;
     let x = (radiance * exposure).max(Vec3::ZERO);
-    let mapped = (x * (x * 2.51 + 0.03)) / (x * (x * 2.43 + 0.59) + 0.14);
+    let mapped = (x * (x * a + b)) / (x * (x * c + d) + e);
     mapped.clamp(Vec3::ZERO, Vec3::ONE)
 }
+
+/// Narkowicz's fit, (x (a x + b)) / (x (c x + d) + e): `tone_curve`'s, and its lanes' in
+/// `DisplayCodes::tone_map_row_avx2`.
+const ACES_FIT: [f32; 5] = [2.51, 0.03, 2.43, 0.59, 0.14];
 
 /// The 8-bit code of a linear display value `linear` in [0, 1] (NaN: 0): the nearest code
 /// to its sRGB encoding, `(srgb_encode(linear) * 255 + 0.5) as u8`, without the `powf`
@@ -357,6 +362,7 @@ impl DisplayCodes {
             _mm256_set1_ps(1.0),
             _mm256_set1_ps(exposure),
         );
+        let [a, b, c, d, e] = ACES_FIT.map(|k| _mm256_set1_ps(k));
         // A group's 24 display values, tone mapped in lanes, coded below.
         let mut values = [0f32; 24];
         for group in 0..groups {
@@ -365,17 +371,9 @@ impl DisplayCodes {
                 let radiance = unsafe { _mm256_loadu_ps(floats.add(24 * group + 8 * k)) };
                 // `tone_curve`: max with the variable first, as f32::max, so NaN gives 0.
                 let x = _mm256_max_ps(_mm256_mul_ps(radiance, exposure), zero);
-                let numerator = _mm256_mul_ps(
-                    x,
-                    _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(2.51)), _mm256_set1_ps(0.03)),
-                );
-                let denominator = _mm256_add_ps(
-                    _mm256_mul_ps(
-                        x,
-                        _mm256_add_ps(_mm256_mul_ps(x, _mm256_set1_ps(2.43)), _mm256_set1_ps(0.59)),
-                    ),
-                    _mm256_set1_ps(0.14),
-                );
+                let numerator = _mm256_mul_ps(x, _mm256_add_ps(_mm256_mul_ps(x, a), b));
+                let denominator =
+                    _mm256_add_ps(_mm256_mul_ps(x, _mm256_add_ps(_mm256_mul_ps(x, c), d)), e);
                 let mapped = _mm256_div_ps(numerator, denominator);
                 let linear = _mm256_min_ps(_mm256_max_ps(mapped, zero), one);
                 // `code`'s 0 where not above 0 (NaN, -0): such a value becomes +0, whose
@@ -409,6 +407,9 @@ impl DisplayCodes {
         // SAFETY: in [+0, 1] a bucket is at most `1f32.to_bits() >> 16`, the table's last;
         // a code is at most 255, the thresholds' last.
         let code = unsafe { *self.bucket_codes.get_unchecked(bucket) };
+        // The bucket's start code, raised past the one threshold its range may hold
+        // (never two: the test walks every bucket). Without a branch: about half the
+        // pixels cross it, and as a loop the mispredictions took half the time.
         let threshold = unsafe { *self.thresholds.get_unchecked(code as usize) };
         code + u8::from(threshold <= linear)
     }
@@ -419,12 +420,7 @@ impl DisplayCodes {
         if !(linear > 0.0) {
             return 0;
         }
-        let linear = linear.min(1.0);
-        let code = self.bucket_codes[(linear.to_bits() >> 16) as usize];
-        // The bucket's start code, raised past the one threshold its range may hold
-        // (never two: the test walks every bucket). Without a branch: about half the
-        // pixels cross it, and as a loop the mispredictions took half the time.
-        code + u8::from(self.thresholds[code as usize] <= linear)
+        self.code_in_range(linear.min(1.0))
     }
 }
 
