@@ -13,7 +13,8 @@
 //!    (`AccelScene::occluded_stream`; a one-entry TLAS makes one job per ray without a
 //!    walk);
 //! 2. two walkers take the jobs in order, each walking its job's wide BLAS as a
-//!    single ray's any-hit walk does (children in any order, the first hit ends it); a job
+//!    single ray's any-hit walk does (children in the order the build chose for occlusion,
+//!    the first hit ends it); a job
 //!    whose ray another job found blocked is skipped.
 //!
 //! Each ray takes exactly the single-ray tests, so it finds what `AccelScene::occluded`
@@ -170,7 +171,8 @@ pub(super) fn occluded_jobs<'a, K: Lanes>(
 }
 
 /// One node or leaf test of an any-hit walk of `tree`: a node's hit children are pushed
-/// bar the highest lane, which is tested next.
+/// bar the highest lane, which is tested next (the child the build judged likeliest to
+/// block the ray for its cost: `WideBvh::order_for_occlusion`).
 #[inline(always)]
 fn step<K: Lanes>(
     tree: &WideBvh,
