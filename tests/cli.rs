@@ -709,3 +709,21 @@ fn every_argument_has_help_and_a_conventional_name() {
     // The commands taking a level or scene today: the walk saw them all.
     assert!(positionals >= 13, "{positionals} positional arguments");
 }
+
+#[test]
+fn edit_new_refuses_a_file_that_exists_in_one_line_before_asking_for_a_window() {
+    let output = Command::new(env!("CARGO_BIN_EXE_gloam"))
+        .args(["edit", "--new", "levels/first-light.ron"])
+        .current_dir(common::repo())
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("run gloam");
+    let stderr = text(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("levels/first-light.ron already exists"),
+        "{stderr}"
+    );
+}

@@ -494,3 +494,61 @@ fn the_play_check_plays_the_level_as_edited_and_knows_when_it_is_out_of_date() {
     assert!(check.checked().is_none());
     assert!(check.status(&broken).0.starts_with("could not play: "));
 }
+
+/// `gloam edit --new` and File > New: the template is a level that loads, is unsaved until
+/// the first save writes it where asked (its assets named relative to it), passes the same
+/// load `gloam check` makes, and is won by the bot; an existing file or a missing folder is
+/// refused, naming the path.
+#[test]
+fn a_new_level_starts_from_a_template_the_bot_wins_and_saves_where_it_was_asked() {
+    use gloam::edit::template::new_scene;
+    use gloam::headless::autoplay::{RunOutcome, autoplay};
+
+    let dir = common::scratch_dir("new-level");
+    let path = dir.join("cellar-2.ron");
+    let scene = new_scene(&path).expect("a template for a new file");
+    assert!(!path.exists(), "nothing is written before the first save");
+    assert_eq!(scene.level.name, "Cellar 2");
+    let kinds =
+        |has: fn(&EntityDef) -> bool| scene.level.entities.iter().filter(|e| has(e)).count();
+    assert_eq!(kinds(|e| e.player_spawn.is_some()), 1);
+    assert_eq!(kinds(|e| e.exit.is_some()), 1);
+    assert_eq!(kinds(|e| e.light.is_some()), 1);
+    assert!(
+        kinds(|e| e.instance.is_some()) >= 4 + 8,
+        "floor tiles and walls"
+    );
+
+    let mut engine = Engine::new(&scene, RenderSettings::real_time(32, 18));
+    let mut editor = Editor::unsaved();
+    assert!(editor.is_dirty(), "a new level is unsaved until saved");
+    let text = saved_text(&mut editor, &mut engine, &path);
+    assert!(!editor.is_dirty());
+    assert!(text.contains("kit/wall.glb\""), "{text}");
+    assert!(
+        !text.contains(&format!("\"{}", common::repo().display())),
+        "assets are named relative to the level: {text}"
+    );
+    let loaded = Scene::load(&path).expect("the saved template loads as `gloam check` loads it");
+    assert_eq!(loaded.level, scene.level);
+
+    let run = autoplay(&loaded, 60.0).expect("the bot plays it");
+    assert_eq!(run.outcome, RunOutcome::Won, "{}", run.why);
+    assert_eq!(run.times_seen, 0);
+
+    let refused = new_scene(&path)
+        .expect_err("the file exists now")
+        .to_string();
+    assert!(
+        refused.contains("cellar-2.ron") && refused.contains("already exists"),
+        "{refused}"
+    );
+    let nowhere = dir.join("no-such-folder").join("x.ron");
+    let refused = new_scene(&nowhere)
+        .expect_err("no folder to save to")
+        .to_string();
+    assert!(
+        refused.contains("no-such-folder") && refused.contains("does not exist"),
+        "{refused}"
+    );
+}

@@ -106,10 +106,16 @@ pub enum Command {
     /// editor's camera (Esc comes back), F6 runs the player bot on the level as edited
     /// and draws how it went (play-check), Esc drops the palette's choice or the selection.
     /// Unsaved edits are autosaved to .LEVEL.autosave beside it every two minutes.
+    /// `--new` starts LEVEL from a template instead (File > New level does so in the
+    /// window).
     #[command(allow_negative_numbers = true)]
     Edit {
         /// The level file to edit.
         level: PathBuf,
+        /// Start LEVEL, a file that does not exist yet, from the template (a floor, four
+        /// walls, a player start, a way out and a lamp); Ctrl+S writes it.
+        #[arg(long)]
+        new: bool,
         /// The view's render width, in pixels.
         #[arg(long, default_value_t = crate::app::EDITOR_WIDTH, value_parser = crate::headless::values::count())]
         width: u32,
@@ -432,15 +438,21 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         }
         Command::Edit {
             level,
+            new,
             width,
             height,
             frames,
         } => {
+            if new {
+                // Refused before a window is asked for, so it says so with no display too.
+                crate::edit::template::new_scene(&level)?;
+            }
             crate::app::editor::edit(crate::app::editor::EditOptions {
                 level,
                 width,
                 height,
                 frames,
+                new,
             })?;
             Ok(ExitCode::SUCCESS)
         }

@@ -24,6 +24,7 @@ pub mod audibility;
 pub mod camera;
 pub mod palette;
 pub mod play_check;
+pub mod template;
 
 use std::path::{Path, PathBuf};
 
@@ -57,6 +58,9 @@ struct Step {
     changes: Vec<Change>,
 }
 
+/// `Editor::saved` for a level never written: no step has this id (they count up from 1).
+const NEVER_SAVED: u64 = u64::MAX;
+
 /// The editor's state beside the world: the selection and the history.
 #[derive(Debug, Default)]
 pub struct Editor {
@@ -80,6 +84,15 @@ impl Editor {
         Editor {
             next_id: 1,
             ..Editor::default()
+        }
+    }
+
+    /// An editor for a level not yet on disk (`template::new_level`'s): dirty until saved,
+    /// so the title marks it and leaving asks first.
+    pub fn unsaved() -> Editor {
+        Editor {
+            saved: NEVER_SAVED,
+            ..Editor::new()
         }
     }
 

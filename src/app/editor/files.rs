@@ -28,6 +28,31 @@ impl EditorApp {
         Ok(format!("opened {}", self.path.display()))
     }
 
+    /// Starts a new level from the template, to be saved to `path` (which must not exist):
+    /// unsaved until then. Nothing changes if it cannot be made.
+    pub(super) fn new_level(&mut self, path: PathBuf) -> anyhow::Result<String> {
+        let scene = crate::edit::template::new_scene(&path)?;
+        self.engine = editor_engine(&scene, &self.options);
+        self.camera = FlyCamera::from_view(&self.engine);
+        self.camera.install(&mut self.engine.world);
+        self.editor = Editor::unsaved();
+        self.disk = Vec::new();
+        self.panels.opened(&path);
+        self.exposure = None;
+        self.audibility = None;
+        self.exposure_job = None;
+        self.exposure_for = None;
+        self.play_check = PlayCheck::default();
+        self.autosaved = Instant::now();
+        self.options.level = path.clone();
+        self.path = path;
+        self.watch_files();
+        Ok(format!(
+            "a new level for {}: Ctrl+S writes it",
+            self.path.display()
+        ))
+    }
+
     /// Saves the level to `path` (which becomes the file edited); says where.
     pub(super) fn save_to(&mut self, path: PathBuf) -> anyhow::Result<String> {
         self.editor.save(&mut self.engine, &path)?;

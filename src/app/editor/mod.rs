@@ -138,6 +138,9 @@ pub struct EditOptions {
     pub height: u32,
     /// Quit after this many displayed frames (for tests), printing the frame times.
     pub frames: Option<u32>,
+    /// `level` does not exist yet: start from the template (`edit::template`), written to
+    /// `level` by the first save.
+    pub new: bool,
 }
 
 /// Samples per pixel at which a still view stops rendering: past this the image no longer
@@ -219,6 +222,8 @@ pub enum Leave {
     Quit,
     /// Edit this level file instead.
     Open(PathBuf),
+    /// Start a new level from the template, to be saved to this file (which must not exist).
+    New(PathBuf),
 }
 
 /// What a frame did, for the frame-time report.
@@ -293,6 +298,7 @@ impl EditOptions {
             width: super::EDITOR_WIDTH,
             height: super::EDITOR_HEIGHT,
             frames: None,
+            new: false,
         }
     }
 }
@@ -300,9 +306,15 @@ impl EditOptions {
 impl EditorApp {
     /// Loads the level and starts watching it; the window opens when the loop runs.
     pub fn open(options: EditOptions) -> anyhow::Result<EditorApp> {
-        let scene = Scene::load(&options.level)?;
-        let disk = std::fs::read(&options.level)
-            .with_context(|| format!("reading {}", options.level.display()))?;
+        let (scene, disk, editor) = if options.new {
+            let scene = crate::edit::template::new_scene(&options.level)?;
+            (scene, Vec::new(), Editor::unsaved())
+        } else {
+            let scene = Scene::load(&options.level)?;
+            let disk = std::fs::read(&options.level)
+                .with_context(|| format!("reading {}", options.level.display()))?;
+            (scene, disk, Editor::new())
+        };
         let mut engine = editor_engine(&scene, &options);
         let camera = FlyCamera::from_view(&engine);
         camera.install(&mut engine.world);
@@ -310,7 +322,7 @@ impl EditorApp {
             path: options.level.clone(),
             panels: Panels::new(&options.level),
             engine,
-            editor: Editor::new(),
+            editor,
             camera,
             disk,
             options,
@@ -634,6 +646,7 @@ impl EditorApp {
                 Ok(None)
             }
             Leave::Open(path) => self.open_level(path).map(Some),
+            Leave::New(path) => self.new_level(path).map(Some),
         }
     }
 

@@ -394,6 +394,11 @@ impl Panels {
                             out.push(Command::SaveAs(PathBuf::from(self.path_field.trim())));
                             ui.close();
                         }
+                        if ui.button("New level at this file").clicked() {
+                            let path = PathBuf::from(self.path_field.trim());
+                            self.leave(Leave::New(path), frame.dirty, out);
+                            ui.close();
+                        }
                     });
                     if self.dialogs {
                         ui.horizontal(|ui| {
@@ -595,6 +600,7 @@ impl Panels {
         let (save, drop) = match leave {
             Leave::Quit => ("Save and quit", "Quit without saving"),
             Leave::Open(_) => ("Save and open", "Open without saving"),
+            Leave::New(_) => ("Save and start it", "Start it without saving"),
         };
         egui::Modal::new(egui::Id::new("leave prompt")).show(ctx, |ui| {
             ui.heading("Unsaved changes");
