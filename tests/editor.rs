@@ -552,3 +552,49 @@ fn a_new_level_starts_from_a_template_the_bot_wins_and_saves_where_it_was_asked(
         "{refused}"
     );
 }
+
+/// The level's own properties (the inspector with nothing selected): a run of edits is one
+/// step, the render's sky follows at once, the file says what was set, and undo puts the
+/// level back to its file byte for byte.
+#[test]
+fn the_level_properties_are_one_step_lit_by_the_new_sky_saved_and_undone() {
+    use gloam::edit::LevelProperties;
+
+    let (path, text, mut engine) = open_first_light("level-properties");
+    let mut editor = Editor::new();
+    let original = LevelProperties::of(&engine.world);
+    assert_eq!(original.name, "First light");
+    assert_eq!(original.campaign, Some(1));
+
+    let mut edited = original.clone();
+    for name in ["F", "Fi", "First dark"] {
+        edited.name = name.to_owned();
+        editor.drag_properties(&mut engine, edited.clone());
+    }
+    edited.campaign = Some(7);
+    edited.environment.sky = Vec3::new(0.1, 0.2, 0.3);
+    edited.environment.ambience = None;
+    editor.drag_properties(&mut engine, edited.clone());
+    assert!(editor.is_dirty());
+    editor.end_drag();
+    assert_eq!(LevelProperties::of(&engine.world), edited);
+    engine.advance(0.0);
+    assert_eq!(engine.render_scene().sky, Vec3::new(0.1, 0.2, 0.3));
+
+    let saved = saved_text(&mut editor, &mut engine, &path);
+    assert!(saved.contains("name: \"First dark\""), "{saved}");
+    assert!(saved.contains("campaign: 7"), "{saved}");
+    assert!(saved.contains("sky: (0.1, 0.2, 0.3)"), "{saved}");
+    assert!(
+        !saved.contains("wind.wav"),
+        "the ambience was taken out: {saved}"
+    );
+    assert_eq!(Scene::load(&path).unwrap().level.name, "First dark");
+
+    assert!(editor.undo(&mut engine).unwrap(), "the edits were one step");
+    assert_eq!(LevelProperties::of(&engine.world), original);
+    assert!(!editor.can_undo(), "the edits were one step");
+    assert_eq!(saved_text(&mut editor, &mut engine, &path), text);
+    assert!(editor.redo(&mut engine).unwrap());
+    assert_eq!(LevelProperties::of(&engine.world), edited);
+}

@@ -37,10 +37,10 @@ use crate::extract::instance_entity;
 use crate::frame::Engine;
 use crate::game::level_io::entity_defs;
 use crate::game::spawn::{Assets, spawn_entity};
-use crate::game::{LevelEntity, Transform, level_from_world};
+use crate::game::{LevelEntity, LevelInfo, Transform, level_from_world};
 use crate::scene::Scene;
 use crate::scene::files::{absolute, write_atomically};
-use crate::scene::level::{EntityDef, level_to_string};
+use crate::scene::level::{EntityDef, Environment, level_to_string};
 
 /// One entity's definition before and after a step (`None`: it did not exist).
 #[derive(Clone, Debug, PartialEq)]
@@ -56,6 +56,56 @@ struct Step {
     /// Numbers steps so the dirty marker can tell the saved state from an edited one.
     id: u64,
     changes: Vec<Change>,
+    /// The level's own properties before and after, when the step changed them.
+    properties: Option<Box<(LevelProperties, LevelProperties)>>,
+}
+
+/// What a level file says of the level as a whole, as a designer edits it: its name, its
+/// place in the campaign, its sky and its ambience (`scene::level::Level`'s fields beside
+/// the entities; the format's version and `playable` are not the designer's to change).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelProperties {
+    pub name: String,
+    pub campaign: Option<u32>,
+    pub environment: Environment,
+}
+
+impl LevelProperties {
+    /// The world's level properties (a world with no level has none yet: the defaults).
+    pub fn of(world: &World) -> LevelProperties {
+        world.get_resource::<LevelInfo>().map_or_else(
+            || LevelProperties {
+                name: String::new(),
+                campaign: None,
+                environment: Environment::default(),
+            },
+            |info| LevelProperties {
+                name: info.name.clone(),
+                campaign: info.campaign,
+                environment: info.environment.clone(),
+            },
+        )
+    }
+
+    /// Makes these the world's level properties; the next frame's extraction reads the sky
+    /// from there.
+    fn install(&self, world: &mut World) {
+        match world.get_resource_mut::<LevelInfo>() {
+            Some(mut info) => {
+                info.name = self.name.clone();
+                info.campaign = self.campaign;
+                info.environment = self.environment.clone();
+            }
+            None => world.insert_resource(LevelInfo {
+                source: PathBuf::new(),
+                version: crate::scene::level::LEVEL_VERSION,
+                name: self.name.clone(),
+                playable: true,
+                campaign: self.campaign,
+                environment: self.environment.clone(),
+            }),
+        }
+    }
 }
 
 /// `Editor::saved` for a level never written: no step has this id (they count up from 1).
@@ -73,6 +123,8 @@ pub struct Editor {
     /// A drag under way: what it has changed so far, each entity from its state before
     /// the drag (recorded as one step when it ends).
     dragging: Vec<Change>,
+    /// The level's properties before and after a drag of them under way.
+    properties_dragging: Option<(LevelProperties, LevelProperties)>,
     next_id: u64,
     /// The id of the step on top of the undo stack when the file was last saved or loaded
     /// (0: the loaded state).
@@ -98,7 +150,9 @@ impl Editor {
 
     /// Whether the world differs from the file (the title's dirty marker).
     pub fn is_dirty(&self) -> bool {
-        self.undo.last().map_or(0, |step| step.id) != self.saved || !self.dragging.is_empty()
+        self.undo.last().map_or(0, |step| step.id) != self.saved
+            || !self.dragging.is_empty()
+            || self.properties_dragging.is_some()
     }
 
     /// Makes `place` the selection, or (with `add`) adds it or takes it out again: the
@@ -209,8 +263,13 @@ impl Editor {
             .into_iter()
             .filter(|change| change.before != change.after)
             .collect();
-        if !changes.is_empty() {
-            self.push_step(changes);
+        let properties = self
+            .properties_dragging
+            .take()
+            .filter(|(before, after)| before != after)
+            .map(Box::new);
+        if !changes.is_empty() || properties.is_some() {
+            self.push_step(changes, properties);
         }
     }
 
@@ -244,6 +303,19 @@ impl Editor {
         )?;
         self.selection = vec![place];
         Ok(place)
+    }
+
+    /// Sets the level's own properties (name, campaign, sky, ambience) as part of a drag,
+    /// as `drag` does for entities: the world follows at once, and the drag becomes one
+    /// step when it ends (a name typed a letter at a time is one step). The ambience's file
+    /// is the caller's to choose from the sounds that exist (the window offers only those).
+    pub fn drag_properties(&mut self, engine: &mut Engine, properties: LevelProperties) {
+        let before = match self.properties_dragging.take() {
+            Some((before, _)) => before,
+            None => LevelProperties::of(&engine.world),
+        };
+        properties.install(&mut engine.world);
+        self.properties_dragging = Some((before, properties));
     }
 
     /// Moves the selection by `offset` metres (the gizmo's move handles, after snapping).
@@ -315,6 +387,9 @@ impl Editor {
             self.undo.push(step);
             return Err(error);
         }
+        if let Some(properties) = &step.properties {
+            properties.0.install(&mut engine.world);
+        }
         self.selection = present_after(&reverse);
         self.redo.push(step);
         Ok(true)
@@ -329,6 +404,9 @@ impl Editor {
         if let Err(error) = apply(engine, &step.changes, self.time) {
             self.redo.push(step);
             return Err(error);
+        }
+        if let Some(properties) = &step.properties {
+            properties.1.install(&mut engine.world);
         }
         self.selection = present_after(&step.changes);
         self.undo.push(step);
@@ -443,15 +521,21 @@ impl Editor {
             return Ok(());
         }
         apply(engine, &changes, self.time)?;
-        self.push_step(changes);
+        self.push_step(changes, None);
         Ok(())
     }
 
-    /// Records `changes`, already applied, as the newest step.
-    fn push_step(&mut self, changes: Vec<Change>) {
+    /// Records `changes` (and `properties`, before and after), already applied, as the
+    /// newest step.
+    fn push_step(
+        &mut self,
+        changes: Vec<Change>,
+        properties: Option<Box<(LevelProperties, LevelProperties)>>,
+    ) {
         self.undo.push(Step {
             id: self.next_id,
             changes,
+            properties,
         });
         self.next_id += 1;
         self.redo.clear();

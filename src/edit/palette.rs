@@ -92,6 +92,12 @@ impl Prefab {
 
 /// Every glTF file under `folder` (.gltf and .glb, any depth), sorted by path.
 pub fn asset_files(folder: &Path) -> Vec<PathBuf> {
+    files_with(folder, &["gltf", "glb"])
+}
+
+/// Every file under `folder` (any depth) whose extension is one of `extensions` (in any
+/// case), sorted by path.
+fn files_with(folder: &Path, extensions: &[&str]) -> Vec<PathBuf> {
     let mut found = Vec::new();
     let mut pending = vec![folder.to_path_buf()];
     while let Some(dir) = pending.pop() {
@@ -102,16 +108,25 @@ pub fn asset_files(folder: &Path) -> Vec<PathBuf> {
             let path = entry.path();
             if path.is_dir() {
                 pending.push(path);
-            } else if matches!(
-                path.extension().and_then(|e| e.to_str()),
-                Some("gltf" | "glb")
-            ) {
+            } else if path
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|extension| {
+                    extensions.iter().any(|e| extension.eq_ignore_ascii_case(e))
+                })
+            {
                 found.push(path);
             }
         }
     }
     found.sort();
     found
+}
+
+/// Every sound file under `folder` (the extensions a level's sounds may have, any depth),
+/// sorted by path.
+pub fn sound_files(folder: &Path) -> Vec<PathBuf> {
+    files_with(folder, &crate::scene::level::SOUND_EXTENSIONS)
 }
 
 /// An entity instancing the glTF file `asset` at `at`, named after the file.
@@ -190,6 +205,13 @@ mod tests {
                 .iter()
                 .any(|f| f.ends_with("cornell/cornell-box.gltf"))
         );
+        assert!(files.iter().all(|f| !f.ends_with("wind.wav")));
+        let sounds = sound_files(&assets);
+        assert!(
+            sounds.iter().any(|f| f.ends_with("sounds/wind.wav")),
+            "{sounds:?}"
+        );
+        assert!(sounds.iter().all(|f| !f.ends_with(".glb")));
         for prefab in Prefab::ALL {
             let def = prefab.def(Vec3::new(1.0, 0.0, 2.0), &level, &assets);
             if let Some(instance) = &def.instance {

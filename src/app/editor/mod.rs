@@ -187,6 +187,8 @@ pub enum Command {
         name: String,
         def: Box<EntityDef>,
     },
+    /// Part of a drag of the level's own properties (inspector, nothing selected).
+    Properties(Box<crate::edit::LevelProperties>),
     Duplicate,
     Delete,
     Undo,
@@ -548,6 +550,12 @@ impl EditorApp {
                     }
                 })
                 .map(|()| None),
+            Command::Properties(properties) => {
+                editor.drag_properties(engine, *properties);
+                // The sky lights everything: the converged view starts again.
+                engine.film.reset = true;
+                Ok(None)
+            }
             Command::Duplicate => editor
                 .duplicate(engine)
                 .map(|()| Some(format!("duplicated: {} new", editor.selection.len()))),
@@ -843,7 +851,9 @@ impl EditorApp {
         self.set_grab(flying);
 
         // 3. Run what the interface asked for, then what changed on disk.
-        let edited = commands.iter().any(|c| matches!(c, Command::Edit { .. }));
+        let edited = commands
+            .iter()
+            .any(|c| matches!(c, Command::Edit { .. } | Command::Properties(_)));
         let ran = !commands.is_empty();
         for command in commands {
             self.run(event_loop, command);

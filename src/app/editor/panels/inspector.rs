@@ -18,7 +18,12 @@ impl Panels {
             .collect();
         match selected.as_slice() {
             [] => {
-                ui.weak("Nothing selected.");
+                ui.weak("Nothing selected: the level's own properties.");
+                let mut properties = frame.properties.clone();
+                level_properties(ui, &mut properties, &self.sounds);
+                if properties != frame.properties {
+                    out.push(Command::Properties(Box::new(properties)));
+                }
             }
             [original] => {
                 egui::ScrollArea::vertical().show(ui, |ui| {
@@ -48,6 +53,65 @@ impl Panels {
                 }
             }
         }
+    }
+}
+
+/// The level's name, campaign place, sky and ambience (chosen among the `sounds` that
+/// exist, so a level never names a missing file).
+fn level_properties(ui: &mut egui::Ui, properties: &mut LevelProperties, sounds: &[String]) {
+    ui.horizontal(|ui| {
+        ui.label("Name");
+        ui.text_edit_singleline(&mut properties.name);
+    });
+    ui.horizontal(|ui| {
+        let mut in_campaign = properties.campaign.is_some();
+        ui.checkbox(&mut in_campaign, "Campaign level");
+        match (in_campaign, &mut properties.campaign) {
+            (true, Some(place)) => {
+                ui.add(egui::DragValue::new(place).range(1..=999).prefix("no. "));
+            }
+            (true, campaign @ None) => *campaign = Some(1),
+            (false, campaign) => *campaign = None,
+        }
+    });
+    let sky = &mut properties.environment.sky;
+    vec3_row(ui, "Sky", sky, 0.001, "");
+    *sky = sky.max(Vec3::ZERO);
+    ui.weak("the sky's radiance (linear RGB, W/(sr m²))");
+    let ambience = &mut properties.environment.ambience;
+    ui.horizontal(|ui| {
+        ui.label("Ambience");
+        let shown = ambience
+            .as_ref()
+            .map_or("none".to_owned(), |ambience| ambience.asset.clone());
+        egui::ComboBox::from_id_salt("ambience")
+            .selected_text(shown)
+            .show_ui(ui, |ui| {
+                if ui.selectable_label(ambience.is_none(), "none").clicked() {
+                    *ambience = None;
+                }
+                for sound in sounds {
+                    let chosen = ambience.as_ref().is_some_and(|a| a.asset == *sound);
+                    if ui.selectable_label(chosen, sound).clicked() {
+                        let gain_db = ambience.as_ref().map_or(0.0, |a| a.gain_db);
+                        *ambience = Some(AmbienceDef {
+                            asset: sound.clone(),
+                            gain_db,
+                        });
+                    }
+                }
+            });
+    });
+    if let Some(ambience) = ambience {
+        ui.horizontal(|ui| {
+            ui.label("Gain");
+            ui.add(
+                egui::DragValue::new(&mut ambience.gain_db)
+                    .range(-60.0..=12.0)
+                    .speed(0.1)
+                    .suffix(" dB"),
+            );
+        });
     }
 }
 

@@ -19,9 +19,9 @@ use super::dialogs::DialogKind;
 use super::{Command, Leave, view_ray};
 use crate::edit::audibility::{Audibility, NoiseKind};
 use crate::edit::camera::FlyCamera;
-use crate::edit::palette::{Prefab, asset_files, assets_folder};
+use crate::edit::palette::{Prefab, asset_files, asset_reference, assets_folder, sound_files};
 use crate::edit::play_check::Checked;
-use crate::edit::{Editor, entity_bounds};
+use crate::edit::{Editor, LevelProperties, entity_bounds};
 use crate::film::FilterMode;
 use crate::frame::Engine;
 use crate::game::Assets;
@@ -29,8 +29,8 @@ use crate::game::LevelEntity;
 use crate::game::level_io::entity_defs;
 use crate::headless::exposure::Exposure;
 use crate::scene::level::{
-    CameraDef, EntityDef, ExitDef, KnockDef, LightDef, MaterialOverride, MoverDef, PlayerSpawn,
-    ShardDef, WardenDef,
+    AmbienceDef, CameraDef, EntityDef, ExitDef, KnockDef, LightDef, MaterialOverride, MoverDef,
+    PlayerSpawn, ShardDef, WardenDef,
 };
 use crate::scene::model::Material;
 
@@ -50,6 +50,8 @@ pub struct FrameInput {
     pub can_redo: bool,
     /// The materials of the asset the one selected entity instances (for its overrides).
     pub materials: Vec<Material>,
+    /// The level's own properties (name, campaign, sky, ambience).
+    pub properties: LevelProperties,
 }
 
 impl FrameInput {
@@ -75,6 +77,7 @@ impl FrameInput {
         FrameInput {
             defs,
             materials,
+            properties: LevelProperties::of(&engine.world),
             selection: editor.selection.clone(),
             bounds,
             dirty: editor.is_dirty(),
@@ -202,6 +205,9 @@ pub struct Panels {
     armed: Option<PaletteItem>,
     assets_folder: PathBuf,
     assets: Vec<PathBuf>,
+    /// The sound files under the assets folder, as the level names them (the ambience's
+    /// choices).
+    sounds: Vec<String>,
     /// The path field for Open and Save as (always there, with or without a desktop file
     /// dialog).
     path_field: String,
@@ -238,6 +244,10 @@ impl Panels {
             angle: 15.0,
             armed: None,
             assets: asset_files(&folder),
+            sounds: sound_files(&folder)
+                .iter()
+                .map(|sound| asset_reference(level, sound))
+                .collect(),
             assets_folder: folder,
             path_field: level.display().to_string(),
             gizmo: Gizmo::default(),
