@@ -598,3 +598,48 @@ fn the_level_properties_are_one_step_lit_by_the_new_sky_saved_and_undone() {
     assert!(editor.redo(&mut engine).unwrap());
     assert_eq!(LevelProperties::of(&engine.world), edited);
 }
+
+/// An autosave newer than its level (the editor closed before a save) is found on opening,
+/// loads as the level it kept, and when the designer keeps the file instead it is moved
+/// aside rather than left to be written over; one older than the file is not offered.
+#[test]
+fn an_autosave_newer_than_its_level_is_offered_back_and_neither_is_lost() {
+    use gloam::edit::{keep_autosave_aside, load_autosave, newer_autosave};
+
+    let (path, text, mut engine) = open_first_light("autosave-offer");
+    assert_eq!(newer_autosave(&path), None, "no autosave yet");
+    // The file, saved an hour ago.
+    let hour_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(3600);
+    std::fs::File::options()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_modified(hour_ago)
+        .unwrap();
+    let mut editor = Editor::new();
+    editor.select_by_ray(&mut engine, &down_onto(-10.0, -6.0, 5.0), false);
+    editor.translate(&mut engine, Vec3::new(0.0, 0.0, 1.0)).unwrap();
+    assert!(editor.autosave(&mut engine, &path).unwrap());
+    let edited = gloam::game::level_from_world(&mut engine.world);
+
+    let offered = newer_autosave(&path).expect("the autosave is newer than the file");
+    assert_eq!(offered, autosave_path(&path));
+    let scene = load_autosave(&path).unwrap();
+    assert_eq!(scene.level, edited, "the autosave loads as the level it kept");
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), text, "the file is untouched");
+
+    let kept = keep_autosave_aside(&path).unwrap();
+    assert!(kept.to_string_lossy().ends_with(".first-light.ron.autosave-1"), "{kept:?}");
+    assert!(load_autosave(&path).is_err(), "nothing left to load");
+    assert_eq!(newer_autosave(&path), None, "moved aside, not offered again");
+    assert!(kept.is_file());
+    // A second one goes beside the first.
+    assert!(editor.autosave(&mut engine, &path).unwrap());
+    assert!(keep_autosave_aside(&path).unwrap().to_string_lossy().ends_with("autosave-2"));
+
+    // Saved since: the autosave is older than the file and stays unoffered.
+    assert!(editor.autosave(&mut engine, &path).unwrap());
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    editor.save(&mut engine, &path).unwrap();
+    assert_eq!(newer_autosave(&path), None);
+}

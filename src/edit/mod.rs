@@ -569,6 +569,45 @@ pub fn autosave_path(path: &Path) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// The autosave of `path` when it is newer than the file (unsaved edits that never reached
+/// it: the editor closed or crashed before a save), to be offered back on opening.
+pub fn newer_autosave(path: &Path) -> Option<PathBuf> {
+    let autosave = autosave_path(path);
+    let modified = |file: &Path| std::fs::metadata(file).and_then(|m| m.modified()).ok();
+    match (modified(&autosave)?, modified(path)) {
+        (autosaved, Some(saved)) if autosaved <= saved => None,
+        _ => Some(autosave),
+    }
+}
+
+/// The level `path`'s autosave holds, loaded as if it were `path` (its assets are named
+/// relative to the same folder): the edits it kept, to go on with unsaved.
+pub fn load_autosave(path: &Path) -> anyhow::Result<Scene> {
+    let autosave = autosave_path(path);
+    let text = std::fs::read_to_string(&autosave)
+        .with_context(|| format!("reading {}", autosave.display()))?;
+    let level = crate::scene::level::parse_level(&autosave, &text)
+        .map_err(|error| anyhow::anyhow!("{error}"))?;
+    Scene::from_level(level, path).map_err(|error| anyhow::anyhow!("{error}"))
+}
+
+/// Moves `path`'s autosave aside, to the first free `.x.ron.autosave-N`, so the next
+/// autosave does not write over the edits it holds; returns where it went.
+pub fn keep_autosave_aside(path: &Path) -> anyhow::Result<PathBuf> {
+    let autosave = autosave_path(path);
+    let kept = (1..)
+        .map(|n| {
+            let mut name = autosave.file_name().unwrap_or_default().to_owned();
+            name.push(format!("-{n}"));
+            autosave.with_file_name(name)
+        })
+        .find(|kept| !kept.exists())
+        .expect("some number is free");
+    std::fs::rename(&autosave, &kept)
+        .with_context(|| format!("moving {} to {}", autosave.display(), kept.display()))?;
+    Ok(kept)
+}
+
 /// Where `path`'s previous contents are kept on save: `x.ron` -> `x.ron.bak`.
 pub fn backup_path(path: &Path) -> PathBuf {
     let mut name = path.file_name().unwrap_or_default().to_owned();

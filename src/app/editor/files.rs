@@ -24,8 +24,27 @@ impl EditorApp {
         self.autosaved = Instant::now();
         self.options.level = path.clone();
         self.path = path;
+        self.panels.autosave_offer = crate::edit::newer_autosave(&self.path);
         self.watch_files();
         Ok(format!("opened {}", self.path.display()))
+    }
+
+    /// Edits the level the autosave holds instead of the file's (offered on opening when it
+    /// is newer): unsaved until a save, the file on disk untouched, the camera kept.
+    pub(super) fn take_autosave(&mut self) -> anyhow::Result<String> {
+        let scene = crate::edit::load_autosave(&self.path)?;
+        self.engine = editor_engine(&scene, &self.options);
+        self.camera.install(&mut self.engine.world);
+        self.editor = Editor::unsaved();
+        self.exposure = None;
+        self.audibility = None;
+        self.exposure_job = None;
+        self.exposure_for = None;
+        self.play_check = PlayCheck::default();
+        Ok(format!(
+            "loaded {}: unsaved until Ctrl+S (File > Revert goes back to the file)",
+            crate::edit::autosave_path(&self.path).display()
+        ))
     }
 
     /// Starts a new level from the template, to be saved to `path` (which must not exist):

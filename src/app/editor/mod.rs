@@ -211,6 +211,10 @@ pub enum Command {
     KeepEdits,
     /// ... or load the file (the edits go to the autosave file first).
     TakeFile,
+    /// On opening, the autosave was newer than the file: edit the autosave's level, unsaved.
+    TakeAutosave,
+    /// ... or edit the file, the autosave moved aside (`edit::keep_autosave_aside`).
+    KeepFileOverAutosave,
     /// Play the level as edited from the editor's camera (F5); Esc comes back.
     PlayTest,
     /// Run the player bot on the level as edited, in the background (F6).
@@ -350,6 +354,9 @@ impl EditorApp {
             play_check_stale: false,
             dialog: None,
         };
+        if !app.options.new {
+            app.panels.autosave_offer = crate::edit::newer_autosave(&app.path);
+        }
         match FileWatch::new([app.path.clone()]) {
             Ok(watch) => app.watch = Some(watch),
             Err(error) => app.notify(format!("{error:#} (changes on disk will not be noticed)")),
@@ -619,6 +626,9 @@ impl EditorApp {
                     "kept the edits; saving will replace the file on disk".to_owned(),
                 ))
             }
+            Command::TakeAutosave => self.take_autosave().map(Some),
+            Command::KeepFileOverAutosave => crate::edit::keep_autosave_aside(&self.path)
+                .map(|kept| Some(format!("kept the file; the autosave is now {}", kept.display()))),
             Command::TakeFile => {
                 self.panels.conflict = false;
                 match self.editor.autosave(&mut self.engine, &self.path) {

@@ -190,6 +190,8 @@ pub struct Panels {
     pub notice: Option<(Instant, String)>,
     /// The level changed on disk while there are unsaved edits: ask which to keep.
     pub conflict: bool,
+    /// The level's autosave, newer than the file, found on opening it: ask which to edit.
+    pub autosave_offer: Option<PathBuf>,
     /// The level or an asset on disk does not load: its problems, shown over the view
     /// until a good version is loaded.
     pub file_error: Option<String>,
@@ -228,6 +230,7 @@ impl Panels {
             dialog_open: false,
             notice: None,
             conflict: false,
+            autosave_offer: None,
             file_error: None,
             exposure: ExposureControls {
                 on: false,
@@ -303,6 +306,11 @@ impl Panels {
             self.leave_prompt(&ctx, out);
         } else if self.conflict {
             conflict_prompt(&ctx, out);
+        } else if let Some(autosave) = &self.autosave_offer {
+            if let Some(command) = autosave_prompt(&ctx, autosave) {
+                out.push(command);
+                self.autosave_offer = None;
+            }
         }
     }
 
@@ -645,6 +653,30 @@ fn conflict_prompt(ctx: &egui::Context, out: &mut Vec<Command>) {
             None => {}
         }
     });
+}
+
+/// The level opened has an autosave newer than the file: edit that, or the file. Neither
+/// is lost: the file stays as it is on disk until a save, and an autosave not taken is
+/// moved aside rather than written over by the next one.
+fn autosave_prompt(ctx: &egui::Context, autosave: &Path) -> Option<Command> {
+    egui::Modal::new(egui::Id::new("newer autosave"))
+        .show(ctx, |ui| {
+            ui.heading("An autosave is newer than the file");
+            ui.label(format!(
+                "{} holds edits made after the level was last saved.",
+                autosave.display()
+            ));
+            let answers = [
+                "Load the autosave (unsaved until Ctrl+S)",
+                "Keep the file (the autosave is moved aside)",
+            ];
+            match prompt_answers(ui, &answers) {
+                Some(0) => Some(Command::TakeAutosave),
+                Some(_) => Some(Command::KeepFileOverAutosave),
+                None => None,
+            }
+        })
+        .inner
 }
 
 /// A prompt's answers in a row; which was clicked. The first, the one that loses nothing,
