@@ -618,28 +618,116 @@ fn an_autosave_newer_than_its_level_is_offered_back_and_neither_is_lost() {
         .unwrap();
     let mut editor = Editor::new();
     editor.select_by_ray(&mut engine, &down_onto(-10.0, -6.0, 5.0), false);
-    editor.translate(&mut engine, Vec3::new(0.0, 0.0, 1.0)).unwrap();
+    editor
+        .translate(&mut engine, Vec3::new(0.0, 0.0, 1.0))
+        .unwrap();
     assert!(editor.autosave(&mut engine, &path).unwrap());
     let edited = gloam::game::level_from_world(&mut engine.world);
 
     let offered = newer_autosave(&path).expect("the autosave is newer than the file");
     assert_eq!(offered, autosave_path(&path));
     let scene = load_autosave(&path).unwrap();
-    assert_eq!(scene.level, edited, "the autosave loads as the level it kept");
-    assert_eq!(std::fs::read_to_string(&path).unwrap(), text, "the file is untouched");
+    assert_eq!(
+        scene.level, edited,
+        "the autosave loads as the level it kept"
+    );
+    assert_eq!(
+        std::fs::read_to_string(&path).unwrap(),
+        text,
+        "the file is untouched"
+    );
 
     let kept = keep_autosave_aside(&path).unwrap();
-    assert!(kept.to_string_lossy().ends_with(".first-light.ron.autosave-1"), "{kept:?}");
+    assert!(
+        kept.to_string_lossy()
+            .ends_with(".first-light.ron.autosave-1"),
+        "{kept:?}"
+    );
     assert!(load_autosave(&path).is_err(), "nothing left to load");
-    assert_eq!(newer_autosave(&path), None, "moved aside, not offered again");
+    assert_eq!(
+        newer_autosave(&path),
+        None,
+        "moved aside, not offered again"
+    );
     assert!(kept.is_file());
     // A second one goes beside the first.
     assert!(editor.autosave(&mut engine, &path).unwrap());
-    assert!(keep_autosave_aside(&path).unwrap().to_string_lossy().ends_with("autosave-2"));
+    assert!(
+        keep_autosave_aside(&path)
+            .unwrap()
+            .to_string_lossy()
+            .ends_with("autosave-2")
+    );
 
     // Saved since: the autosave is older than the file and stays unoffered.
     assert!(editor.autosave(&mut engine, &path).unwrap());
     std::thread::sleep(std::time::Duration::from_millis(20));
     editor.save(&mut engine, &path).unwrap();
     assert_eq!(newer_autosave(&path), None);
+}
+
+/// Swapping an instance's asset (the inspector's asset choice) keeps what the new asset
+/// has and drops the material overrides and animation it has not, so the level still loads.
+#[test]
+fn a_swapped_asset_keeps_only_the_overrides_and_clip_it_has_and_the_level_loads() {
+    let (path, _, mut engine) = open_first_light("asset-swap");
+    let mut editor = Editor::new();
+    let mut def = named(&mut engine, "way out lamp bracket").expect("the bracket");
+    let overrides = |def: &EntityDef| {
+        def.instance
+            .as_ref()
+            .unwrap()
+            .material_overrides
+            .keys()
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(overrides(&def), ["lantern glass"]);
+    let kit = def
+        .instance
+        .as_ref()
+        .unwrap()
+        .asset
+        .replace("lamp-bracket.glb", "");
+
+    // Onto the warden: no lantern glass of that name, a walk clip to keep.
+    def.instance.as_mut().unwrap().asset = format!("{kit}warden.glb");
+    def.animation = Some(gloam::scene::level::AnimationDef {
+        clip: "walk".into(),
+        playback: Default::default(),
+        speed: 1.0,
+        start: 0.0,
+    });
+    gloam::edit::fit_to_asset(&mut engine, &mut def).unwrap();
+    assert_eq!(overrides(&def), Vec::<String>::new());
+    assert_eq!(
+        def.animation.as_ref().map(|a| a.clip.as_str()),
+        Some("walk")
+    );
+    // Onto a crate: no clips.
+    def.instance.as_mut().unwrap().asset = format!("{kit}crate.glb");
+    gloam::edit::fit_to_asset(&mut engine, &mut def).unwrap();
+    assert_eq!(def.animation, None);
+    // A file that is not there is the error, the definition untouched.
+    let mut missing = def.clone();
+    missing.instance.as_mut().unwrap().asset = format!("{kit}no-such.glb");
+    let error = gloam::edit::fit_to_asset(&mut engine, &mut missing).unwrap_err();
+    assert!(format!("{error:#}").contains("no-such.glb"), "{error:#}");
+    assert_eq!(
+        missing.instance.as_ref().unwrap().asset,
+        format!("{kit}no-such.glb")
+    );
+
+    let place = entity_defs(&mut engine.world)
+        .into_iter()
+        .find(|(_, d)| d.name == "way out lamp bracket")
+        .unwrap()
+        .0;
+    editor.select(place, false);
+    editor
+        .modify(&mut engine, |entity| *entity = def.clone())
+        .unwrap();
+    let saved = saved_text(&mut editor, &mut engine, &path);
+    assert!(saved.contains("kit/crate.glb"), "{saved}");
+    Scene::load(&path).expect("the level loads with the swapped asset");
 }

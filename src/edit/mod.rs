@@ -569,6 +569,33 @@ pub fn autosave_path(path: &Path) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// Fits `def` to the asset it instances after a swap: material overrides the asset has no
+/// material for, and an animation whose clip it lacks, are dropped (the level could not
+/// load with them). The asset is imported through the world's cache, as spawning does; an
+/// asset that does not import is the error, and `def` is left as it was.
+pub fn fit_to_asset(engine: &mut Engine, def: &mut EntityDef) -> anyhow::Result<()> {
+    let Some(instance) = &mut def.instance else {
+        return Ok(());
+    };
+    let asset = engine
+        .world
+        .get_resource_or_init::<Assets>()
+        .0
+        .load(&instance.asset)
+        .map_err(|error| anyhow::anyhow!("{error}"))?;
+    instance
+        .material_overrides
+        .retain(|name, _| asset.material_by_name(name).is_some());
+    if def
+        .animation
+        .as_ref()
+        .is_some_and(|animation| asset.animation_by_name(&animation.clip).is_none())
+    {
+        def.animation = None;
+    }
+    Ok(())
+}
+
 /// The autosave of `path` when it is newer than the file (unsaved edits that never reached
 /// it: the editor closed or crashed before a save), to be offered back on opening.
 pub fn newer_autosave(path: &Path) -> Option<PathBuf> {

@@ -550,13 +550,29 @@ impl EditorApp {
                 }
                 None => Ok(Some("nothing there to place on".to_owned())),
             },
-            Command::Edit { name, def } => editor
-                .drag(engine, |entity| {
-                    if entity.name == name {
-                        *entity = (*def).clone();
-                    }
-                })
-                .map(|()| None),
+            Command::Edit { name, mut def } => {
+                let swapped = crate::game::level_io::entity_defs(&mut engine.world)
+                    .into_iter()
+                    .find(|(_, entity)| entity.name == name)
+                    .is_some_and(|(_, entity)| {
+                        entity.instance.as_ref().map(|i| &i.asset)
+                            != def.instance.as_ref().map(|i| &i.asset)
+                    });
+                let fitted = if swapped {
+                    crate::edit::fit_to_asset(engine, &mut def)
+                } else {
+                    Ok(())
+                };
+                fitted
+                    .and_then(|()| {
+                        editor.drag(engine, |entity| {
+                            if entity.name == name {
+                                *entity = (*def).clone();
+                            }
+                        })
+                    })
+                    .map(|()| None)
+            }
             Command::Properties(properties) => {
                 editor.drag_properties(engine, *properties);
                 // The sky lights everything: the converged view starts again.
@@ -627,8 +643,14 @@ impl EditorApp {
                 ))
             }
             Command::TakeAutosave => self.take_autosave().map(Some),
-            Command::KeepFileOverAutosave => crate::edit::keep_autosave_aside(&self.path)
-                .map(|kept| Some(format!("kept the file; the autosave is now {}", kept.display()))),
+            Command::KeepFileOverAutosave => {
+                crate::edit::keep_autosave_aside(&self.path).map(|kept| {
+                    Some(format!(
+                        "kept the file; the autosave is now {}",
+                        kept.display()
+                    ))
+                })
+            }
             Command::TakeFile => {
                 self.panels.conflict = false;
                 match self.editor.autosave(&mut self.engine, &self.path) {

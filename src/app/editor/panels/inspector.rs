@@ -28,7 +28,13 @@ impl Panels {
             [original] => {
                 egui::ScrollArea::vertical().show(ui, |ui| {
                     let mut def = (*original).clone();
-                    inspect(ui, &mut def, &frame.materials);
+                    let choices = Choices {
+                        materials: &frame.materials,
+                        clips: &frame.clips,
+                        assets: &self.asset_names,
+                        sounds: &self.sounds,
+                    };
+                    inspect(ui, &mut def, &choices);
                     let taken = def.name != original.name
                         && frame.defs.iter().any(|(_, other)| other.name == def.name);
                     if taken || def.name.trim().is_empty() {
@@ -127,9 +133,32 @@ pub(super) fn euler_degrees(rotation: Quat) -> Vec3 {
     Vec3::new(round(x), round(y), round(z))
 }
 
+/// What an entity's fields may be set to: its asset's materials and clips, and the
+/// project's assets and sounds as the level names them.
+struct Choices<'a> {
+    materials: &'a [Material],
+    clips: &'a [String],
+    assets: &'a [String],
+    sounds: &'a [String],
+}
+
+/// One of `choices` for `value`, in a drop-down (`value` shown as it is, chosen or not).
+fn choose(ui: &mut egui::Ui, salt: &str, value: &mut String, choices: &[String]) {
+    egui::ComboBox::from_id_salt(salt)
+        .selected_text(value.as_str())
+        .show_ui(ui, |ui| {
+            for choice in choices {
+                if ui.selectable_label(choice == value, choice).clicked() {
+                    value.clone_from(choice);
+                }
+            }
+        });
+}
+
 /// The inspector's fields for one entity: every component it has, and a box to add each
 /// one it has not.
-fn inspect(ui: &mut egui::Ui, def: &mut EntityDef, materials: &[Material]) {
+fn inspect(ui: &mut egui::Ui, def: &mut EntityDef, choices: &Choices) {
+    let materials = choices.materials;
     ui.horizontal(|ui| {
         ui.label("Name");
         ui.text_edit_singleline(&mut def.name);
@@ -147,9 +176,120 @@ fn inspect(ui: &mut egui::Ui, def: &mut EntityDef, materials: &[Material]) {
         egui::CollapsingHeader::new("Asset")
             .default_open(true)
             .show(ui, |ui| {
-                ui.label(&instance.asset);
+                // A swap keeps the overrides and the clip the new asset has too (the window
+                // fits them: `edit::fit_to_asset`).
+                choose(ui, "instance asset", &mut instance.asset, choices.assets);
                 material_overrides(ui, &mut instance.material_overrides, materials);
             });
+        if let Some(first) = choices.clips.first() {
+            component(
+                ui,
+                "Animation",
+                &mut def.animation,
+                || AnimationDef {
+                    clip: first.clone(),
+                    playback: Playback::Loop,
+                    speed: 1.0,
+                    start: 0.0,
+                },
+                |ui, animation| {
+                    ui.horizontal(|ui| {
+                        ui.label("clip");
+                        choose(ui, "animation clip", &mut animation.clip, choices.clips);
+                    });
+                    ui.horizontal(|ui| {
+                        ui.radio_value(&mut animation.playback, Playback::Loop, "loop");
+                        ui.radio_value(&mut animation.playback, Playback::Once, "once");
+                    });
+                    number(ui, "speed", &mut animation.speed, 0.01, -10.0..=10.0, "x");
+                    number(ui, "start", &mut animation.start, 0.01, 0.0..=3600.0, " s");
+                },
+            );
+        } else if def.animation.is_some() {
+            ui.colored_label(Color32::LIGHT_RED, "the asset has no animation clips");
+        }
+        component(
+            ui,
+            "Deformer",
+            &mut def.deformer,
+            || DeformerDef::Wobble {
+                amplitude: 0.05,
+                period: 2.0,
+            },
+            |ui, deformer| {
+                let wave = matches!(deformer, DeformerDef::Wave { .. });
+                let mut chosen = wave;
+                ui.horizontal(|ui| {
+                    ui.radio_value(&mut chosen, false, "wobble");
+                    ui.radio_value(&mut chosen, true, "wave");
+                });
+                if chosen != wave {
+                    let (amplitude, period) = match *deformer {
+                        DeformerDef::Wave {
+                            amplitude, period, ..
+                        }
+                        | DeformerDef::Wobble { amplitude, period } => (amplitude, period),
+                    };
+                    *deformer = if chosen {
+                        DeformerDef::Wave {
+                            amplitude,
+                            wavelength: 1.0,
+                            period,
+                            direction: Vec3::X,
+                        }
+                    } else {
+                        DeformerDef::Wobble { amplitude, period }
+                    };
+                }
+                match deformer {
+                    DeformerDef::Wave {
+                        amplitude,
+                        wavelength,
+                        period,
+                        direction,
+                    } => {
+                        number(ui, "amplitude", amplitude, 0.001, 0.0..=10.0, " m");
+                        number(ui, "wavelength", wavelength, 0.01, 0.01..=100.0, " m");
+                        number(ui, "period", period, 0.01, 0.01..=100.0, " s");
+                        vec3_row(ui, "direction", direction, 0.01, "");
+                        if direction.length_squared() == 0.0 {
+                            *direction = Vec3::X;
+                        }
+                    }
+                    DeformerDef::Wobble { amplitude, period } => {
+                        number(ui, "amplitude", amplitude, 0.001, 0.0..=10.0, " m");
+                        number(ui, "period", period, 0.01, 0.01..=100.0, " s");
+                    }
+                }
+            },
+        );
+    }
+    if let Some(first) = choices.sounds.first() {
+        component(
+            ui,
+            "Sound",
+            &mut def.sound,
+            || SoundDef {
+                asset: first.clone(),
+                gain_db: 0.0,
+                looping: true,
+            },
+            |ui, sound| {
+                choose(ui, "sound asset", &mut sound.asset, choices.sounds);
+                number(
+                    ui,
+                    "gain at 1 m",
+                    &mut sound.gain_db,
+                    0.1,
+                    -60.0..=24.0,
+                    " dB",
+                );
+                ui.checkbox(
+                    &mut sound.looping,
+                    "loops (else plays once as the level starts)",
+                );
+            },
+        );
     }
     component(
         ui,

@@ -29,8 +29,8 @@ use crate::game::LevelEntity;
 use crate::game::level_io::entity_defs;
 use crate::headless::exposure::Exposure;
 use crate::scene::level::{
-    AmbienceDef, CameraDef, EntityDef, ExitDef, KnockDef, LightDef, MaterialOverride, MoverDef,
-    PlayerSpawn, ShardDef, WardenDef,
+    AmbienceDef, AnimationDef, CameraDef, DeformerDef, EntityDef, ExitDef, KnockDef, LightDef,
+    MaterialOverride, MoverDef, Playback, PlayerSpawn, ShardDef, SoundDef, WardenDef,
 };
 use crate::scene::model::Material;
 
@@ -50,6 +50,8 @@ pub struct FrameInput {
     pub can_redo: bool,
     /// The materials of the asset the one selected entity instances (for its overrides).
     pub materials: Vec<Material>,
+    /// The animation clips of the asset the one selected entity instances.
+    pub clips: Vec<String>,
     /// The level's own properties (name, campaign, sky, ambience).
     pub properties: LevelProperties,
 }
@@ -62,7 +64,7 @@ impl FrameInput {
             .filter_map(|&place| entity_bounds(engine, place))
             .collect();
         let defs = entity_defs(&mut engine.world);
-        let materials = match editor.selection.as_slice() {
+        let asset = match editor.selection.as_slice() {
             [place] => defs
                 .iter()
                 .find(|(p, _)| p == place)
@@ -70,13 +72,21 @@ impl FrameInput {
                 .and_then(|instance| {
                     let mut assets = engine.world.get_resource_mut::<Assets>()?;
                     assets.0.load(&instance.asset).ok()
-                })
-                .map_or_else(Vec::new, |asset| asset.materials.clone()),
-            _ => Vec::new(),
+                }),
+            _ => None,
         };
+        let materials = asset
+            .as_ref()
+            .map_or_else(Vec::new, |asset| asset.materials.clone());
+        let clips = asset.as_ref().map_or_else(Vec::new, |asset| {
+            (0..asset.animations.len())
+                .map(|index| asset.animation_label(index))
+                .collect()
+        });
         FrameInput {
             defs,
             materials,
+            clips,
             properties: LevelProperties::of(&engine.world),
             selection: editor.selection.clone(),
             bounds,
@@ -207,8 +217,10 @@ pub struct Panels {
     armed: Option<PaletteItem>,
     assets_folder: PathBuf,
     assets: Vec<PathBuf>,
+    /// `assets` as the level names them (an instance's choices).
+    asset_names: Vec<String>,
     /// The sound files under the assets folder, as the level names them (the ambience's
-    /// choices).
+    /// and sound components' choices).
     sounds: Vec<String>,
     /// The path field for Open and Save as (always there, with or without a desktop file
     /// dialog).
@@ -246,6 +258,10 @@ impl Panels {
             grid: 0.25,
             angle: 15.0,
             armed: None,
+            asset_names: asset_files(&folder)
+                .iter()
+                .map(|asset| asset_reference(level, asset))
+                .collect(),
             assets: asset_files(&folder),
             sounds: sound_files(&folder)
                 .iter()
