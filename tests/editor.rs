@@ -731,3 +731,63 @@ fn a_swapped_asset_keeps_only_the_overrides_and_clip_it_has_and_the_level_loads(
     assert!(saved.contains("kit/crate.glb"), "{saved}");
     Scene::load(&path).expect("the level loads with the swapped asset");
 }
+
+/// Copy and paste between two levels in different folders, as the system clipboard carries
+/// it (level text): the assets still resolve, a second paste numbers the names and the
+/// pasted lamp's fixture follows its bracket's new name, and text that is no level changes
+/// nothing.
+#[test]
+fn entities_copied_from_one_level_paste_into_another_and_still_load() {
+    let (source, _, mut engine) = open_first_light("copy-paste");
+    let mut editor = Editor::new();
+    let places: Vec<_> = entity_defs(&mut engine.world)
+        .into_iter()
+        .filter(|(_, def)| def.name.starts_with("way out lamp"))
+        .map(|(place, _)| place)
+        .collect();
+    assert_eq!(places.len(), 2, "the lamp and its bracket");
+    for place in &places {
+        editor.select(*place, true);
+    }
+    let text = editor
+        .copy(&mut engine, &source)
+        .expect("a selection to copy");
+    assert!(text.contains("lamp-bracket.glb"), "{text}");
+
+    let other = common::scratch_dir("copy-paste-target").join("attic.ron");
+    let scene = gloam::edit::template::new_scene(&other).unwrap();
+    let mut target = Engine::new(&scene, RenderSettings::real_time(32, 18));
+    let mut pasting = Editor::unsaved();
+    assert_eq!(pasting.paste(&mut target, &other, &text).unwrap(), 2);
+    assert_eq!(pasting.selection.len(), 2);
+    assert_eq!(pasting.paste(&mut target, &other, &text).unwrap(), 2);
+    let lamp = named(&mut target, "way out lamp 2").expect("the second paste, renamed");
+    assert_eq!(lamp.fixture.as_deref(), Some("way out lamp bracket 2"));
+    assert_eq!(
+        named(&mut target, "way out lamp")
+            .unwrap()
+            .fixture
+            .as_deref(),
+        Some("way out lamp bracket")
+    );
+    let saved = saved_text(&mut pasting, &mut target, &other);
+    assert!(
+        !saved.contains(&format!("\"{}", common::repo().display())),
+        "relative: {saved}"
+    );
+    let loaded = Scene::load(&other).expect("the level with pasted entities loads");
+    assert_eq!(loaded.level.entities.len(), scene.level.entities.len() + 4);
+
+    let before = defs(&mut target);
+    let error = pasting
+        .paste(&mut target, &other, "not a level")
+        .unwrap_err();
+    assert!(format!("{error:#}").contains("the clipboard"), "{error:#}");
+    assert_eq!(defs(&mut target), before);
+    assert!(pasting.undo(&mut target).unwrap());
+    assert_eq!(
+        defs(&mut target).len(),
+        before.len() - 2,
+        "a paste is one step"
+    );
+}

@@ -40,7 +40,7 @@ use crate::game::spawn::{Assets, spawn_entity};
 use crate::game::{LevelEntity, LevelInfo, Transform, level_from_world};
 use crate::scene::Scene;
 use crate::scene::files::{absolute, write_atomically};
-use crate::scene::level::{EntityDef, Environment, level_to_string};
+use crate::scene::level::{EntityDef, Environment, LEVEL_VERSION, Level, level_to_string};
 
 /// One entity's definition before and after a step (`None`: it did not exist).
 #[derive(Clone, Debug, PartialEq)]
@@ -350,6 +350,108 @@ impl Editor {
         Ok(())
     }
 
+    /// The selected entities as level text, for the system clipboard: a level holding just
+    /// them, every asset named by its absolute path, so the text pastes into a level in
+    /// any folder (and loads as a level of its own). None when nothing is selected.
+    pub fn copy(&self, engine: &mut Engine, level: &Path) -> Option<String> {
+        let defs = entity_defs(&mut engine.world);
+        let folder = level.parent().unwrap_or(Path::new("."));
+        let entities: Vec<EntityDef> = self
+            .selection
+            .iter()
+            .filter_map(|place| defs.iter().find(|(p, _)| p == place))
+            .map(|(_, def)| {
+                let mut def = def.clone();
+                for asset in asset_paths(&mut def) {
+                    *asset = absolute(&folder.join(&*asset))
+                        .to_string_lossy()
+                        .into_owned();
+                }
+                def
+            })
+            .collect();
+        (!entities.is_empty()).then(|| {
+            level_to_string(&Level {
+                version: LEVEL_VERSION,
+                name: "copied entities".to_owned(),
+                playable: false,
+                campaign: None,
+                environment: Environment::default(),
+                entities,
+            })
+        })
+    }
+
+    /// Adds the entities of `text` (level text, as `copy` makes it or any level file holds)
+    /// to the level at `level` as one step, where they were, and selects them: assets are
+    /// named relative to `level`, names taken already get a number, and a light's fixture
+    /// follows its entity's new name (or is let go when it names nothing in this level).
+    /// Text that is not a level changes nothing and says why. Returns how many.
+    pub fn paste(
+        &mut self,
+        engine: &mut Engine,
+        level: &Path,
+        text: &str,
+    ) -> anyhow::Result<usize> {
+        let pasted = crate::scene::level::parse_level(Path::new("the clipboard"), text)
+            .map_err(|error| anyhow::anyhow!("{error}"))?;
+        let defs = entity_defs(&mut engine.world);
+        let mut names: Vec<String> = defs.iter().map(|(_, def)| def.name.clone()).collect();
+        let mut next = defs.iter().map(|(place, _)| place.0 + 1).max().unwrap_or(0);
+        let folder = level.parent().unwrap_or(Path::new("."));
+        let mut renamed = Vec::new();
+        let mut entities = Vec::new();
+        for mut def in pasted.entities {
+            for asset in asset_paths(&mut def) {
+                // Relative paths are taken as the level's own (text from a level file).
+                *asset = palette::asset_reference(level, &folder.join(&*asset));
+            }
+            let name = if names.contains(&def.name) || def.name.is_empty() {
+                unused_name(
+                    if def.name.is_empty() {
+                        "entity"
+                    } else {
+                        &def.name
+                    },
+                    &names,
+                )
+            } else {
+                def.name.clone()
+            };
+            renamed.push((std::mem::replace(&mut def.name, name.clone()), name.clone()));
+            names.push(name);
+            entities.push(def);
+        }
+        for def in &mut entities {
+            if let Some(fixture) = &def.fixture {
+                def.fixture = match renamed.iter().find(|(old, _)| old == fixture) {
+                    Some((_, new)) => Some(new.clone()),
+                    None if defs.iter().any(|(_, other)| &other.name == fixture) => {
+                        Some(fixture.clone())
+                    }
+                    None => None,
+                };
+            }
+        }
+        let changes: Vec<Change> = entities
+            .into_iter()
+            .map(|def| {
+                let place = LevelEntity(next);
+                next += 1;
+                Change {
+                    place,
+                    before: None,
+                    after: Some(def),
+                }
+            })
+            .collect();
+        let count = changes.len();
+        let places = changes.iter().map(|change| change.place).collect();
+        self.commit(engine, changes)?;
+        self.selection = places;
+        Ok(count)
+    }
+
     /// Deletes the selected entities (their asset hierarchies with them).
     pub fn delete(&mut self, engine: &mut Engine) -> anyhow::Result<()> {
         let defs = entity_defs(&mut engine.world);
@@ -648,6 +750,19 @@ fn unused_name(base: &str, taken: &[String]) -> String {
         .map(|n| format!("{base} {n}"))
         .find(|name| !taken.contains(name))
         .unwrap_or_else(|| base.to_owned())
+}
+
+/// Every asset path an entity's definition holds (its instance, its player body, its
+/// sound), to be renamed when it moves between folders.
+fn asset_paths(def: &mut EntityDef) -> impl Iterator<Item = &mut String> {
+    let instance = def.instance.as_mut().map(|instance| &mut instance.asset);
+    let body = def
+        .player_spawn
+        .as_mut()
+        .and_then(|spawn| spawn.body.as_mut())
+        .map(|body| &mut body.asset);
+    let sound = def.sound.as_mut().map(|sound| &mut sound.asset);
+    instance.into_iter().chain(body).chain(sound)
 }
 
 /// The level entity whose hierarchy `entity` belongs to.

@@ -187,6 +187,12 @@ pub enum Command {
         name: String,
         def: Box<EntityDef>,
     },
+    /// The selection to the system clipboard as level text (Ctrl+C).
+    Copy,
+    /// ... and then deleted (Ctrl+X).
+    Cut,
+    /// Level text from the system clipboard added to the level (Ctrl+V).
+    Paste(String),
     /// Part of a drag of the level's own properties (inspector, nothing selected).
     Properties(Box<crate::edit::LevelProperties>),
     Duplicate,
@@ -579,6 +585,26 @@ impl EditorApp {
                 engine.film.reset = true;
                 Ok(None)
             }
+            Command::Copy | Command::Cut => {
+                let count = editor.selection.len();
+                match editor.copy(engine, &self.path) {
+                    Some(text) => {
+                        self.panels.clipboard = Some(text);
+                        if matches!(command, Command::Cut) {
+                            editor
+                                .delete(engine)
+                                .map(|()| Some(format!("cut {count} to the clipboard")))
+                        } else {
+                            Ok(Some(format!("copied {count} to the clipboard")))
+                        }
+                    }
+                    None => Ok(Some("nothing selected to copy".to_owned())),
+                }
+            }
+            Command::Paste(text) => editor
+                .paste(engine, &self.path, &text)
+                .map(|count| Some(format!("pasted {count} from the clipboard")))
+                .map_err(|error| error.context("the clipboard holds no level text")),
             Command::Duplicate => editor
                 .duplicate(engine)
                 .map(|()| Some(format!("duplicated: {} new", editor.selection.len()))),

@@ -202,6 +202,8 @@ pub struct Panels {
     pub conflict: bool,
     /// The level's autosave, newer than the file, found on opening it: ask which to edit.
     pub autosave_offer: Option<PathBuf>,
+    /// Level text for the system clipboard, handed to egui at the next frame (Ctrl+C).
+    pub clipboard: Option<String>,
     /// The level or an asset on disk does not load: its problems, shown over the view
     /// until a good version is loaded.
     pub file_error: Option<String>,
@@ -243,6 +245,7 @@ impl Panels {
             notice: None,
             conflict: false,
             autosave_offer: None,
+            clipboard: None,
             file_error: None,
             exposure: ExposureControls {
                 on: false,
@@ -304,6 +307,9 @@ impl Panels {
     ) {
         let ctx = ui.ctx().clone();
         self.primary_down = ctx.input(|i| i.pointer.primary_down());
+        if let Some(text) = self.clipboard.take() {
+            ctx.copy_text(text);
+        }
         self.shortcuts(&ctx, out);
         egui::Panel::top("menu").show_inside(ui, |ui| self.menu_bar(ui, frame, view, out));
         egui::Panel::bottom("status").show_inside(ui, |ui| self.status(ui, frame, view));
@@ -339,6 +345,16 @@ impl Panels {
         let command = |key| KeyboardShortcut::new(Modifiers::COMMAND, key);
         let command_shift = |key| KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, key);
         ctx.input_mut(|input| {
+            // The clipboard's keys come as events (egui-winit reads the system clipboard
+            // for a paste), not as key presses.
+            for event in &input.events {
+                match event {
+                    egui::Event::Copy => out.push(Command::Copy),
+                    egui::Event::Cut => out.push(Command::Cut),
+                    egui::Event::Paste(text) => out.push(Command::Paste(text.clone())),
+                    _ => {}
+                }
+            }
             // Ctrl+Shift+Z before Ctrl+Z, which would also match it.
             if input.consume_shortcut(&command_shift(Key::Z))
                 || input.consume_shortcut(&command(Key::Y))
