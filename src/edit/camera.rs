@@ -82,6 +82,19 @@ impl FlyCamera {
             rotation * Vec3::X * local.x + Vec3::Y * local.y + rotation * Vec3::NEG_Z * local.z;
     }
 
+    /// Backs off along the look direction until the box [min, max] fills the view (its
+    /// bounding sphere touching the narrower side of the frustum at `aspect`, width over
+    /// height), looking at its centre: the editor's F, frame the selection.
+    pub fn frame(&mut self, min: Vec3, max: Vec3, aspect: f32) {
+        let centre = (min + max) * 0.5;
+        let radius = ((max - min).length() * 0.5).max(0.1);
+        let half_vertical = self.yfov * 0.5;
+        let half_horizontal = (half_vertical.tan() * aspect.max(1e-3)).atan();
+        let distance = radius / half_vertical.min(half_horizontal).sin();
+        let forward = self.rotation() * Vec3::NEG_Z;
+        self.position = centre - forward * distance;
+    }
+
     /// Makes this the view the next frame renders from (spawning the editor's view entity
     /// the first time). Only the view changes: the level is not touched.
     pub fn install(&self, world: &mut World) {
@@ -139,5 +152,38 @@ mod tests {
         // Pitch stops short of the pole.
         camera.turn(Vec2::new(0.0, 10.0));
         assert_eq!(camera.pitch, PITCH_LIMIT);
+    }
+
+    #[test]
+    fn framing_a_box_looks_at_its_centre_from_where_it_just_fits() {
+        let mut camera = FlyCamera {
+            position: Vec3::new(50.0, 3.0, 9.0),
+            yaw: 0.3,
+            pitch: -0.4,
+            yfov: 60f32.to_radians(),
+            znear: 0.05,
+        };
+        let (yaw, pitch) = (camera.yaw, camera.pitch);
+        let (min, max) = (Vec3::new(1.0, 0.0, -3.0), Vec3::new(3.0, 2.0, -1.0));
+        camera.frame(min, max, 16.0 / 9.0);
+        assert_eq!(
+            (camera.yaw, camera.pitch),
+            (yaw, pitch),
+            "the view keeps its angle"
+        );
+        let centre = Vec3::new(2.0, 1.0, -2.0);
+        let to_centre = centre - camera.position;
+        let forward = camera.rotation() * Vec3::NEG_Z;
+        assert!(
+            to_centre.normalize().dot(forward) > 0.9999,
+            "looks at the centre"
+        );
+        // The sphere around the box (radius sqrt 3) touches the 30-degree half angle.
+        let radius = 3f32.sqrt();
+        assert!((to_centre.length() - radius / 30f32.to_radians().sin()).abs() < 1e-4);
+        // A tall, narrow view backs off further: the width is then the tighter side.
+        let mut narrow = camera;
+        narrow.frame(min, max, 0.5);
+        assert!((narrow.position - centre).length() > to_centre.length() + 0.5);
     }
 }

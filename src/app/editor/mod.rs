@@ -187,6 +187,8 @@ pub enum Command {
         name: String,
         def: Box<EntityDef>,
     },
+    /// Moves the view to frame the selection (F).
+    FrameSelection,
     /// The selection to the system clipboard as level text (Ctrl+C).
     Copy,
     /// ... and then deleted (Ctrl+X).
@@ -584,6 +586,24 @@ impl EditorApp {
                 // The sky lights everything: the converged view starts again.
                 engine.film.reset = true;
                 Ok(None)
+            }
+            Command::FrameSelection => {
+                let boxes: Vec<(glam::Vec3, glam::Vec3)> = editor
+                    .selection
+                    .iter()
+                    .filter_map(|&place| crate::edit::entity_bounds(engine, place))
+                    .collect();
+                match boxes
+                    .into_iter()
+                    .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+                {
+                    Some((min, max)) => {
+                        let aspect = self.options.width as f32 / self.options.height.max(1) as f32;
+                        self.camera.frame(min, max, aspect);
+                        Ok(None)
+                    }
+                    None => Ok(Some("nothing selected that draws, to frame".to_owned())),
+                }
             }
             Command::Copy | Command::Cut => {
                 let count = editor.selection.len();

@@ -373,6 +373,9 @@ impl Panels {
             if input.consume_key(Modifiers::NONE, Key::Delete) {
                 out.push(Command::Delete);
             }
+            if !self.flying && input.consume_key(Modifiers::NONE, Key::F) {
+                out.push(Command::FrameSelection);
+            }
             if input.consume_key(Modifiers::NONE, Key::F4) {
                 out.push(Command::ToggleView);
             }
