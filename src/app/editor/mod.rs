@@ -42,16 +42,27 @@
 //!   start) or any glTF under `assets/` in the palette (`edit::palette`), then click in the
 //!   view: it lands where the click meets the level (the ground plane where it meets
 //!   nothing), under a unique name. Shift+click places another; Esc puts the choice back.
+//! - **Start a level:** `gloam edit --new LEVEL`, or File > New level at this file, starts
+//!   from a template (`edit::template`: an 8 x 8 m room, a player start, the way out under
+//!   a lamp on its bracket) that the bot already wins; Ctrl+S writes it to LEVEL, which
+//!   must not exist yet.
 //! - **Inspect:** the panel on the right edits every component of the one selected entity:
-//!   name, transform, material overrides, light (kind, colour, intensity, cones), warden
-//!   (speed, route, lamp), shard, exit, player start, camera, knock, mover. A box beside
-//!   each component adds or removes it. Under the asset, each of its named materials lists
+//!   name, transform, the asset it instances (swapped among the project's, keeping the
+//!   overrides and clip the new one has), material overrides, animation (clip, loop or
+//!   once, speed, start), deformer (wobble or wave), sound (file, gain, loop), light
+//!   (kind, colour, intensity, cones), warden (speed, route, lamp), shard, exit, player
+//!   start, camera, knock, mover. A box beside each component adds or removes it. With
+//!   nothing selected it edits the level's own properties: name, campaign number, sky and
+//!   ambience. Under the asset, each of its named materials lists
 //!   the values a level may replace for this one entity (base colour, metallic, roughness,
 //!   transmission, ior, emissive, double sided): ticking one starts from the asset's value,
 //!   and the file names only the values ticked.
 //! - **Undo everything:** Ctrl+Z undoes, Ctrl+Shift+Z or Ctrl+Y redoes; a whole gizmo,
 //!   waypoint or field drag is one step, and a deleted entity comes back with all its
-//!   components at its old place in the file. Ctrl+D duplicates, Delete deletes.
+//!   components at its old place in the file. Ctrl+D duplicates, Delete deletes, F frames
+//!   the selection. Ctrl+C, Ctrl+X and Ctrl+V copy, cut and paste through the system
+//!   clipboard as level text, so entities move between two open levels (their assets
+//!   named again relative to the level pasted into).
 //! - **Never lose work:** the title starts with `*` while there are unsaved edits. Ctrl+S
 //!   writes the file atomically and keeps the previous one as `x.ron.bak`; a save that
 //!   fails says why and leaves the old file and the edits as they were. The File menu's
@@ -59,7 +70,9 @@
 //!   (Save as this file); where the desktop has file dialogs (`dialogs`: the XDG desktop
 //!   portal, or zenity, on Linux), Open... and Save as... show them too. Every two minutes
 //!   unsaved edits go to `.x.ron.autosave` beside the level (the level file itself is
-//!   untouched); neither name is a `*.ron`, so no level list picks them up. Closing, or
+//!   untouched); neither name is a `*.ron`, so no level list picks them up. Opening a level
+//!   whose autosave is newer than the file offers it back: load it (unsaved), or keep the
+//!   file with the autosave moved aside to `.x.ron.autosave-N`. Closing, or
 //!   opening another level, with unsaved edits asks first: save, don't save, or cancel;
 //!   Enter takes the first answer, which loses nothing. A level loaded and saved with no
 //!   edit is the same file, byte for byte.
