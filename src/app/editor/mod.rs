@@ -37,7 +37,11 @@
 //! - **Move, rotate, scale:** W, E and R choose the gizmo's handles (axes and planes) when
 //!   the camera is not flying. Snap (on by default) steps moves by the grid (0.25 m) and
 //!   turns by the angle (15 degrees), both set in the tool bar; waypoints snap to the grid
-//!   too.
+//!   too. The grid is drawn over the ground plane at the snap size (G hides it), the X axis
+//!   red and the Z axis blue.
+//! - **Measure and come back:** M turns clicks into a measuring tape: two clicks, and the
+//!   distance between the points they meet (with its run along each axis) is drawn between
+//!   them. Ctrl+1 to Ctrl+4 keep the view as a bookmark; 1 to 4 go back to it.
 //! - **Place:** choose a prefab (lamp, shard, warden with its lamp, door, exit, player
 //!   start) or any glTF under `assets/` in the palette (`edit::palette`), then click in the
 //!   view: it lands where the click meets the level (the ground plane where it meets
@@ -202,6 +206,10 @@ pub enum Command {
     },
     /// Moves the view to frame the selection (F).
     FrameSelection,
+    /// Moves the view to a bookmark (keys 1 to 4).
+    GoTo(FlyCamera),
+    /// A click with the measuring tool: the point it meets becomes a measured end.
+    Measure(Ray),
     /// The selection to the system clipboard as level text (Ctrl+C).
     Copy,
     /// ... and then deleted (Ctrl+X).
@@ -618,6 +626,22 @@ impl EditorApp {
                     None => Ok(Some("nothing selected that draws, to frame".to_owned())),
                 }
             }
+            Command::GoTo(kept) => {
+                self.camera = kept;
+                Ok(None)
+            }
+            Command::Measure(ray) => match surface_point(engine, &ray) {
+                Some(point) => {
+                    self.panels.measured.push(point);
+                    Ok(match self.panels.measured.as_slice() {
+                        [a, b] => Some(format!("measured {:.2} m", (*b - *a).length())),
+                        _ => Some("measuring from here: click the other end".to_owned()),
+                    })
+                }
+                None => Ok(Some(
+                    "the click meets neither the level nor the ground".to_owned(),
+                )),
+            },
             Command::Copy | Command::Cut => {
                 let count = editor.selection.len();
                 match editor.copy(engine, &self.path) {

@@ -144,6 +144,9 @@ impl FlyKeys {
     }
 }
 
+/// How many camera bookmarks there are (keys 1 to 4).
+const BOOKMARKS: usize = 4;
+
 /// Which handles the gizmo shows (W, E, R).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Tool {
@@ -204,6 +207,14 @@ pub struct Panels {
     pub autosave_offer: Option<PathBuf>,
     /// Level text for the system clipboard, handed to egui at the next frame (Ctrl+C).
     pub clipboard: Option<String>,
+    /// The grid drawn over the ground plane at the snap size (G).
+    show_grid: bool,
+    /// Clicks in the view measure instead of selecting (M).
+    measuring: bool,
+    /// The points measured between: the first click's, then the second's.
+    pub measured: Vec<Vec3>,
+    /// Views kept with Ctrl+1..4 and gone back to with 1..4.
+    bookmarks: [Option<FlyCamera>; BOOKMARKS],
     /// The level or an asset on disk does not load: its problems, shown over the view
     /// until a good version is loaded.
     pub file_error: Option<String>,
@@ -246,6 +257,10 @@ impl Panels {
             conflict: false,
             autosave_offer: None,
             clipboard: None,
+            show_grid: true,
+            measuring: false,
+            measured: Vec::new(),
+            bookmarks: [None; BOOKMARKS],
             file_error: None,
             exposure: ExposureControls {
                 on: false,
@@ -290,6 +305,7 @@ impl Panels {
             tool: self.tool,
             snapping: self.snapping,
             grid: self.grid,
+            show_grid: self.show_grid,
             angle: self.angle,
             dialogs: self.dialogs,
             ..fresh
@@ -310,7 +326,7 @@ impl Panels {
         if let Some(text) = self.clipboard.take() {
             ctx.copy_text(text);
         }
-        self.shortcuts(&ctx, out);
+        self.shortcuts(&ctx, camera, out);
         egui::Panel::top("menu").show_inside(ui, |ui| self.menu_bar(ui, frame, view, out));
         egui::Panel::bottom("status").show_inside(ui, |ui| self.status(ui, frame, view));
         egui::Panel::left("outline")
@@ -337,7 +353,7 @@ impl Panels {
     }
 
     /// The keys. None fires while a text field has the keyboard.
-    fn shortcuts(&mut self, ctx: &egui::Context, out: &mut Vec<Command>) {
+    fn shortcuts(&mut self, ctx: &egui::Context, camera: &FlyCamera, out: &mut Vec<Command>) {
         self.fly_keys = FlyKeys::default();
         if ctx.egui_wants_keyboard_input() {
             return;
@@ -375,6 +391,37 @@ impl Panels {
             }
             if !self.flying && input.consume_key(Modifiers::NONE, Key::F) {
                 out.push(Command::FrameSelection);
+            }
+            if !self.flying && input.consume_key(Modifiers::NONE, Key::G) {
+                self.show_grid = !self.show_grid;
+            }
+            if !self.flying && input.consume_key(Modifiers::NONE, Key::M) {
+                self.measuring = !self.measuring;
+                self.measured.clear();
+            }
+            let keys = [Key::Num1, Key::Num2, Key::Num3, Key::Num4];
+            for (slot, key) in keys.into_iter().enumerate() {
+                if input.consume_shortcut(&command(key)) {
+                    self.bookmarks[slot] = Some(*camera);
+                    self.notice = Some((
+                        Instant::now(),
+                        format!("view kept as bookmark {}", slot + 1),
+                    ));
+                } else if input.consume_key(Modifiers::NONE, key) {
+                    match self.bookmarks[slot] {
+                        Some(kept) => out.push(Command::GoTo(kept)),
+                        None => {
+                            self.notice = Some((
+                                Instant::now(),
+                                format!(
+                                    "no bookmark {} yet: Ctrl+{} keeps the view",
+                                    slot + 1,
+                                    slot + 1
+                                ),
+                            ))
+                        }
+                    }
+                }
             }
             if input.consume_key(Modifiers::NONE, Key::F4) {
                 out.push(Command::ToggleView);
@@ -517,6 +564,7 @@ impl Panels {
                 }
             }
             ui.separator();
+            ui.checkbox(&mut self.show_grid, "Grid (G)");
             ui.checkbox(&mut self.snapping, "Snap");
             ui.add(
                 egui::DragValue::new(&mut self.grid)
@@ -549,6 +597,12 @@ impl Panels {
             }
             ui.separator();
             ui.toggle_value(&mut self.exposure.on, "Exposure map (X)");
+            if ui
+                .toggle_value(&mut self.measuring, "Measure (M)")
+                .changed()
+            {
+                self.measured.clear();
+            }
         });
     }
 

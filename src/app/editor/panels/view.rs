@@ -77,7 +77,11 @@ impl Panels {
             }
             self.exposure_controls(ui, rect);
         }
+        if self.show_grid {
+            ground_grid(&painter, &projection, camera.position, self.grid);
+        }
         self.overlays(&painter, frame, &projection);
+        self.measure_overlay(&painter, &projection);
         self.file_error(&painter, rect);
         let gizmo_busy = self.gizmo(ui, frame, camera, rect, out);
         let waypoint_busy = self.waypoints(ui, &response, frame, &projection, camera, view, out);
@@ -92,7 +96,12 @@ impl Panels {
                 (at.y - rect.min.y) / rect.height(),
             );
             let ray = view_ray(camera, view.width, view.height, fraction);
-            if let Some(item) = self.armed.clone() {
+            if self.measuring {
+                if self.measured.len() == 2 {
+                    self.measured.clear();
+                }
+                out.push(Command::Measure(ray));
+            } else if let Some(item) = self.armed.clone() {
                 out.push(Command::Place { ray, item });
                 if !add {
                     self.armed = None;
@@ -203,6 +212,37 @@ impl Panels {
 
     /// The selection's boxes, a marker for each entity that draws nothing, and each
     /// warden's beat.
+    /// The measuring tool's points, the line between them and its length (and its run
+    /// along each axis).
+    fn measure_overlay(&self, painter: &egui::Painter, projection: &ViewProjection) {
+        if !self.measuring {
+            return;
+        }
+        let colour = Color32::from_rgb(120, 230, 255);
+        let points: Vec<Option<Pos2>> =
+            self.measured.iter().map(|&p| projection.point(p)).collect();
+        for at in points.iter().flatten() {
+            painter.circle_filled(*at, 4.0, colour);
+        }
+        if let ([a, b], [Some(pa), Some(pb)]) = (self.measured.as_slice(), points.as_slice()) {
+            painter.line_segment([*pa, *pb], Stroke::new(2.0_f32, colour));
+            let d = *b - *a;
+            painter.text(
+                Pos2::new((pa.x + pb.x) * 0.5, (pa.y + pb.y) * 0.5 - 10.0),
+                egui::Align2::CENTER_BOTTOM,
+                format!(
+                    "{:.2} m  (x {:+.2}, y {:+.2}, z {:+.2})",
+                    d.length(),
+                    d.x,
+                    d.y,
+                    d.z
+                ),
+                egui::FontId::proportional(13.0),
+                colour,
+            );
+        }
+    }
+
     fn overlays(&self, painter: &egui::Painter, frame: &FrameInput, projection: &ViewProjection) {
         let highlight = Color32::from_rgb(255, 170, 40);
         for (min, max) in &frame.bounds {
@@ -506,6 +546,46 @@ impl ViewProjection {
             self.rect.min.x + fraction.x * self.rect.width(),
             self.rect.min.y + fraction.y * self.rect.height(),
         ))
+    }
+}
+
+/// Lines on the ground plane y = 0 every `step` metres around the point under the camera
+/// (out to 12 m, or 40 steps, each way), the X axis red and the Z axis blue where they pass.
+/// Each line is drawn in short pieces, so the part in front of the camera shows when the
+/// rest is behind it.
+fn ground_grid(painter: &egui::Painter, projection: &ViewProjection, eye: Vec3, step: f32) {
+    let step = step.max(0.01);
+    let reach = (12.0 / step).floor().clamp(1.0, 40.0);
+    let centre = Vec3::new(
+        (eye.x / step).round() * step,
+        0.0,
+        (eye.z / step).round() * step,
+    );
+    let span = reach * step;
+    const PIECES: usize = 24;
+    let faint = Stroke::new(1.0_f32, Color32::from_white_alpha(28));
+    for index in -(reach as i32)..=reach as i32 {
+        let offset = index as f32 * step;
+        for (across, along) in [(Vec3::X, Vec3::Z), (Vec3::Z, Vec3::X)] {
+            let at = centre + across * offset;
+            let on_axis = (at.dot(across)).abs() < step * 0.5;
+            let stroke = match (on_axis, across == Vec3::X) {
+                // The line x = 0 runs along Z: the Z axis.
+                (true, true) => Stroke::new(1.5_f32, Color32::from_rgb(70, 110, 230)),
+                (true, false) => Stroke::new(1.5_f32, Color32::from_rgb(220, 70, 70)),
+                _ => faint,
+            };
+            let point = |t: f32| at + along * (-span + 2.0 * span * t);
+            for piece in 0..PIECES {
+                let (a, b) = (
+                    point(piece as f32 / PIECES as f32),
+                    point((piece + 1) as f32 / PIECES as f32),
+                );
+                if let (Some(a), Some(b)) = (projection.point(a), projection.point(b)) {
+                    painter.line_segment([a, b], stroke);
+                }
+            }
+        }
     }
 }
 
