@@ -813,6 +813,81 @@ mod tests {
         }
     }
 
+    /// The editor's keys as egui hands them over, run through `shortcuts` headless.
+    #[test]
+    fn keys_keep_and_recall_views_toggle_the_tools_and_the_clipboard_becomes_commands() {
+        let ctx = egui::Context::default();
+        let mut panels = Panels::new(Path::new("levels/first-light.ron"));
+        let camera = FlyCamera {
+            position: Vec3::new(1.0, 2.0, 3.0),
+            yaw: 0.5,
+            pitch: -0.2,
+            yfov: 1.0,
+            znear: 0.05,
+        };
+        let mut run = |panels: &mut Panels, events: Vec<egui::Event>| {
+            let mut out = Vec::new();
+            let input = egui::RawInput {
+                events,
+                ..Default::default()
+            };
+            let _ = ctx.run_ui(input, |ui| panels.shortcuts(ui.ctx(), &camera, &mut out));
+            out
+        };
+        let key = |key, modifiers| egui::Event::Key {
+            key,
+            physical_key: None,
+            pressed: true,
+            repeat: false,
+            modifiers,
+        };
+        let ctrl = Modifiers::CTRL | Modifiers::COMMAND;
+
+        assert!(run(&mut panels, vec![key(Key::Num1, Modifiers::NONE)]).is_empty());
+        assert!(
+            panels
+                .notice
+                .as_ref()
+                .is_some_and(|(_, n)| n.contains("no bookmark 1"))
+        );
+        assert!(run(&mut panels, vec![key(Key::Num1, ctrl)]).is_empty());
+        match run(&mut panels, vec![key(Key::Num1, Modifiers::NONE)]).as_slice() {
+            [Command::GoTo(kept)] => assert_eq!(*kept, camera),
+            other => panic!("1 after Ctrl+1 goes back to the view kept: {other:?}"),
+        }
+        assert!(run(&mut panels, vec![key(Key::Num2, Modifiers::NONE)]).is_empty());
+
+        assert!(panels.show_grid);
+        run(&mut panels, vec![key(Key::G, Modifiers::NONE)]);
+        assert!(!panels.show_grid, "G hides the grid");
+        panels.measured.push(Vec3::ONE);
+        run(&mut panels, vec![key(Key::M, Modifiers::NONE)]);
+        assert!(
+            panels.measuring && panels.measured.is_empty(),
+            "M starts a fresh tape"
+        );
+        assert!(matches!(
+            run(&mut panels, vec![key(Key::F, Modifiers::NONE)]).as_slice(),
+            [Command::FrameSelection]
+        ));
+
+        let clipboard = run(
+            &mut panels,
+            vec![
+                egui::Event::Copy,
+                egui::Event::Cut,
+                egui::Event::Paste("(version: 1)".into()),
+            ],
+        );
+        assert!(
+            matches!(
+                clipboard.as_slice(),
+                [Command::Copy, Command::Cut, Command::Paste(text)] if text == "(version: 1)"
+            ),
+            "{clipboard:?}"
+        );
+    }
+
     #[test]
     fn fly_keys_make_a_direction() {
         let keys = FlyKeys {
