@@ -791,3 +791,50 @@ fn entities_copied_from_one_level_paste_into_another_and_still_load() {
         "a paste is one step"
     );
 }
+
+/// The outline's groups (kinds first, then the asset each entity instances) and its search,
+/// and a box's selection.
+#[test]
+fn the_outline_groups_by_kind_and_asset_and_its_search_filters_names() {
+    use gloam::edit::outline_groups;
+
+    let (_, _, mut engine) = open_first_light("outline");
+    let defs = entity_defs(&mut engine.world);
+    let groups = outline_groups(&defs, "");
+    let names: Vec<&str> = groups.iter().map(|(name, _)| name.as_str()).collect();
+    assert_eq!(
+        &names[..5],
+        ["player start", "ways out", "wardens", "shards", "lights"],
+        "{names:?}"
+    );
+    assert!(
+        names.contains(&"floor") && names.contains(&"wall"),
+        "{names:?}"
+    );
+    let count: usize = groups.iter().map(|(_, members)| members.len()).sum();
+    assert_eq!(count, defs.len(), "every entity once");
+    let lights = &groups.iter().find(|(name, _)| name == "lights").unwrap().1;
+    assert!(lights.iter().all(|(_, def)| def.light.is_some()));
+
+    let found = outline_groups(&defs, "LAMP");
+    assert!(!found.is_empty());
+    for (_, members) in &found {
+        assert!(
+            members
+                .iter()
+                .all(|(_, def)| def.name.to_lowercase().contains("lamp"))
+        );
+    }
+    assert!(outline_groups(&defs, "no such name").is_empty());
+
+    let mut editor = Editor::new();
+    let lamps: Vec<_> = lights.iter().map(|(place, _)| *place).collect();
+    editor.select_many(&lamps[..2], false);
+    editor.select_many(&lamps[1..], true);
+    assert_eq!(
+        editor.selection, lamps,
+        "a box adds what is not in the selection yet"
+    );
+    editor.select_many(&lamps[..1], false);
+    assert_eq!(editor.selection, lamps[..1]);
+}

@@ -98,7 +98,8 @@ pub enum Command {
         simd: crate::simd::Simd,
     },
     /// Edit a level in a window: the path-traced view with an outline, a palette of assets
-    /// and prefabs, an inspector and a gizmo. Keys: click selects, Shift+click adds, right
+    /// and prefabs, an inspector and a gizmo. Keys: click selects, Shift+click adds, a drag
+    /// draws a box to select, right
     /// mouse + W A S D Q E flies (Shift: faster), W/E/R move/rotate/scale, F frames the
     /// selection, G shows the grid, M measures, Ctrl+1..4 keep the view and 1..4 go back, Delete deletes, Ctrl+D duplicates, Ctrl+C / Ctrl+X / Ctrl+V copy, cut
     /// and paste through the system clipboard (as level text), Ctrl+Z undoes, Ctrl+Shift+Z or Ctrl+Y redoes, Ctrl+S saves

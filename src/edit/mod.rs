@@ -167,6 +167,19 @@ impl Editor {
         }
     }
 
+    /// Makes `places` the selection, or (with `add`) adds those not in it: a box drawn in
+    /// the view.
+    pub fn select_many(&mut self, places: &[LevelEntity], add: bool) {
+        if !add {
+            self.selection.clear();
+        }
+        for place in places {
+            if !self.selection.contains(place) {
+                self.selection.push(*place);
+            }
+        }
+    }
+
     pub fn can_undo(&self) -> bool {
         !self.undo.is_empty()
     }
@@ -750,6 +763,69 @@ fn unused_name(base: &str, taken: &[String]) -> String {
         .map(|n| format!("{base} {n}"))
         .find(|name| !taken.contains(name))
         .unwrap_or_else(|| base.to_owned())
+}
+
+/// The outline's groups: the level's entities by what they are (the player start, ways
+/// out, wardens, shards, lights, cameras and sounds, then the rest by the asset file they
+/// instance, `wall` or `floor`), in that order and level order within each, keeping only
+/// those whose name holds `search` (in any case). A level of a hundred walls and floors
+/// reads as a few lines.
+pub fn outline_groups<'a>(
+    defs: &'a [(LevelEntity, EntityDef)],
+    search: &str,
+) -> Vec<(String, Vec<&'a (LevelEntity, EntityDef)>)> {
+    const KINDS: [&str; 7] = [
+        "player start",
+        "ways out",
+        "wardens",
+        "shards",
+        "lights",
+        "cameras",
+        "sounds",
+    ];
+    let kind = |def: &EntityDef| -> Result<usize, String> {
+        let flags = [
+            def.player_spawn.is_some(),
+            def.exit.is_some(),
+            def.warden.is_some(),
+            def.shard.is_some(),
+            def.light.is_some(),
+            def.camera.is_some(),
+            def.sound.is_some() && def.instance.is_none(),
+        ];
+        match flags.iter().position(|&flag| flag) {
+            Some(index) => Ok(index),
+            None => Err(def.instance.as_ref().map_or_else(
+                || "other".to_owned(),
+                |instance| {
+                    Path::new(&instance.asset).file_stem().map_or_else(
+                        || instance.asset.clone(),
+                        |s| s.to_string_lossy().into_owned(),
+                    )
+                },
+            )),
+        }
+    };
+    let needle = search.trim().to_lowercase();
+    let mut kinds: Vec<Vec<&(LevelEntity, EntityDef)>> = vec![Vec::new(); KINDS.len()];
+    let mut by_asset: std::collections::BTreeMap<String, Vec<&(LevelEntity, EntityDef)>> =
+        Default::default();
+    for entry in defs
+        .iter()
+        .filter(|(_, def)| needle.is_empty() || def.name.to_lowercase().contains(&needle))
+    {
+        match kind(&entry.1) {
+            Ok(index) => kinds[index].push(entry),
+            Err(asset) => by_asset.entry(asset).or_default().push(entry),
+        }
+    }
+    KINDS
+        .iter()
+        .map(|name| name.to_string())
+        .zip(kinds)
+        .chain(by_asset)
+        .filter(|(_, members)| !members.is_empty())
+        .collect()
 }
 
 /// Every asset path an entity's definition holds (its instance, its player body, its

@@ -30,7 +30,11 @@
 //! - **Look around:** hold the right mouse button in the view and fly with W A S D, E up
 //!   and Q down (Shift: four times faster).
 //! - **Select:** click in the view (the first thing the ray hits, up to its level entity)
-//!   or a name in the outline on the left; Shift+click adds or removes. Lights, the player
+//!   or a name in the outline on the left; Shift+click adds or removes. A drag in the view
+//!   from empty space draws a box that selects every entity whose place lies inside it
+//!   (Shift adds). The outline groups the entities by kind (player start, ways out,
+//!   wardens, shards, lights, cameras, sounds), then by the asset they instance (`wall`,
+//!   `floor`), and its search field keeps only the names that hold the text. Lights, the player
 //!   start, the exit and cameras draw nothing, so they show as dots to click. The selection
 //!   is outlined in orange; a selected warden's waypoints are squares to drag over the
 //!   floor.
@@ -185,6 +189,11 @@ pub enum Command {
     /// A click in the view: pick what the ray hits (`add`: Shift).
     Pick {
         ray: Ray,
+        add: bool,
+    },
+    /// A box drawn in the view: what it holds becomes the selection (`add`: Shift).
+    SelectMany {
+        places: Vec<LevelEntity>,
         add: bool,
     },
     /// A click in the outline.
@@ -556,6 +565,10 @@ impl EditorApp {
             Command::Pick { ray, add } => {
                 let picked = editor.select_by_ray(engine, &ray, add);
                 Ok(picked.map(|place| format!("selected {}", entity_name(engine, place))))
+            }
+            Command::SelectMany { places, add } => {
+                editor.select_many(&places, add);
+                Ok(Some(format!("selected {}", editor.selection.len())))
             }
             Command::Select { place, add } => {
                 editor.select(place, add);

@@ -207,6 +207,10 @@ pub struct Panels {
     pub autosave_offer: Option<PathBuf>,
     /// Level text for the system clipboard, handed to egui at the next frame (Ctrl+C).
     pub clipboard: Option<String>,
+    /// The outline's search field.
+    search: String,
+    /// Where a box select began in the view (a primary drag on nothing else).
+    box_from: Option<Pos2>,
     /// The grid drawn over the ground plane at the snap size (G).
     show_grid: bool,
     /// Clicks in the view measure instead of selecting (M).
@@ -257,6 +261,8 @@ impl Panels {
             conflict: false,
             autosave_offer: None,
             clipboard: None,
+            search: String::new(),
+            box_from: None,
             show_grid: true,
             measuring: false,
             measured: Vec::new(),
@@ -646,18 +652,39 @@ impl Panels {
     ) {
         let shift = ui.input(|i| i.modifiers.shift);
         ui.heading("Level");
+        ui.add(egui::TextEdit::singleline(&mut self.search).hint_text("search names"));
+        let searching = !self.search.trim().is_empty();
         egui::ScrollArea::vertical()
             .id_salt("outline")
             .max_height(ui.available_height() * 0.55)
             .show(ui, |ui| {
-                for (place, def) in &frame.defs {
-                    let selected = frame.selection.contains(place);
-                    if ui.selectable_label(selected, &def.name).clicked() {
-                        out.push(Command::Select {
-                            place: *place,
-                            add: shift,
-                        });
-                    }
+                let groups = crate::edit::outline_groups(&frame.defs, &self.search);
+                if groups.is_empty() {
+                    ui.weak("no entity by that name");
+                }
+                for (group, members) in groups {
+                    let holds_selection = members.iter().any(|(p, _)| frame.selection.contains(p));
+                    let header =
+                        egui::CollapsingHeader::new(format!("{group} ({})", members.len()))
+                            .id_salt(("outline group", &group))
+                            .default_open(members.len() <= 8);
+                    // A search, or a selection made in the view, opens the groups it finds.
+                    let header = if searching || holds_selection {
+                        header.open(Some(true))
+                    } else {
+                        header
+                    };
+                    header.show(ui, |ui| {
+                        for (place, def) in members {
+                            let selected = frame.selection.contains(place);
+                            if ui.selectable_label(selected, &def.name).clicked() {
+                                out.push(Command::Select {
+                                    place: *place,
+                                    add: shift,
+                                });
+                            }
+                        }
+                    });
                 }
             });
         ui.separator();

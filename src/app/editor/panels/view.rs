@@ -85,6 +85,14 @@ impl Panels {
         self.file_error(&painter, rect);
         let gizmo_busy = self.gizmo(ui, frame, camera, rect, out);
         let waypoint_busy = self.waypoints(ui, &response, frame, &projection, camera, view, out);
+        self.box_select(
+            ui,
+            &response,
+            frame,
+            &projection,
+            gizmo_busy || waypoint_busy,
+            out,
+        );
         if response.clicked()
             && !gizmo_busy
             && !waypoint_busy
@@ -212,6 +220,57 @@ impl Panels {
 
     /// The selection's boxes, a marker for each entity that draws nothing, and each
     /// warden's beat.
+    /// A primary drag that starts on nothing else draws a box; on release, every entity
+    /// whose place (its origin, or its marker) lies inside becomes the selection (Shift
+    /// adds to it).
+    fn box_select(
+        &mut self,
+        ui: &egui::Ui,
+        response: &egui::Response,
+        frame: &FrameInput,
+        projection: &ViewProjection,
+        busy: bool,
+        out: &mut Vec<Command>,
+    ) {
+        let pointer = ui.input(|i| i.pointer.interact_pos());
+        if response.drag_started_by(egui::PointerButton::Primary)
+            && !busy
+            && !self.measuring
+            && self.armed.is_none()
+            && !self.flying
+        {
+            self.box_from = ui.input(|i| i.pointer.press_origin());
+        }
+        let (Some(from), Some(to)) = (self.box_from, pointer) else {
+            return;
+        };
+        let area = Rect::from_two_pos(from, to);
+        let colour = Color32::from_rgb(255, 170, 40);
+        ui.painter()
+            .rect_filled(area, 0.0, colour.gamma_multiply(0.08));
+        ui.painter().rect_stroke(
+            area,
+            0.0,
+            Stroke::new(1.0_f32, colour),
+            egui::StrokeKind::Inside,
+        );
+        if response.drag_stopped() || !ui.input(|i| i.pointer.primary_down()) {
+            self.box_from = None;
+            let places: Vec<LevelEntity> = frame
+                .defs
+                .iter()
+                .filter(|(_, def)| {
+                    projection
+                        .point(def.transform.translation)
+                        .is_some_and(|at| area.contains(at))
+                })
+                .map(|(place, _)| *place)
+                .collect();
+            let add = ui.input(|i| i.modifiers.shift);
+            out.push(Command::SelectMany { places, add });
+        }
+    }
+
     /// The measuring tool's points, the line between them and its length (and its run
     /// along each axis).
     fn measure_overlay(&self, painter: &egui::Painter, projection: &ViewProjection) {
