@@ -34,10 +34,10 @@
 //!   from empty space draws a box that selects every entity whose place lies inside it
 //!   (Shift adds). The outline groups the entities by kind (player start, ways out,
 //!   wardens, shards, lights, cameras, sounds), then by the asset they instance (`wall`,
-//!   `floor`), and its search field keeps only the names that hold the text. Lights, the player
-//!   start, the exit and cameras draw nothing, so they show as dots to click. The selection
-//!   is outlined in orange; a selected warden's waypoints are squares to drag over the
-//!   floor.
+//!   `floor`), and its search field keeps only the names that hold the text. Lights, the
+//!   player start, the exit and cameras draw nothing, so they show as dots to click. The
+//!   selection is outlined in orange; a selected warden's waypoints are squares to drag
+//!   over the floor.
 //! - **Move, rotate, scale:** W, E and R choose the gizmo's handles (axes and planes) when
 //!   the camera is not flying. Snap (on by default) steps moves by the grid (0.25 m) and
 //!   turns by the angle (15 degrees), both set in the tool bar; waypoints snap to the grid
