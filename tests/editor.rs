@@ -838,3 +838,64 @@ fn the_outline_groups_by_kind_and_asset_and_its_search_filters_names() {
     editor.select_many(&lamps[..1], false);
     assert_eq!(editor.selection, lamps[..1]);
 }
+
+/// The editor's hide and lock: a hidden entity leaves the render (and picking) and comes
+/// back, a locked one still draws but clicks in the view pass through it; neither reaches
+/// the file, and an edit that respawns the entity gets its mark again on the next call.
+#[test]
+fn hidden_entities_leave_the_view_and_locked_ones_let_clicks_through_without_touching_the_file() {
+    use gloam::edit::mark_entities;
+
+    let (path, text, mut engine) = open_first_light("hide-lock");
+    let mut editor = Editor::new();
+    let ray = down_onto(-10.0, -6.0, 5.0);
+    let floor = editor
+        .select_by_ray(&mut engine, &ray, false)
+        .expect("a floor tile");
+    let instances = |engine: &mut Engine| engine.render_scene().accel.instances().len();
+    let all = instances(&mut engine);
+
+    assert!(mark_entities(&mut engine, &[floor], &[]));
+    engine.advance(0.0);
+    assert!(instances(&mut engine) < all, "the hidden tile is not drawn");
+    assert_ne!(editor.select_by_ray(&mut engine, &ray, false), Some(floor));
+    assert!(!mark_entities(&mut engine, &[floor], &[]), "already marked");
+
+    assert!(mark_entities(&mut engine, &[], &[floor]));
+    engine.advance(0.0);
+    assert_eq!(instances(&mut engine), all, "a locked tile still draws");
+    assert_ne!(
+        editor.select_by_ray(&mut engine, &ray, false),
+        Some(floor),
+        "clicks pass through"
+    );
+
+    // An edit respawns the tile without its mark; marking again puts it back.
+    editor.select(floor, false);
+    editor
+        .translate(&mut engine, Vec3::new(0.0, 0.0, 0.0))
+        .unwrap();
+    editor
+        .translate(&mut engine, Vec3::new(0.0, 0.5, 0.0))
+        .unwrap();
+    mark_entities(&mut engine, &[], &[floor]);
+    engine.advance(0.0);
+    let lifted = down_onto(-10.0, -6.0, 5.0);
+    assert_ne!(
+        editor.select_by_ray(&mut engine, &lifted, false),
+        Some(floor)
+    );
+
+    assert!(mark_entities(&mut engine, &[], &[]));
+    engine.advance(0.0);
+    assert_eq!(
+        editor.select_by_ray(&mut engine, &lifted, false),
+        Some(floor)
+    );
+    editor.undo(&mut engine).unwrap();
+    assert_eq!(
+        saved_text(&mut editor, &mut engine, &path),
+        text,
+        "no mark reaches the file"
+    );
+}

@@ -828,6 +828,37 @@ pub fn outline_groups<'a>(
         .collect()
 }
 
+/// Puts the editor's marks on the level's roots: `hidden` ones draw nothing, `locked` ones
+/// let picking rays through (`extract::EditorMark`). Edits respawn an entity without its
+/// mark, so the window calls this every frame with the sets it keeps; returns whether any
+/// mark changed (the converged view then starts again).
+pub fn mark_entities(engine: &mut Engine, hidden: &[LevelEntity], locked: &[LevelEntity]) -> bool {
+    let mut roots = engine
+        .world
+        .query::<(Entity, &LevelEntity, Option<&crate::extract::EditorMark>)>();
+    let changes: Vec<(Entity, crate::extract::EditorMark)> = roots
+        .iter(&engine.world)
+        .filter_map(|(entity, place, mark)| {
+            let wanted = crate::extract::EditorMark {
+                hidden: hidden.contains(place),
+                locked: locked.contains(place),
+            };
+            (mark.copied().unwrap_or_default() != wanted).then_some((entity, wanted))
+        })
+        .collect();
+    for &(entity, wanted) in &changes {
+        if wanted == crate::extract::EditorMark::default() {
+            engine
+                .world
+                .entity_mut(entity)
+                .remove::<crate::extract::EditorMark>();
+        } else {
+            engine.world.entity_mut(entity).insert(wanted);
+        }
+    }
+    !changes.is_empty()
+}
+
 /// Every asset path an entity's definition holds (its instance, its player body, its
 /// sound), to be renamed when it moves between folders.
 fn asset_paths(def: &mut EntityDef) -> impl Iterator<Item = &mut String> {

@@ -243,6 +243,15 @@ fn is_drawable(transform: &Affine3A) -> bool {
     transform.matrix3.determinant().abs() > 1e-12
 }
 
+/// The editor's marks on a level entity's root (`edit::mark_entities`): never set by the
+/// game, never saved. A hidden entity's meshes are not drawn at all; a locked one's are
+/// drawn but the editor's picking rays pass through them.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct EditorMark {
+    pub hidden: bool,
+    pub locked: bool,
+}
+
 /// A level entity's root, as extract reads it.
 type RootData<'a> = (
     &'a Name,
@@ -254,6 +263,7 @@ type RootData<'a> = (
     Has<PlayerStart>,
     Has<Patrol>,
     Has<PlayerBody>,
+    Option<&'a EditorMark>,
 );
 
 /// Mesh nodes as extract reads them.
@@ -301,6 +311,8 @@ pub struct Structure<'w, 's> {
     lights_changed: Query<'w, 's, (), LightChanged>,
     punctual_removed: RemovedComponents<'w, 's, PunctualLight>,
     asset_lights_removed: RemovedComponents<'w, 's, AssetLight>,
+    marks_changed: Query<'w, 's, (), Changed<EditorMark>>,
+    marks_removed: RemovedComponents<'w, 's, EditorMark>,
 }
 
 impl Structure<'_, '_> {
@@ -310,6 +322,8 @@ impl Structure<'_, '_> {
         let instances = !self.meshes_added.is_empty()
             || self.meshes_removed.read().next().is_some()
             || !self.instances_changed.is_empty()
+            || !self.marks_changed.is_empty()
+            || self.marks_removed.read().next().is_some()
             || switched;
         let lights = switched
             || !self.lights_changed.is_empty()
@@ -317,6 +331,7 @@ impl Structure<'_, '_> {
             || self.asset_lights_removed.read().next().is_some();
         // Drain every reader, whatever the first answered.
         self.meshes_removed.clear();
+        self.marks_removed.clear();
         self.unswitched.clear();
         self.punctual_removed.clear();
         self.asset_lights_removed.clear();
@@ -503,11 +518,25 @@ fn assemble_instances(
     }
     let mut entries: Vec<Entry> = Vec::new();
     for (entity, node, global, previous) in meshes {
-        let Ok((name, instance, dark, animator, animation, deformer, spawn, patrol, own_body)) =
-            roots.get(node.root)
+        let Ok((
+            name,
+            instance,
+            dark,
+            animator,
+            animation,
+            deformer,
+            spawn,
+            patrol,
+            own_body,
+            mark,
+        )) = roots.get(node.root)
         else {
             continue;
         };
+        let mark = mark.copied().unwrap_or_default();
+        if mark.hidden {
+            continue;
+        }
         let transform = shown(global, previous, alpha);
         if !is_drawable(&transform) {
             continue;
@@ -527,10 +556,10 @@ fn assemble_instances(
             dark,
             // The player's own body: not in their camera's view (the eye is inside it),
             // but in the light's way and in reflections.
-            mask: if own_body {
-                InstanceMask::SHADOW | InstanceMask::BOUNCE
-            } else {
-                InstanceMask::ALL
+            mask: match (own_body, mark.locked) {
+                (true, _) => InstanceMask::SHADOW | InstanceMask::BOUNCE,
+                (false, true) => InstanceMask(InstanceMask::ALL.0 & !InstanceMask::PICKABLE.0),
+                (false, false) => InstanceMask::ALL,
             },
         });
     }

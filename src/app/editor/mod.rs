@@ -34,7 +34,9 @@
 //!   from empty space draws a box that selects every entity whose place lies inside it
 //!   (Shift adds). The outline groups the entities by kind (player start, ways out,
 //!   wardens, shards, lights, cameras, sounds), then by the asset they instance (`wall`,
-//!   `floor`), and its search field keeps only the names that hold the text. Lights, the
+//!   `floor`), and its search field keeps only the names that hold the text; beside each
+//!   name, the eye hides the entity from the view and the lock lets clicks in the view pass
+//!   through it (and keeps the gizmo off it), for this session only. Lights, the
 //!   player start, the exit and cameras draw nothing, so they show as dots to click. The
 //!   selection is outlined in orange; a selected warden's waypoints are squares to drag
 //!   over the floor.
@@ -995,6 +997,9 @@ impl EditorApp {
         }
         if self.camera != camera_before {
             self.camera.install(&mut self.engine.world);
+        }
+        if crate::edit::mark_entities(&mut self.engine, &self.panels.hidden, &self.panels.locked) {
+            self.engine.film.reset = true;
         }
         window.set_title(&self.title());
 

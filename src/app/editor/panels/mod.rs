@@ -209,6 +209,9 @@ pub struct Panels {
     pub clipboard: Option<String>,
     /// The outline's search field.
     search: String,
+    /// Entities hidden, and locked against clicks in the view, for this editing session.
+    pub hidden: Vec<LevelEntity>,
+    pub locked: Vec<LevelEntity>,
     /// Where a box select began in the view (a primary drag on nothing else).
     box_from: Option<Pos2>,
     /// The grid drawn over the ground plane at the snap size (G).
@@ -262,6 +265,8 @@ impl Panels {
             autosave_offer: None,
             clipboard: None,
             search: String::new(),
+            hidden: Vec::new(),
+            locked: Vec::new(),
             box_from: None,
             show_grid: true,
             measuring: false,
@@ -676,13 +681,32 @@ impl Panels {
                     };
                     header.show(ui, |ui| {
                         for (place, def) in members {
-                            let selected = frame.selection.contains(place);
-                            if ui.selectable_label(selected, &def.name).clicked() {
-                                out.push(Command::Select {
-                                    place: *place,
-                                    add: shift,
-                                });
-                            }
+                            ui.horizontal(|ui| {
+                                for (marked, glyph, tip) in [
+                                    (&mut self.hidden, "👁", "hidden in the editor (not saved)"),
+                                    (
+                                        &mut self.locked,
+                                        "🔒",
+                                        "locked: clicks in the view pass through",
+                                    ),
+                                ] {
+                                    let on = marked.contains(place);
+                                    if ui.selectable_label(on, glyph).on_hover_text(tip).clicked() {
+                                        if on {
+                                            marked.retain(|p| p != place);
+                                        } else {
+                                            marked.push(*place);
+                                        }
+                                    }
+                                }
+                                let selected = frame.selection.contains(place);
+                                if ui.selectable_label(selected, &def.name).clicked() {
+                                    out.push(Command::Select {
+                                        place: *place,
+                                        add: shift,
+                                    });
+                                }
+                            });
                         }
                     });
                 }

@@ -376,7 +376,9 @@ impl Panels {
             .iter()
             .filter_map(|&p| frame.def(p))
             .collect();
-        if selected.is_empty() || self.flying {
+        // A locked entity stays where it is: no handles while one is selected.
+        let locked = frame.selection.iter().any(|p| self.locked.contains(p));
+        if selected.is_empty() || self.flying || locked {
             return false;
         }
         let view = camera.world_from_camera().inverse().as_dmat4();
