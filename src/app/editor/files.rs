@@ -10,10 +10,19 @@ impl EditorApp {
     pub(super) fn open_level(&mut self, path: PathBuf) -> anyhow::Result<String> {
         let scene = Scene::load(&path)?;
         let disk = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-        self.engine = editor_engine(&scene, &self.options);
+        self.show_level(&scene, path, Editor::new(), disk);
+        self.panels.autosave_offer = crate::edit::newer_autosave(&self.path);
+        Ok(format!("opened {}", self.path.display()))
+    }
+
+    /// Makes `scene`, the level of the file `path` (whose bytes on disk are `disk`), the
+    /// one edited, under `editor`: the camera starts from its view, and what belonged to
+    /// the last level (its maps, its play-check, the panels' choices) goes.
+    fn show_level(&mut self, scene: &Scene, path: PathBuf, editor: Editor, disk: Vec<u8>) {
+        self.engine = editor_engine(scene, &self.options);
         self.camera = FlyCamera::from_view(&self.engine);
         self.camera.install(&mut self.engine.world);
-        self.editor = Editor::new();
+        self.editor = editor;
         self.disk = disk;
         self.panels.opened(&path);
         self.exposure = None;
@@ -24,9 +33,7 @@ impl EditorApp {
         self.autosaved = Instant::now();
         self.options.level = path.clone();
         self.path = path;
-        self.panels.autosave_offer = crate::edit::newer_autosave(&self.path);
         self.watch_files();
-        Ok(format!("opened {}", self.path.display()))
     }
 
     /// Edits the level the autosave holds instead of the file's (offered on opening when it
@@ -36,6 +43,9 @@ impl EditorApp {
         self.engine = editor_engine(&scene, &self.options);
         self.camera.install(&mut self.engine.world);
         self.editor = Editor::unsaved();
+        // The autosave's entities are numbered as it lists them: the marks were the file's.
+        self.panels.hidden.clear();
+        self.panels.locked.clear();
         self.exposure = None;
         self.audibility = None;
         self.exposure_job = None;
@@ -51,21 +61,7 @@ impl EditorApp {
     /// unsaved until then. Nothing changes if it cannot be made.
     pub(super) fn new_level(&mut self, path: PathBuf) -> anyhow::Result<String> {
         let scene = crate::edit::template::new_scene(&path)?;
-        self.engine = editor_engine(&scene, &self.options);
-        self.camera = FlyCamera::from_view(&self.engine);
-        self.camera.install(&mut self.engine.world);
-        self.editor = Editor::unsaved();
-        self.disk = Vec::new();
-        self.panels.opened(&path);
-        self.exposure = None;
-        self.audibility = None;
-        self.exposure_job = None;
-        self.exposure_for = None;
-        self.play_check = PlayCheck::default();
-        self.autosaved = Instant::now();
-        self.options.level = path.clone();
-        self.path = path;
-        self.watch_files();
+        self.show_level(&scene, path, Editor::unsaved(), Vec::new());
         Ok(format!(
             "a new level for {}: Ctrl+S writes it",
             self.path.display()
