@@ -876,7 +876,7 @@ mod tests {
             yfov: 1.0,
             znear: 0.05,
         };
-        let mut run = |panels: &mut Panels, events: Vec<egui::Event>| {
+        let run = |panels: &mut Panels, events: Vec<egui::Event>| {
             let mut out = Vec::new();
             let input = egui::RawInput {
                 events,
