@@ -899,3 +899,85 @@ fn hidden_entities_leave_the_view_and_locked_ones_let_clicks_through_without_tou
         "no mark reaches the file"
     );
 }
+
+/// The palette's thumbnails: rendered once and then read from the cache; an edit to the
+/// glTF or to a buffer it names is a new picture; a cache file that does not decode is
+/// rendered again and replaced; a broken asset says why, and the background worker sends
+/// every asset's answer and says what they cost.
+#[test]
+fn thumbnails_are_rendered_once_cached_by_content_and_a_broken_asset_says_why() {
+    use gloam::edit::thumbnails::{Origin, SIZE, Thumbnails, cache_name, thumbnail};
+
+    let dir = common::scratch_dir("thumbnails");
+    let cache = dir.join("cache");
+    let kit = common::repo().join("assets/kit");
+    let asset = dir.join("piece.glb");
+    std::fs::copy(kit.join("crate.glb"), &asset).unwrap();
+
+    let (first, origin) = thumbnail(&asset, Some(&cache)).expect("the crate renders");
+    assert_eq!(origin, Origin::Rendered);
+    assert_eq!((first.width, first.height), (SIZE, SIZE));
+    let file = cache.join(cache_name(&asset).unwrap());
+    assert!(file.exists(), "kept in the cache");
+    let (again, origin) = thumbnail(&asset, Some(&cache)).unwrap();
+    assert_eq!(origin, Origin::Cache);
+    assert_eq!(again, first, "the cache gives back the very picture");
+
+    // Another asset under the same name: a new key, a new picture.
+    std::fs::copy(kit.join("barrel.glb"), &asset).unwrap();
+    assert_ne!(cache.join(cache_name(&asset).unwrap()), file);
+    let (barrel, origin) = thumbnail(&asset, Some(&cache)).unwrap();
+    assert_eq!(origin, Origin::Rendered);
+    assert_ne!(barrel, first);
+
+    // A cache file that is not a picture is rendered again and replaced.
+    let barrel_file = cache.join(cache_name(&asset).unwrap());
+    std::fs::write(&barrel_file, b"not a png").unwrap();
+    let (mended, origin) = thumbnail(&asset, Some(&cache)).unwrap();
+    assert_eq!((origin, &mended), (Origin::Rendered, &barrel));
+    assert_eq!(thumbnail(&asset, Some(&cache)).unwrap().1, Origin::Cache);
+
+    // A .gltf's key covers the buffer file it names.
+    let cornell = dir.join("cornell");
+    std::fs::create_dir_all(&cornell).unwrap();
+    for file in ["cornell-box.gltf", "cornell-box.bin"] {
+        std::fs::copy(
+            common::repo().join("assets/cornell").join(file),
+            cornell.join(file),
+        )
+        .unwrap();
+    }
+    let gltf = cornell.join("cornell-box.gltf");
+    let before = cache_name(&gltf).unwrap();
+    let mut buffer = std::fs::read(cornell.join("cornell-box.bin")).unwrap();
+    buffer[0] ^= 1;
+    std::fs::write(cornell.join("cornell-box.bin"), buffer).unwrap();
+    assert_ne!(
+        cache_name(&gltf).unwrap(),
+        before,
+        "the buffer is part of the key"
+    );
+
+    let broken = common::write(&dir, "broken.glb", b"glTF but not really");
+    let problem = thumbnail(&broken, Some(&cache)).expect_err("nothing to picture");
+    assert!(format!("{problem:#}").contains("broken.glb"), "{problem:#}");
+
+    // The worker: every asset's answer, the cached first, then what it cost.
+    let mut worker = Thumbnails::start(vec![broken.clone(), asset.clone()], Some(cache.clone()));
+    let mut arrived = Vec::new();
+    let started = std::time::Instant::now();
+    while worker.pending() && started.elapsed().as_secs() < 60 {
+        arrived.extend(worker.poll());
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert_eq!(arrived.len(), 2);
+    assert_eq!(arrived[0].0, asset, "the cached one comes first");
+    assert_eq!(arrived[0].1.as_ref().ok(), Some(&barrel));
+    assert!(matches!(&arrived[1].1, Err(problem) if problem.contains("broken.glb")));
+    let summary = worker.summary().expect("all arrived");
+    assert!(summary.starts_with("2 assets in "), "{summary}");
+    assert!(
+        summary.ends_with("(0 rendered, 1 from the cache, 1 without one)"),
+        "{summary}"
+    );
+}

@@ -124,13 +124,14 @@ fn x_display(test: &str) -> Option<(Reaped, String, std::path::PathBuf)> {
     Some((xvfb, display, dir))
 }
 
-/// `gloam` on `display`, with its own config folder under `dir`.
+/// `gloam` on `display`, with its own config and cache folders under `dir`.
 fn windowed(display: &str, dir: &std::path::Path) -> Command {
     let mut command = gloam();
     command
         .env("DISPLAY", display)
         .env("XDG_RUNTIME_DIR", dir.join("runtime"))
         .env("GLOAM_CONFIG_DIR", dir.join("config"))
+        .env("GLOAM_CACHE_DIR", dir.join("cache"))
         .env_remove("WAYLAND_DISPLAY")
         .current_dir(common::repo());
     command

@@ -25,6 +25,7 @@ pub mod camera;
 pub mod palette;
 pub mod play_check;
 pub mod template;
+pub mod thumbnails;
 
 use std::path::{Path, PathBuf};
 

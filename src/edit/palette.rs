@@ -11,9 +11,7 @@ use glam::Vec3;
 use crate::scene::files::absolute;
 pub use crate::scene::files::assets_folder;
 
-use crate::scene::level::{
-    EntityDef, ExitDef, InstanceDef, LightDef, PlayerSpawn, ShardDef, WardenDef,
-};
+use crate::scene::level::{EntityDef, ExitDef, InstanceDef, PlayerSpawn, ShardDef, WardenDef};
 
 /// The game's ready-made entities.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,39 +48,38 @@ impl Prefab {
         }
     }
 
+    /// The kit asset the prefab instances (under the assets folder), if it has a mesh.
+    pub fn kit_asset(self) -> Option<&'static str> {
+        match self {
+            Prefab::Shard => Some("kit/shard.glb"),
+            Prefab::Warden => Some("kit/warden.glb"),
+            Prefab::Door => Some("kit/door.glb"),
+            Prefab::Lamp | Prefab::Exit | Prefab::PlayerSpawn => None,
+        }
+    }
+
     /// The prefab standing on the floor point `at`, its assets found in `assets` and named
     /// relative to the level file `level`.
     pub fn def(self, at: Vec3, level: &Path, assets: &Path) -> EntityDef {
         let mut def = EntityDef::named(self.name());
         def.transform.translation = at;
-        let kit = |file: &str| {
-            Some(InstanceDef {
-                asset: asset_reference(level, &assets.join("kit").join(file)),
-                material_overrides: Default::default(),
-            })
-        };
+        def.instance = self.kit_asset().map(|file| InstanceDef {
+            asset: asset_reference(level, &assets.join(file)),
+            material_overrides: Default::default(),
+        });
         match self {
             Prefab::Lamp => {
                 // A spot light pointing straight down from ceiling height.
                 def.transform.translation.y += LAMP_HEIGHT;
                 def.transform.rotation = Vec3::new(-90.0, 0.0, 0.0);
-                def.light = Some(LightDef::Spot {
-                    color: Vec3::new(1.0, 0.8, 0.55),
-                    intensity: 25.0,
-                    inner_cone_degrees: 25.0,
-                    outer_cone_degrees: 38.0,
-                });
+                def.light = Some(crate::scene::kit::LANTERN_SPOT);
             }
-            Prefab::Shard => {
-                def.instance = kit("shard.glb");
-                def.shard = Some(ShardDef::default());
-            }
+            Prefab::Shard => def.shard = Some(ShardDef::default()),
             Prefab::Warden => {
-                def.instance = kit("warden.glb");
                 // A first beat of 4 m ahead and back; the inspector edits the route.
                 def.warden = Some(WardenDef::walking(vec![at + Vec3::new(0.0, 0.0, -4.0), at]));
             }
-            Prefab::Door => def.instance = kit("door.glb"),
+            Prefab::Door => {}
             Prefab::Exit => def.exit = Some(ExitDef::default()),
             Prefab::PlayerSpawn => def.player_spawn = Some(PlayerSpawn::default()),
         }

@@ -14,9 +14,9 @@ use glam::Vec3;
 
 use super::palette::{Prefab, asset_def, asset_reference, assets_folder};
 use crate::scene::Scene;
-use crate::scene::kit::LAMP_BRACKET_LIGHT;
+use crate::scene::kit::{LAMP_BRACKET_LIGHT, LANTERN_SPOT};
 use crate::scene::level::{
-    AmbienceDef, CameraDef, EntityDef, Environment, LEVEL_VERSION, Level, LightDef, SoundDef,
+    AmbienceDef, CameraDef, EntityDef, Environment, LEVEL_VERSION, Level, SoundDef,
 };
 
 /// Half the room's inside, in metres: the kit's 4 m floor tiles, two by two.
@@ -77,12 +77,7 @@ pub fn new_level(level: &Path) -> Level {
     let mut lamp = EntityDef::named("lamp");
     lamp.transform.translation = mount + LAMP_BRACKET_LIGHT;
     lamp.transform.rotation = Vec3::new(-90.0, 0.0, 0.0);
-    lamp.light = Some(LightDef::Spot {
-        color: Vec3::new(1.0, 0.8, 0.55),
-        intensity: 24.0,
-        inner_cone_degrees: 25.0,
-        outer_cone_degrees: 40.0,
-    });
+    lamp.light = Some(LANTERN_SPOT);
     lamp.sound = Some(SoundDef {
         asset: asset_reference(level, &assets.join("sounds").join("lamp-hum.wav")),
         gain_db: 0.0,

@@ -782,6 +782,16 @@ pub const LANTERN_CENTRE: Vec3 = Vec3::new(0.0, -0.15, 0.35);
 /// a lamp alike).
 pub const LAMP_BRACKET_LIGHT: Vec3 = Vec3::new(0.0, -0.27, 0.35);
 
+/// The light a kit lantern casts, as a level writes it: a warm spot aimed straight down
+/// (rotation -90 degrees about X) that lights a pool about 4 m across from bracket height.
+/// The editor's template and its lamp prefab both hang this one.
+pub const LANTERN_SPOT: super::level::LightDef = super::level::LightDef::Spot {
+    color: Vec3::new(1.0, 0.8, 0.55),
+    intensity: 24.0,
+    inner_cone_degrees: 25.0,
+    outer_cone_degrees: 40.0,
+};
+
 /// `lamp-bracket`: a wall-mounted `iron` bracket with a lantern. Origin at the mount point
 /// on the wall, which is the z = 0 plane behind it; nothing lies behind z = 0. A back plate
 /// (x -0.05..0.05, y -0.12..0.06, z 0..0.015), a 2.5 cm square arm along +Z at y = 0 out to

@@ -119,7 +119,11 @@ impl EditorApp {
         let autosave_due = self.editor.is_dirty() && self.autosaved.elapsed() >= AUTOSAVE_EVERY;
         let files = self.watch.as_mut().is_some_and(FileWatch::has_changes);
         let checking = self.play_check.running_for().is_some();
+        let arrived = self.thumbnails.poll();
+        let thumbnails = !arrived.is_empty();
+        self.panels.thumbnails_arrived(arrived);
         notice_over
+            || thumbnails
             || autosave_due
             || files
             || checking

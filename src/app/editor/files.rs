@@ -19,6 +19,9 @@ impl EditorApp {
     /// one edited, under `editor`: the camera starts from its view, and what belonged to
     /// the last level (its maps, its play-check, the panels' choices) goes.
     fn show_level(&mut self, scene: &Scene, path: PathBuf, editor: Editor, disk: Vec<u8>) {
+        if assets_folder(&path) != assets_folder(&self.path) {
+            self.thumbnails = super::palette_thumbnails(&path);
+        }
         self.engine = editor_engine(scene, &self.options);
         self.camera = FlyCamera::from_view(&self.engine);
         self.camera.install(&mut self.engine.world);

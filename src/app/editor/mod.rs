@@ -4,8 +4,9 @@
 //! Per displayed frame (winit 0.30 `ApplicationHandler`):
 //! 1. window events go to egui first (`gui`); mouse motion while the right button is held
 //!    turns the editor camera;
-//! 2. `RedrawRequested`: a finished exposure map or play-check (`edit::play_check`, F6),
-//!    each computed on a thread of its own, is taken up; the camera flies by the held
+//! 2. `RedrawRequested`: a finished exposure map or play-check (`edit::play_check`, F6)
+//!    and the palette's thumbnails made since (`edit::thumbnails`), each on a thread of
+//!    its own, are taken up; the camera flies by the held
 //!    keys; the interface is built (`panels`): the outline, palette, inspector, the view
 //!    with its gizmo and overlays, and the shortcuts, which queue `Command`s rather than
 //!    act;
@@ -49,8 +50,10 @@
 //!   distance between the points they meet (with its run along each axis) is drawn between
 //!   them. Ctrl+1 to Ctrl+4 keep the view as a bookmark; 1 to 4 go back to it.
 //! - **Place:** choose a prefab (lamp, shard, warden with its lamp, door, exit, player
-//!   start) or any glTF under `assets/` in the palette (`edit::palette`), then click in the
-//!   view: it lands where the click meets the level (the ground plane where it meets
+//!   start) or any glTF under `assets/` in the palette (`edit::palette`), each shown by a
+//!   thumbnail the path tracer rendered (`edit::thumbnails`: the first opening renders them
+//!   on one core, in about 4 s for the kit's 24; later ones read them from the cache in
+//!   0.1 s), then click in the view: it lands where the click meets the level (the ground plane where it meets
 //!   nothing), under a unique name. Shift+click places another; Esc puts the choice back.
 //! - **Start a level:** `gloam edit --new LEVEL`, or File > New level at this file, starts
 //!   from a template (`edit::template`: an 8 x 8 m room, a player start, the way out under
@@ -124,7 +127,7 @@ mod files;
 mod gui;
 mod panels;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -139,6 +142,7 @@ use crate::edit::audibility::{Audibility, CELL as AUDIBILITY_CELL, NoiseKind};
 use crate::edit::camera::FlyCamera;
 use crate::edit::palette::{asset_def, assets_folder};
 use crate::edit::play_check::PlayCheck;
+use crate::edit::thumbnails::Thumbnails;
 use crate::edit::{Editor, Reloaded, surface_point};
 use crate::film::FilterMode;
 use crate::frame::Engine;
@@ -364,6 +368,7 @@ impl EditorApp {
         let mut engine = editor_engine(&scene, &options);
         let camera = FlyCamera::from_view(&engine);
         camera.install(&mut engine.world);
+        let options_level = options.level.clone();
         let mut app = EditorApp {
             path: options.level.clone(),
             panels: Panels::new(&options.level),
@@ -393,6 +398,7 @@ impl EditorApp {
             play_check: PlayCheck::default(),
             play_check_stale: false,
             dialog: None,
+            thumbnails: palette_thumbnails(&options_level),
         };
         if !app.options.new {
             app.panels.autosave_offer = crate::edit::newer_autosave(&app.path);
@@ -408,6 +414,11 @@ impl EditorApp {
     /// After the loop has returned for good: the frame times, and the error that ended it.
     pub fn finish(&mut self) -> anyhow::Result<()> {
         self.log.print();
+        self.thumbnails.poll();
+        match self.thumbnails.summary() {
+            Some(summary) => println!("editor thumbnails: {summary}"),
+            None => println!("editor thumbnails: still rendering when the editor closed"),
+        }
         match self.error.take() {
             Some(error) => Err(error),
             None => Ok(()),
@@ -482,6 +493,14 @@ impl EditorApp {
     }
 }
 
+/// Starts making the thumbnails of the palette's assets for `level` (`edit::thumbnails`).
+fn palette_thumbnails(level: &Path) -> Thumbnails {
+    Thumbnails::start(
+        crate::edit::palette::asset_files(&assets_folder(level)),
+        crate::edit::thumbnails::cache_folder(),
+    )
+}
+
 /// The level as the editor shows it: posed at time 0, nothing simulated, rendered from the
 /// editor's camera, the film converging while the view is still.
 fn editor_engine(scene: &Scene, options: &EditOptions) -> Engine {
@@ -536,6 +555,8 @@ pub struct EditorApp {
     play_check_stale: bool,
     /// The desktop's file dialog, while it is open.
     dialog: Option<PendingDialog>,
+    /// The palette's thumbnails on their way (`edit::thumbnails`).
+    thumbnails: Thumbnails,
 }
 
 impl EditorApp {
@@ -933,6 +954,7 @@ impl EditorApp {
         self.last_frame = start;
         self.update_exposure();
         self.update_play_check();
+        self.panels.thumbnails_arrived(self.thumbnails.poll());
         self.dialog_answered(event_loop);
         let (Some(window), Some(gui)) = (self.window.clone(), self.gui.as_mut()) else {
             return;

@@ -184,6 +184,29 @@ pub struct Overlays<'a> {
 /// The longest time the exposure slider reaches, seconds.
 const EXPOSURE_TIME_MAX: f32 = 60.0;
 
+/// What a palette tile shows.
+enum Picture<'a> {
+    /// The thumbnail of this asset file, once it has arrived.
+    Thumbnail(&'a Path),
+    /// A symbol, for a prefab with no mesh of its own.
+    Glyph(&'static str),
+}
+
+/// A prefab's symbol: what the palette shows for one with no mesh of its own to picture.
+fn prefab_glyph(prefab: Prefab) -> &'static str {
+    match prefab {
+        Prefab::Lamp => "💡",
+        Prefab::Shard => "◆",
+        Prefab::Warden => "👤",
+        Prefab::Door => "▯",
+        Prefab::Exit => "🚪",
+        Prefab::PlayerSpawn => "🚶",
+    }
+}
+
+/// The side of a palette tile's picture, in points.
+const THUMBNAIL_POINTS: f32 = 48.0;
+
 /// Pixels within which a click takes a marker or a waypoint.
 const HANDLE_RADIUS: f32 = 9.0;
 
@@ -242,6 +265,10 @@ pub struct Panels {
     /// The sound files under the assets folder, as the level names them (the ambience's
     /// and sound components' choices).
     sounds: Vec<String>,
+    /// Thumbnails arrived from `edit::thumbnails`, to become textures at the next frame.
+    arrived: Vec<crate::edit::thumbnails::Arrived>,
+    /// Each asset's thumbnail (by path), or why it has none.
+    thumbnails: BTreeMap<PathBuf, Result<egui::TextureHandle, String>>,
     /// The path field for Open and Save as (always there, with or without a desktop file
     /// dialog).
     path_field: String,
@@ -297,6 +324,8 @@ impl Panels {
                 .map(|sound| asset_reference(level, sound))
                 .collect(),
             assets_folder: folder,
+            arrived: Vec::new(),
+            thumbnails: BTreeMap::new(),
             path_field: level.display().to_string(),
             gizmo: Gizmo::default(),
             waypoint: None,
@@ -304,10 +333,22 @@ impl Panels {
     }
 
     /// Another level is being edited: what belonged to the last one goes (the palette's
-    /// assets, the choice held, the path field, a file's error), the designer's tools stay.
+    /// assets, the choice held, the path field, a file's error), the designer's tools stay,
+    /// and so do the thumbnails when the new level's assets folder is the last one's.
     pub fn opened(&mut self, level: &Path) {
         let fresh = Panels::new(level);
+        let same_assets = fresh.assets_folder == self.assets_folder;
         *self = Panels {
+            thumbnails: if same_assets {
+                std::mem::take(&mut self.thumbnails)
+            } else {
+                BTreeMap::new()
+            },
+            arrived: if same_assets {
+                std::mem::take(&mut self.arrived)
+            } else {
+                Vec::new()
+            },
             notice: self.notice.take(),
             exposure: ExposureControls {
                 status: String::new(),
@@ -334,6 +375,7 @@ impl Panels {
     ) {
         let ctx = ui.ctx().clone();
         self.primary_down = ctx.input(|i| i.pointer.primary_down());
+        self.upload_thumbnails(&ctx);
         if let Some(text) = self.clipboard.take() {
             ctx.copy_text(text);
         }
@@ -717,27 +759,97 @@ impl Panels {
             .id_salt("palette")
             .show(ui, |ui| {
                 ui.label("Prefabs");
-                for prefab in Prefab::ALL {
-                    let item = PaletteItem::Prefab(prefab);
-                    let armed = self.armed.as_ref() == Some(&item);
-                    if ui.selectable_label(armed, prefab.name()).clicked() {
-                        self.armed = (!armed).then_some(item);
+                ui.horizontal_wrapped(|ui| {
+                    for prefab in Prefab::ALL {
+                        let asset = prefab.kit_asset().map(|file| self.assets_folder.join(file));
+                        let item = PaletteItem::Prefab(prefab);
+                        let picture = match asset.as_deref() {
+                            Some(asset) => Picture::Thumbnail(asset),
+                            None => Picture::Glyph(prefab_glyph(prefab)),
+                        };
+                        self.palette_tile(ui, item, prefab.name(), picture);
                     }
-                }
+                });
                 ui.label("Assets");
-                for asset in &self.assets {
-                    let label = asset
-                        .strip_prefix(&self.assets_folder)
-                        .unwrap_or(asset)
-                        .display()
-                        .to_string();
-                    let item = PaletteItem::Asset(asset.clone());
-                    let armed = self.armed.as_ref() == Some(&item);
-                    if ui.selectable_label(armed, label).clicked() {
-                        self.armed = (!armed).then_some(item);
+                ui.horizontal_wrapped(|ui| {
+                    for asset in self.assets.clone() {
+                        let name = asset
+                            .file_stem()
+                            .map_or_else(String::new, |stem| stem.to_string_lossy().into_owned());
+                        let item = PaletteItem::Asset(asset.clone());
+                        self.palette_tile(ui, item, &name, Picture::Thumbnail(&asset));
                     }
-                }
+                });
             });
+    }
+
+    /// One tile of the palette: its picture over its name; a click arms it, a second
+    /// disarms it.
+    fn palette_tile(
+        &mut self,
+        ui: &mut egui::Ui,
+        item: PaletteItem,
+        name: &str,
+        picture: Picture,
+    ) -> egui::Response {
+        let armed = self.armed.as_ref() == Some(&item);
+        let side = egui::vec2(THUMBNAIL_POINTS, THUMBNAIL_POINTS);
+        let glyph = |glyph: &str| {
+            egui::Button::new(egui::RichText::new(glyph).size(THUMBNAIL_POINTS * 0.5))
+                .min_size(side)
+        };
+        let (button, hover) = match picture {
+            Picture::Glyph(symbol) => (glyph(symbol), name.to_owned()),
+            Picture::Thumbnail(asset) => {
+                let file = asset
+                    .strip_prefix(&self.assets_folder)
+                    .unwrap_or(asset)
+                    .display()
+                    .to_string();
+                match self.thumbnails.get(asset) {
+                    Some(Ok(texture)) => (
+                        egui::Button::image(egui::Image::new(texture).fit_to_exact_size(side)),
+                        file,
+                    ),
+                    Some(Err(problem)) => (glyph("⚠"), format!("{file}\nno thumbnail: {problem}")),
+                    // Still rendering.
+                    None => (glyph("…"), file),
+                }
+            }
+        };
+        let tile = egui::vec2(THUMBNAIL_POINTS + 8.0, THUMBNAIL_POINTS + 22.0);
+        let response = ui
+            .allocate_ui(tile, |ui| {
+                ui.vertical_centered(|ui| {
+                    let response = ui.add(button.selected(armed)).on_hover_text(&hover);
+                    ui.add(egui::Label::new(egui::RichText::new(name).small()).truncate());
+                    response
+                })
+                .inner
+            })
+            .inner;
+        if response.clicked() {
+            self.armed = (!armed).then_some(item);
+        }
+        response
+    }
+
+    /// Thumbnails made since the last frame (`edit::thumbnails`), shown from the next.
+    pub fn thumbnails_arrived(&mut self, arrived: Vec<crate::edit::thumbnails::Arrived>) {
+        self.arrived.extend(arrived);
+    }
+
+    /// The thumbnails that arrived become egui textures (on the frame's context).
+    fn upload_thumbnails(&mut self, ctx: &egui::Context) {
+        for (asset, thumbnail) in self.arrived.drain(..) {
+            let texture = thumbnail.map(|picture| {
+                let size = [picture.width as usize, picture.height as usize];
+                let image = egui::ColorImage::from_rgba_unmultiplied(size, &picture.rgba);
+                let name = format!("thumbnail {}", asset.display());
+                ctx.load_texture(name, image, egui::TextureOptions::LINEAR)
+            });
+            self.thumbnails.insert(asset, texture);
+        }
     }
 
     /// Quits or opens another level now, or asks first if there are unsaved edits.
@@ -862,6 +974,83 @@ mod tests {
                 "{rotation} -> {back}"
             );
         }
+    }
+
+    /// Arrived thumbnails become textures of their size (a failed one keeps its reason), a
+    /// click on a tile arms its item and a second disarms it, and opening another level
+    /// keeps the thumbnails only when it uses the same assets folder.
+    #[test]
+    fn thumbnails_become_tiles_that_arm_on_a_click_and_stay_for_the_same_assets() {
+        use crate::edit::thumbnails::Thumbnail;
+
+        let ctx = egui::Context::default();
+        let level = Path::new(env!("CARGO_MANIFEST_DIR")).join("levels/first-light.ron");
+        let mut panels = Panels::new(&level);
+        let crate_asset = panels.assets_folder.join("kit/crate.glb");
+        let broken = panels.assets_folder.join("kit/broken.glb");
+        let picture = Thumbnail {
+            width: 3,
+            height: 2,
+            rgba: vec![200; 3 * 2 * 4],
+        };
+        panels.thumbnails_arrived(vec![
+            (crate_asset.clone(), Ok(picture)),
+            (broken.clone(), Err("broken.glb: not a glTF file".into())),
+        ]);
+        let item = PaletteItem::Asset(crate_asset.clone());
+        let frame = |panels: &mut Panels, events: Vec<egui::Event>| {
+            let input = egui::RawInput {
+                events,
+                ..Default::default()
+            };
+            let mut rect = Rect::NOTHING;
+            let _ = ctx.run_ui(input, |ui| {
+                panels.upload_thumbnails(ui.ctx());
+                let picture = Picture::Thumbnail(&crate_asset);
+                rect = panels.palette_tile(ui, item.clone(), "crate", picture).rect;
+            });
+            rect
+        };
+        let rect = frame(&mut panels, Vec::new());
+        match panels.thumbnails.get(&crate_asset) {
+            Some(Ok(texture)) => assert_eq!(texture.size(), [3, 2]),
+            Some(Err(problem)) => panic!("the crate has a picture: {problem}"),
+            None => panic!("the crate's picture arrived"),
+        }
+        assert!(matches!(
+            panels.thumbnails.get(&broken),
+            Some(Err(problem)) if problem.contains("broken.glb")
+        ));
+
+        let click = |at: Pos2| {
+            [true, false].map(|pressed| egui::Event::PointerButton {
+                pos: at,
+                button: egui::PointerButton::Primary,
+                pressed,
+                modifiers: Modifiers::NONE,
+            })
+        };
+        let at = rect.center();
+        frame(&mut panels, vec![egui::Event::PointerMoved(at)]);
+        frame(&mut panels, click(at).to_vec());
+        assert_eq!(panels.armed, Some(item.clone()), "a click arms the tile");
+        frame(&mut panels, click(at).to_vec());
+        assert_eq!(panels.armed, None, "a second click disarms it");
+
+        panels.opened(&level.with_file_name("cellar.ron"));
+        assert_eq!(
+            panels.thumbnails.len(),
+            2,
+            "the same assets folder keeps them"
+        );
+        let project = std::env::temp_dir().join(format!("gloam-palette-{}", std::process::id()));
+        std::fs::create_dir_all(project.join("assets")).expect("a scratch project");
+        panels.opened(&project.join("levels/x.ron"));
+        let _ = std::fs::remove_dir_all(&project);
+        assert!(
+            panels.thumbnails.is_empty(),
+            "another assets folder drops them"
+        );
     }
 
     /// The editor's keys as egui hands them over, run through `shortcuts` headless.
