@@ -981,3 +981,93 @@ fn thumbnails_are_rendered_once_cached_by_content_and_a_broken_asset_says_why() 
         "{summary}"
     );
 }
+
+/// A designer's whole day, headless, as the window's commands run it: a new level from
+/// the template; a warden from the palette, whose first beat stops short of the wall it
+/// was placed against, and a shard in the dark corner; the audibility overlay hears a
+/// sprint near the warden and not across the room; the play-check proves the level can be
+/// finished unseen; the save is the level that reopens.
+#[test]
+fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
+    use gloam::edit::audibility::{NoiseKind, compute};
+    use gloam::edit::palette::{Prefab, assets_folder};
+    use gloam::edit::play_check::PlayCheck;
+    use gloam::edit::template::new_scene;
+    use gloam::edit::{first_beat, level_point, surface_point};
+
+    let dir = common::scratch_dir("whole-day");
+    let path = dir.join("levels").join("vault.ron");
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    let scene = new_scene(&path).expect("a new level");
+    let mut engine = Engine::new(&scene, RenderSettings::real_time(32, 18));
+    let mut editor = Editor::unsaved();
+    let assets = assets_folder(&path);
+
+    // A click from above lands on the floor; the warden's beat is fitted to the room.
+    let mut place = |engine: &mut Engine, prefab: Prefab, x: f32, z: f32| {
+        let at = surface_point(engine, &down_onto(x, z, 10.0)).expect("the floor");
+        assert!(at.y.abs() < 0.05, "on the floor: {at}");
+        let mut def = prefab.def(at, &path, &assets);
+        if let Some(warden) = &mut def.warden {
+            warden.route = first_beat(engine, at);
+        }
+        editor.place(engine, def).expect("placed");
+        at
+    };
+    // Against the north wall (its face at z = -4): no room to the north, so the beat runs
+    // south, the whole 4 m.
+    let at = place(&mut engine, Prefab::Warden, 2.5, -3.2);
+    let warden = named(&mut engine, "warden")
+        .expect("the warden")
+        .warden
+        .unwrap();
+    assert_eq!(warden.route.len(), 2);
+    assert!(
+        (warden.route[0] - (at + Vec3::new(0.0, 0.0, 4.0))).length() < 1e-3,
+        "{:?}",
+        warden.route
+    );
+    // No beat runs through a wall: from the feet to each end, nothing at chest height.
+    for end in &warden.route {
+        let reach = *end - at;
+        if reach.length() > 0.0 {
+            // Past the warden's own body.
+            let mut ray = Ray::new(Vec3A::from(at + Vec3::Y), Vec3A::from(reach.normalize()));
+            ray.t_min = 0.5;
+            let free =
+                level_point(&engine, &ray).map_or(f32::INFINITY, |hit| hit.distance(at + Vec3::Y));
+            assert!(free > reach.length(), "{end} is behind a wall");
+        }
+    }
+    // In the middle of the room no way has the whole beat: the roomiest stops 0.6 m short
+    // of the wall 4 m off.
+    let middle = first_beat(&engine, Vec3::ZERO);
+    assert!((middle[0].length() - 3.4).abs() < 0.05, "{middle:?}");
+    place(&mut engine, Prefab::Shard, -2.5, -2.5);
+
+    // The audibility overlay: a sprint beside the warden is heard, one in the far corner
+    // behind the start is not.
+    let level = gloam::game::level_from_world(&mut engine.world);
+    let edited = Scene::from_level(level.clone(), &path).expect("the edited level loads");
+    let heard = compute(&edited, 0.0, NoiseKind::Sprint).expect("a warden to hear");
+    assert_eq!(heard.wardens.len(), 1);
+    let near = |place: Vec3, to: Vec3| (place - to).with_y(0.0).length() < 1.0;
+    assert!(heard.heard.iter().any(|(place, _, _)| near(*place, at)));
+    let far = Vec3::new(-3.5, 0.0, 3.5);
+    assert!(!heard.heard.iter().any(|(place, _, _)| near(*place, far)));
+
+    // The play-check: won unseen, with the shard.
+    let mut check = PlayCheck::default();
+    check.start(level.clone(), &path);
+    let line = check.wait().expect("an answer");
+    assert!(check.checked().expect("the bot ran").proven(), "{line}");
+
+    // Save, reopen: the level as edited.
+    let text = saved_text(&mut editor, &mut engine, &path);
+    assert!(
+        text.contains("\"warden\"") && text.contains("\"shard\""),
+        "{text}"
+    );
+    let reopened = Scene::load(&path).expect("the saved level loads");
+    assert_eq!(reopened.level, level);
+}

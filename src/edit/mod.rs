@@ -982,6 +982,48 @@ pub fn level_point(engine: &Engine, ray: &Ray) -> Option<Vec3> {
     Some((ray.origin + ray.direction * hit.t).into())
 }
 
+/// Metres a newly placed warden's first beat runs out (and back), where the level has room.
+const FIRST_BEAT: f32 = 4.0;
+
+/// How far short of what it would meet a first beat stops: a warden's half-width, and room
+/// to turn.
+const BEAT_CLEARANCE: f32 = 0.6;
+
+/// The first beat of a warden placed at `at`: out and back along whichever of -Z, +Z, -X
+/// and +X has the most room for a warden's body, at most `FIRST_BEAT` and stopping
+/// `BEAT_CLEARANCE` short of anything in the way, so it never runs through a wall. The
+/// inspector and the waypoints in the view edit it from there.
+pub fn first_beat(engine: &Engine, at: Vec3) -> Vec<Vec3> {
+    let room = |direction: Vec3| {
+        // A body's width of rays at knee and chest height: one ray down the middle slips
+        // through the seam between two wall pieces, or under a table.
+        let across = Vec3::Y.cross(direction);
+        let mut free = f32::INFINITY;
+        for height in [0.4, 1.2] {
+            for side in [-0.3, 0.0, 0.3] {
+                let from = at + Vec3::Y * height + across * side;
+                let ray = Ray::new(from.into(), direction.into());
+                if let Some(hit) = level_point(engine, &ray) {
+                    free = free.min(hit.distance(from));
+                }
+            }
+        }
+        (free - BEAT_CLEARANCE).min(FIRST_BEAT)
+    };
+    let (direction, length) = [Vec3::NEG_Z, Vec3::Z, Vec3::NEG_X, Vec3::X]
+        .into_iter()
+        .map(|direction| (direction, room(direction)))
+        // The first direction with the full beat's room, else the roomiest.
+        .fold((Vec3::NEG_Z, f32::NEG_INFINITY), |best, next| {
+            if best.1 >= FIRST_BEAT || next.1 <= best.1 {
+                best
+            } else {
+                next
+            }
+        });
+    vec![at + direction * length.max(0.0), at]
+}
+
 /// Where `ray` first meets the level's pickable geometry, else the ground plane y = 0
 /// (where the palette places what it holds).
 pub fn surface_point(engine: &Engine, ray: &Ray) -> Option<Vec3> {

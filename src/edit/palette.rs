@@ -76,7 +76,8 @@ impl Prefab {
             }
             Prefab::Shard => def.shard = Some(ShardDef::default()),
             Prefab::Warden => {
-                // A first beat of 4 m ahead and back; the inspector edits the route.
+                // A first beat of 4 m ahead and back (the editor fits it to the room it is
+                // placed in: `edit::first_beat`); the inspector edits the route.
                 def.warden = Some(WardenDef::walking(vec![at + Vec3::new(0.0, 0.0, -4.0), at]));
             }
             Prefab::Door => {}

@@ -28,15 +28,21 @@ impl EditorApp {
         self.editor = editor;
         self.disk = disk;
         self.panels.opened(&path);
+        self.forget_derived();
+        self.autosaved = Instant::now();
+        self.options.level = path.clone();
+        self.path = path;
+        self.watch_files();
+    }
+
+    /// Drops what was worked out from the last level: the exposure map and audibility on
+    /// show or being computed, and the play-check's answer.
+    fn forget_derived(&mut self) {
         self.exposure = None;
         self.audibility = None;
         self.exposure_job = None;
         self.exposure_for = None;
         self.play_check = PlayCheck::default();
-        self.autosaved = Instant::now();
-        self.options.level = path.clone();
-        self.path = path;
-        self.watch_files();
     }
 
     /// Edits the level the autosave holds instead of the file's (offered on opening when it
@@ -49,11 +55,7 @@ impl EditorApp {
         // The autosave's entities are numbered as it lists them: the marks were the file's.
         self.panels.hidden.clear();
         self.panels.locked.clear();
-        self.exposure = None;
-        self.audibility = None;
-        self.exposure_job = None;
-        self.exposure_for = None;
-        self.play_check = PlayCheck::default();
+        self.forget_derived();
         Ok(format!(
             "loaded {}: unsaved until Ctrl+S (File > Revert goes back to the file)",
             crate::edit::autosave_path(&self.path).display()

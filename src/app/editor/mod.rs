@@ -605,7 +605,11 @@ impl EditorApp {
                 Some(at) => {
                     let def = match item {
                         panels::PaletteItem::Prefab(prefab) => {
-                            prefab.def(at, &self.path, &assets_folder(&self.path))
+                            let mut def = prefab.def(at, &self.path, &assets_folder(&self.path));
+                            if let Some(warden) = &mut def.warden {
+                                warden.route = crate::edit::first_beat(engine, at);
+                            }
+                            def
                         }
                         panels::PaletteItem::Asset(asset) => asset_def(&asset, at, &self.path),
                     };
@@ -616,19 +620,10 @@ impl EditorApp {
                 None => Ok(Some("nothing there to place on".to_owned())),
             },
             Command::Edit { name, mut def } => {
-                let swapped = crate::game::level_io::entity_defs(&mut engine.world)
-                    .into_iter()
-                    .find(|(_, entity)| entity.name == name)
-                    .is_some_and(|(_, entity)| {
-                        entity.instance.as_ref().map(|i| &i.asset)
-                            != def.instance.as_ref().map(|i| &i.asset)
-                    });
-                let fitted = if swapped {
-                    crate::edit::fit_to_asset(engine, &mut def)
-                } else {
-                    Ok(())
-                };
-                fitted
+                // Every edit leaves the entity fitted to the asset it instances: after a
+                // swap, the overrides and clip the new asset lacks go; otherwise nothing
+                // changes (the inspector offers only the asset's own).
+                crate::edit::fit_to_asset(engine, &mut def)
                     .and_then(|()| {
                         editor.drag(engine, |entity| {
                             if entity.name == name {
