@@ -983,7 +983,7 @@ fn thumbnails_are_rendered_once_cached_by_content_and_a_broken_asset_says_why() 
 }
 
 /// A designer's whole day, headless, as the window's commands run it: a new level from
-/// the template; a warden from the palette, whose first beat stops short of the wall it
+/// the template; a warden from the palette, placed on the snap grid, whose first beat stops short of the wall it
 /// was placed against, and a shard in the dark corner; the audibility overlay hears a
 /// sprint near the warden and not across the room; the play-check proves the level can be
 /// finished unseen; the save is the level that reopens.
@@ -993,7 +993,7 @@ fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
     use gloam::edit::palette::{Prefab, assets_folder};
     use gloam::edit::play_check::PlayCheck;
     use gloam::edit::template::new_scene;
-    use gloam::edit::{first_beat, level_point, surface_point};
+    use gloam::edit::{first_beat, level_point, placing_point};
 
     let dir = common::scratch_dir("whole-day");
     let path = dir.join("levels").join("vault.ron");
@@ -1005,8 +1005,12 @@ fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
 
     // A click from above lands on the floor; the warden's beat is fitted to the room.
     let mut place = |engine: &mut Engine, prefab: Prefab, x: f32, z: f32| {
-        let at = surface_point(engine, &down_onto(x, z, 10.0)).expect("the floor");
+        // Snapping is on: the click lands on the 0.25 m grid.
+        let at = placing_point(engine, &down_onto(x, z, 10.0), Some(0.25)).expect("the floor");
         assert!(at.y.abs() < 0.05, "on the floor: {at}");
+        for (on, clicked) in [(at.x, x), (at.z, z)] {
+            assert!((on * 4.0 - (on * 4.0).round()).abs() < 1e-4 && (on - clicked).abs() <= 0.125);
+        }
         let mut def = prefab.def(at, &path, &assets);
         if let Some(warden) = &mut def.warden {
             warden.route = first_beat(engine, at);
@@ -1016,7 +1020,7 @@ fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
     };
     // Against the north wall (its face at z = -4): no room to the north, so the beat runs
     // south, the whole 4 m.
-    let at = place(&mut engine, Prefab::Warden, 2.5, -3.2);
+    let at = place(&mut engine, Prefab::Warden, 2.45, -3.17);
     let warden = named(&mut engine, "warden")
         .expect("the warden")
         .warden
@@ -1043,7 +1047,7 @@ fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
     // of the wall 4 m off.
     let middle = first_beat(&engine, Vec3::ZERO);
     assert!((middle[0].length() - 3.4).abs() < 0.05, "{middle:?}");
-    place(&mut engine, Prefab::Shard, -2.5, -2.5);
+    place(&mut engine, Prefab::Shard, -2.43, -2.47);
 
     // The audibility overlay: a sprint beside the warden is heard, one in the far corner
     // behind the start is not.

@@ -982,6 +982,24 @@ pub fn level_point(engine: &Engine, ray: &Ray) -> Option<Vec3> {
     Some((ray.origin + ray.direction * hit.t).into())
 }
 
+/// Where the palette places what it holds for a click whose ray is `ray`: the point the ray
+/// meets (`surface_point`), with x and z snapped to the grid of `step` metres when there is
+/// one, standing on whatever is under the snapped point (found from half a metre above the
+/// clicked one, so a snap across a table's edge lands on the floor beside it).
+pub fn placing_point(engine: &Engine, ray: &Ray, step: Option<f32>) -> Option<Vec3> {
+    let clicked = surface_point(engine, ray)?;
+    let Some(step) = step.filter(|step| *step > 0.0) else {
+        return Some(clicked);
+    };
+    let snapped = Vec3::new(
+        (clicked.x / step).round() * step,
+        clicked.y,
+        (clicked.z / step).round() * step,
+    );
+    let down = Ray::new((snapped + Vec3::Y * 0.5).into(), glam::Vec3A::NEG_Y);
+    Some(surface_point(engine, &down).unwrap_or(snapped))
+}
+
 /// Metres a newly placed warden's first beat runs out (and back), where the level has room.
 const FIRST_BEAT: f32 = 4.0;
 

@@ -53,8 +53,10 @@
 //!   start) or any glTF under `assets/` in the palette (`edit::palette`), each shown by a
 //!   thumbnail the path tracer rendered (`edit::thumbnails`: the first opening renders them
 //!   on one core, in about 4 s for the kit's 24; later ones read them from the cache in
-//!   0.1 s), then click in the view: it lands where the click meets the level (the ground plane where it meets
-//!   nothing), under a unique name. Shift+click places another; Esc puts the choice back.
+//!   0.1 s), then click in the view: it lands where the click meets the level (the ground
+//!   plane where it meets nothing; on the grid when snapping), under a unique name; a
+//!   warden's first beat runs the roomiest way, short of any wall (`edit::first_beat`).
+//!   Shift+click places another; Esc puts the choice back.
 //! - **Start a level:** `gloam edit --new LEVEL`, or File > New level at this file, starts
 //!   from a template (`edit::template`: an 8 x 8 m room, a player start, the way out under
 //!   a lamp on its bracket) that the bot already wins; Ctrl+S writes it to LEVEL, which
@@ -208,10 +210,12 @@ pub enum Command {
         add: bool,
     },
     ClearSelection,
-    /// Place what the palette holds where a click's ray meets the level.
+    /// Place what the palette holds where a click's ray meets the level (on the grid of
+    /// `snap` metres when snapping).
     Place {
         ray: Ray,
         item: panels::PaletteItem,
+        snap: Option<f32>,
     },
     /// Part of a drag (gizmo, waypoint, inspector field): the entity named `name` becomes
     /// `def`.
@@ -601,24 +605,27 @@ impl EditorApp {
                 editor.selection.clear();
                 Ok(None)
             }
-            Command::Place { ray, item } => match surface_point(engine, &ray) {
-                Some(at) => {
-                    let def = match item {
-                        panels::PaletteItem::Prefab(prefab) => {
-                            let mut def = prefab.def(at, &self.path, &assets_folder(&self.path));
-                            if let Some(warden) = &mut def.warden {
-                                warden.route = crate::edit::first_beat(engine, at);
+            Command::Place { ray, item, snap } => {
+                match crate::edit::placing_point(engine, &ray, snap) {
+                    Some(at) => {
+                        let def = match item {
+                            panels::PaletteItem::Prefab(prefab) => {
+                                let mut def =
+                                    prefab.def(at, &self.path, &assets_folder(&self.path));
+                                if let Some(warden) = &mut def.warden {
+                                    warden.route = crate::edit::first_beat(engine, at);
+                                }
+                                def
                             }
-                            def
-                        }
-                        panels::PaletteItem::Asset(asset) => asset_def(&asset, at, &self.path),
-                    };
-                    editor
-                        .place(engine, def)
-                        .map(|place| Some(format!("placed {}", entity_name(engine, place))))
+                            panels::PaletteItem::Asset(asset) => asset_def(&asset, at, &self.path),
+                        };
+                        editor
+                            .place(engine, def)
+                            .map(|place| Some(format!("placed {}", entity_name(engine, place))))
+                    }
+                    None => Ok(Some("nothing there to place on".to_owned())),
                 }
-                None => Ok(Some("nothing there to place on".to_owned())),
-            },
+            }
             Command::Edit { name, mut def } => {
                 // Every edit leaves the entity fitted to the asset it instances: after a
                 // swap, the overrides and clip the new asset lacks go; otherwise nothing

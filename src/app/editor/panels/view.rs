@@ -110,7 +110,8 @@ impl Panels {
                 }
                 out.push(Command::Measure(ray));
             } else if let Some(item) = self.armed.clone() {
-                out.push(Command::Place { ray, item });
+                let snap = self.snapping.then_some(self.grid);
+                out.push(Command::Place { ray, item, snap });
                 if !add {
                     self.armed = None;
                 }
