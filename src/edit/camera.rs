@@ -8,6 +8,9 @@
 use bevy_ecs::prelude::{Component, Name, With, World};
 use glam::{EulerRot, Mat4, Quat, Vec2, Vec3};
 
+use rayon::prelude::*;
+
+use crate::accel::InstanceMask;
 use crate::frame::Engine;
 use crate::game::{ActiveCamera, GlobalTransform, PreviousGlobalTransform, Transform, ViewCamera};
 use crate::scene::world::CameraPlacement;
@@ -130,6 +133,67 @@ impl FlyCamera {
     }
 }
 
+/// How far the camera sees through each cell of a coarse grid over the view: what the
+/// editor's overlays drawn in the world (the ground grid) test against, so the level hides
+/// them as it hides itself.
+#[derive(Clone, Debug)]
+pub struct ViewDepth {
+    /// The view it was taken from.
+    pub camera: FlyCamera,
+    /// That view's projection onto the cells.
+    projection: crate::render::camera::Projection,
+    pub width: u32,
+    pub height: u32,
+    /// Metres from the camera to the first surface a camera ray meets through each cell's
+    /// centre (infinite where it meets nothing), row-major from the top-left.
+    pub metres: Vec<f32>,
+}
+
+impl ViewDepth {
+    /// The depth of `engine`'s level seen from `camera`, `width` x `height` cells over an
+    /// image of the same aspect.
+    pub fn of(engine: &Engine, camera: &FlyCamera, width: u32, height: u32) -> ViewDepth {
+        let (width, height) = (width.max(1), height.max(1));
+        let lens = crate::render::Camera::new(&camera.placement(), width, height);
+        let scene = engine.render_scene();
+        let alpha = scene.alpha();
+        let metres = (0..width * height)
+            .into_par_iter()
+            .map(|cell| {
+                let pixel = Vec2::new((cell % width) as f32 + 0.5, (cell / width) as f32 + 0.5);
+                let ray = lens.ray(pixel, Vec2::ZERO);
+                scene
+                    .accel
+                    .intersect(&ray, InstanceMask::CAMERA, &alpha)
+                    .map_or(f32::INFINITY, |hit| hit.t * ray.direction.length())
+            })
+            .collect();
+        ViewDepth {
+            camera: *camera,
+            projection: lens.projection(),
+            width,
+            height,
+            metres,
+        }
+    }
+
+    /// Whether `point` is in front of the level from the camera: not behind the surface
+    /// seen through its cell (with a margin, so a line on a floor shows on it). Points off
+    /// the view count as seen.
+    pub fn shows(&self, point: Vec3) -> bool {
+        let Some(at) = self.projection.project(point.into()) else {
+            return false;
+        };
+        let (x, y) = (at.x.floor(), at.y.floor());
+        if x < 0.0 || y < 0.0 || x >= self.width as f32 || y >= self.height as f32 {
+            return true;
+        }
+        let seen = self.metres[y as usize * self.width as usize + x as usize];
+        let distance = point.distance(self.camera.position);
+        seen >= distance - (0.05 + 0.02 * distance)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -152,6 +216,32 @@ mod tests {
         // Pitch stops short of the pole.
         camera.turn(Vec2::new(0.0, 10.0));
         assert_eq!(camera.pitch, PITCH_LIMIT);
+    }
+
+    /// From high over the template's room, its floor shows, the ground just behind its far
+    /// wall is hidden by the wall, and a point in the air in front of everything shows.
+    #[test]
+    fn the_view_depth_hides_the_ground_behind_a_wall_and_shows_the_floor() {
+        // Never written: the template's assets are named relative to it.
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("levels/room.ron");
+        let level = crate::edit::template::new_level(&path);
+        let scene = crate::scene::Scene::from_level(level, &path).expect("the template");
+        let engine = Engine::new(&scene, crate::render::RenderSettings::real_time(16, 9));
+        let camera = FlyCamera {
+            position: Vec3::new(0.0, 9.0, 7.5),
+            yaw: 0.0,
+            pitch: -50f32.to_radians(),
+            yfov: 65f32.to_radians(),
+            znear: 0.05,
+        };
+        let depth = ViewDepth::of(&engine, &camera, 120, 68);
+        assert!(depth.shows(Vec3::new(0.5, 0.0, 0.5)), "the room's floor");
+        assert!(
+            !depth.shows(Vec3::new(0.5, 0.0, -5.0)),
+            "behind the north wall"
+        );
+        assert!(depth.shows(Vec3::new(0.5, 4.0, 0.5)), "above it all");
+        assert!(!depth.shows(Vec3::new(0.5, 0.0, 20.0)), "behind the camera");
     }
 
     #[test]

@@ -36,8 +36,9 @@ impl EditorApp {
     }
 
     /// Drops what was worked out from the last level: the exposure map and audibility on
-    /// show or being computed, and the play-check's answer.
+    /// show or being computed, the play-check's answer, and the view's depth.
     fn forget_derived(&mut self) {
+        self.view_depth = None;
         self.exposure = None;
         self.audibility = None;
         self.exposure_job = None;
@@ -109,6 +110,7 @@ impl EditorApp {
         if changed.is_empty() {
             return;
         }
+        self.view_depth = None;
         let level_changed = changed.iter().any(|file| *file == absolute(&self.path));
         let assets: Vec<PathBuf> = changed
             .into_iter()

@@ -142,6 +142,7 @@ use winit::window::{CursorGrabMode, Window};
 use crate::accel::Ray;
 use crate::edit::audibility::{Audibility, CELL as AUDIBILITY_CELL, NoiseKind};
 use crate::edit::camera::FlyCamera;
+use crate::edit::camera::ViewDepth;
 use crate::edit::palette::{asset_def, assets_folder};
 use crate::edit::play_check::PlayCheck;
 use crate::edit::thumbnails::Thumbnails;
@@ -175,6 +176,10 @@ pub struct EditOptions {
 /// Samples per pixel at which a still view stops rendering: past this the image no longer
 /// visibly changes, and the editor leaves the cores to the designer.
 pub const CONVERGED_SPP: u32 = 1024;
+
+/// View pixels a side per cell of the depth the grid is hidden by (`ViewDepth`): 120 x 68
+/// cells at 480 x 270, taken again only when the view or the level changes.
+const VIEW_DEPTH_CELL: u32 = 4;
 
 /// How often an idle editor looks for work that needs a frame (see `about_to_wait`).
 const IDLE_FRAME: Duration = Duration::from_millis(250);
@@ -403,6 +408,7 @@ impl EditorApp {
             play_check_stale: false,
             dialog: None,
             thumbnails: palette_thumbnails(&options_level),
+            view_depth: None,
         };
         if !app.options.new {
             app.panels.autosave_offer = crate::edit::newer_autosave(&app.path);
@@ -561,6 +567,8 @@ pub struct EditorApp {
     dialog: Option<PendingDialog>,
     /// The palette's thumbnails on their way (`edit::thumbnails`).
     thumbnails: Thumbnails,
+    /// What the camera sees through the view, for the grid (None: to be taken again).
+    view_depth: Option<ViewDepth>,
 }
 
 impl EditorApp {
@@ -976,7 +984,17 @@ impl EditorApp {
         };
         let frame = panels::FrameInput::gather(&mut self.engine, &self.editor);
         let camera_before = self.camera;
+        if self.panels.shows_grid()
+            && self
+                .view_depth
+                .as_ref()
+                .is_none_or(|depth| depth.camera != self.camera)
+        {
+            let (width, height) = (view.width / VIEW_DEPTH_CELL, view.height / VIEW_DEPTH_CELL);
+            self.view_depth = Some(ViewDepth::of(&self.engine, &self.camera, width, height));
+        }
         let overlays = panels::Overlays {
+            depth: self.view_depth.as_ref(),
             exposure: self.exposure.as_ref(),
             audibility: self.audibility.as_ref(),
             play_check: self
@@ -1014,6 +1032,8 @@ impl EditorApp {
         }
         if ran {
             self.watch_files();
+            // The level may have changed under the view.
+            self.view_depth = None;
         }
         self.files_changed();
         if !self.panels.primary_down {
@@ -1024,6 +1044,7 @@ impl EditorApp {
         }
         if crate::edit::mark_entities(&mut self.engine, &self.panels.hidden, &self.panels.locked) {
             self.engine.film.reset = true;
+            self.view_depth = None;
         }
         window.set_title(&self.title());
 

@@ -179,6 +179,9 @@ pub struct Overlays<'a> {
     /// Where the chosen noise would be heard, when the map shows that.
     pub audibility: Option<&'a Audibility>,
     pub play_check: Option<(&'a Checked, bool)>,
+    /// How far the camera sees through the view, for the ground grid to hide behind the
+    /// level.
+    pub depth: Option<&'a crate::edit::camera::ViewDepth>,
 }
 
 /// The longest time the exposure slider reaches, seconds.
@@ -832,6 +835,11 @@ impl Panels {
             self.armed = (!armed).then_some(item);
         }
         response
+    }
+
+    /// The ground grid is on (G).
+    pub fn shows_grid(&self) -> bool {
+        self.show_grid
     }
 
     /// Thumbnails made since the last frame (`edit::thumbnails`), shown from the next.

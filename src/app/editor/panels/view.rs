@@ -78,7 +78,13 @@ impl Panels {
             self.exposure_controls(ui, rect);
         }
         if self.show_grid {
-            ground_grid(&painter, &projection, camera.position, self.grid);
+            ground_grid(
+                &painter,
+                &projection,
+                camera.position,
+                self.grid,
+                overlays.depth,
+            );
         }
         self.overlays(&painter, frame, &projection);
         self.measure_overlay(&painter, &projection);
@@ -614,8 +620,14 @@ impl ViewProjection {
 /// Lines on the ground plane y = 0 every `step` metres around the point under the camera
 /// (out to 12 m, or 40 steps, each way), the X axis red and the Z axis blue where they pass.
 /// Each line is drawn in short pieces, so the part in front of the camera shows when the
-/// rest is behind it.
-fn ground_grid(painter: &egui::Painter, projection: &ViewProjection, eye: Vec3, step: f32) {
+/// rest is behind it, and a piece the level hides from the camera (`depth`) is left out.
+fn ground_grid(
+    painter: &egui::Painter,
+    projection: &ViewProjection,
+    eye: Vec3,
+    step: f32,
+    depth: Option<&crate::edit::camera::ViewDepth>,
+) {
     let step = step.max(0.01);
     let reach = (12.0 / step).floor().clamp(1.0, 40.0);
     let centre = Vec3::new(
@@ -643,7 +655,11 @@ fn ground_grid(painter: &egui::Painter, projection: &ViewProjection, eye: Vec3, 
                     point(piece as f32 / PIECES as f32),
                     point((piece + 1) as f32 / PIECES as f32),
                 );
-                if let (Some(a), Some(b)) = (projection.point(a), projection.point(b)) {
+                // A piece behind a wall or under a floor above the ground is hidden.
+                let hidden = depth.is_some_and(|depth| !depth.shows((a + b) * 0.5));
+                if let (false, Some(a), Some(b)) =
+                    (hidden, projection.point(a), projection.point(b))
+                {
                     painter.line_segment([a, b], stroke);
                 }
             }
