@@ -589,6 +589,106 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
     println!("screenshot: {}", shot.display());
 }
 
+/// A designer's day in the window, by mouse and keys: `gloam edit --new`, the palette's
+/// path-traced thumbnails, a warden and a shard placed from it, the play-check (F6) proving
+/// the level can be finished unseen, the exposure map (X), and the first save writing the
+/// new file, which loads.
+#[test]
+fn a_new_level_is_built_from_the_palette_play_checked_and_saved_in_the_window() {
+    let Some((_xvfb, display, dir)) = x_display("editor-day") else {
+        return;
+    };
+    let levels = dir.join("levels");
+    std::fs::create_dir_all(&levels).unwrap();
+    std::os::unix::fs::symlink(common::repo().join("assets"), dir.join("assets")).unwrap();
+    let level = levels.join("vault.ron");
+    let mut editor = Reaped(
+        windowed(&display, &dir)
+            .arg("edit")
+            .arg("--new")
+            .arg(&level)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start gloam edit --new"),
+    );
+    let lines = lines_of(editor.0.stdout.take().unwrap());
+    let line_within = |what: &str, seconds: u64| {
+        let line = lines
+            .recv_timeout(Duration::from_secs(seconds))
+            .unwrap_or_else(|_| panic!("no line saying {what}"));
+        println!("editor: {line}");
+        line
+    };
+    let id = gloam_window(&display, &mut editor.0);
+    let xdotool = |args: &[&str]| xdotool_on(&display, args);
+    let click = |x: u32, y: u32| {
+        focus_window(&display, &id);
+        xdotool(&["mousemove", "--window", &id, &x.to_string(), &y.to_string()]);
+        std::thread::sleep(Duration::from_millis(300));
+        xdotool(&["click", "1"]);
+        std::thread::sleep(Duration::from_millis(300));
+    };
+    let key = |key: &str| {
+        focus_window(&display, &id);
+        xdotool(&["key", key]);
+    };
+    std::thread::sleep(Duration::from_secs(2));
+    // The palette's warden tile, then the floor by the east wall, in the template's
+    // overview; then the shard's tile and the dark north-west corner.
+    click(163, 514);
+    click(690, 420);
+    assert_eq!(line_within("the warden placed", 30), "placed warden");
+    click(99, 514);
+    click(548, 332);
+    assert_eq!(line_within("the shard placed", 30), "placed shard");
+
+    key("F6");
+    let started = line_within("the play-check starting", 30);
+    assert!(
+        started.starts_with("play-check: the bot is playing"),
+        "{started}"
+    );
+    let proven = line_within("the play-check's answer", 180);
+    assert!(proven.starts_with("play-check: won unseen in "), "{proven}");
+    assert!(proven.contains("1 of 1 shards"), "{proven}");
+
+    key("x");
+    let map = line_within("the exposure map", 60);
+    assert!(map.starts_with("exposure map at 0 s: "), "{map}");
+
+    key("ctrl+s");
+    assert_eq!(
+        line_within("the save", 30),
+        format!("saved {}", level.display())
+    );
+    let saved = Scene::load(&level).expect("the new level loads");
+    let has = |name: &str| saved.level.entities.iter().any(|e| e.name == name);
+    assert!(has("warden") && has("shard") && has("way out"));
+
+    // The palette shows the thumbnails the path tracer made (each tile's studio sky is
+    // near white, which nothing else in the panels is), and they are in the cache.
+    xdotool(&["mousemove", "--window", &id, "5", "5"]);
+    std::thread::sleep(Duration::from_secs(1));
+    let shot = dir.join("editor-day.png");
+    let status = Command::new("import")
+        .args(["-window", &id])
+        .arg(&shot)
+        .env("DISPLAY", &display)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let image = image::open(&shot).unwrap().to_rgb8();
+    let sky = (0..210)
+        .flat_map(|x| (480..740).map(move |y| (x, y)))
+        .filter(|&(x, y)| image.get_pixel(x, y).0.iter().all(|&c| c > 200))
+        .count();
+    assert!(sky > 5000, "thumbnails in the palette ({sky} sky pixels)");
+    let cached = std::fs::read_dir(dir.join("cache/thumbnails")).map_or(0, |files| files.count());
+    assert!(cached > 0, "the thumbnails are kept");
+    println!("screenshot: {}", shot.display());
+}
+
 #[test]
 fn the_main_menu_names_a_broken_settings_file_saves_a_change_and_quits_from_its_row() {
     let Some((_xvfb, display, dir)) = x_display("menu") else {

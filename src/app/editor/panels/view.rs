@@ -99,10 +99,18 @@ impl Panels {
             gizmo_busy || waypoint_busy,
             out,
         );
-        if response.clicked()
+        // The gizmo senses clicks through a widget of its own at the pointer, over the view
+        // in its layer, and may take a click no handle was under: such a click is the
+        // view's, so the click after a placement (the new entity's gizmo left under the
+        // pointer) still places.
+        let clicked = response.clicked()
+            || (response.contains_pointer() && ui.input(|i| i.pointer.primary_clicked()));
+        if clicked
             && !gizmo_busy
             && !waypoint_busy
-            && let Some(at) = response.interact_pointer_pos()
+            && let Some(at) = response
+                .interact_pointer_pos()
+                .or_else(|| ui.input(|i| i.pointer.interact_pos()))
         {
             let add = ui.input(|i| i.modifiers.shift);
             let fraction = Vec2::new(
