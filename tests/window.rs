@@ -178,6 +178,28 @@ fn xdotool_on(display: &str, args: &[&str]) -> String {
     String::from_utf8_lossy(&output.stdout).trim().to_owned()
 }
 
+/// Takes a screenshot of window `id` into `shot`, and counts the pixels in the rectangle
+/// `(xs, ys)` whose colour passes `test`.
+fn pixels_in_shot(
+    display: &str,
+    id: &str,
+    shot: &std::path::Path,
+    (xs, ys): (std::ops::Range<u32>, std::ops::Range<u32>),
+    test: impl Fn(&[u8; 3]) -> bool,
+) -> usize {
+    let status = Command::new("import")
+        .args(["-window", id])
+        .arg(shot)
+        .env("DISPLAY", display)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let image = image::open(shot).unwrap().to_rgb8();
+    xs.flat_map(|x| ys.clone().map(move |y| (x, y)))
+        .filter(|&(x, y)| test(&image.get_pixel(x, y).0))
+        .count()
+}
+
 /// The window named Gloam on `display`, shown by `gloam` (which must not have exited).
 fn gloam_window(display: &str, gloam: &mut Child) -> String {
     for _ in 0..600 {
@@ -452,18 +474,9 @@ fn the_editor_selects_deletes_saves_and_undoes_with_mouse_and_keys() {
     let shot = dir.join("editor.png");
     xdotool(&["mousemove", "--window", &id, "5", "5"]);
     std::thread::sleep(Duration::from_secs(1));
-    let status = Command::new("import")
-        .args(["-window", &id])
-        .arg(&shot)
-        .env("DISPLAY", &display)
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let image = image::open(&shot).unwrap().to_rgb8();
-    let lit = (300..900)
-        .flat_map(|x| (200..600).map(move |y| (x, y)))
-        .filter(|&(x, y)| image.get_pixel(x, y).0.iter().any(|&c| c > 90))
-        .count();
+    let lit = pixels_in_shot(&display, &id, &shot, (300..900, 200..600), |c| {
+        c.iter().any(|&c| c > 90)
+    });
     assert!(
         lit > 2000,
         "the view shows the lit level ({lit} bright pixels)"
@@ -671,18 +684,9 @@ fn a_new_level_is_built_from_the_palette_play_checked_and_saved_in_the_window() 
     xdotool(&["mousemove", "--window", &id, "5", "5"]);
     std::thread::sleep(Duration::from_secs(1));
     let shot = dir.join("editor-day.png");
-    let status = Command::new("import")
-        .args(["-window", &id])
-        .arg(&shot)
-        .env("DISPLAY", &display)
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let image = image::open(&shot).unwrap().to_rgb8();
-    let sky = (0..210)
-        .flat_map(|x| (480..740).map(move |y| (x, y)))
-        .filter(|&(x, y)| image.get_pixel(x, y).0.iter().all(|&c| c > 200))
-        .count();
+    let sky = pixels_in_shot(&display, &id, &shot, (0..210, 480..740), |c| {
+        c.iter().all(|&c| c > 200)
+    });
     assert!(sky > 5000, "thumbnails in the palette ({sky} sky pixels)");
     let cached = std::fs::read_dir(dir.join("cache/thumbnails")).map_or(0, |files| files.count());
     assert!(cached > 0, "the thumbnails are kept");
