@@ -982,11 +982,12 @@ fn thumbnails_are_rendered_once_cached_by_content_and_a_broken_asset_says_why() 
     );
 }
 
-/// A designer's whole day, headless, as the window's commands run it: a new level from
-/// the template; a warden from the palette, placed on the snap grid, whose first beat stops short of the wall it
-/// was placed against, and a shard in the dark corner; the audibility overlay hears a
-/// sprint near the warden and not across the room; the play-check proves the level can be
-/// finished unseen; the save is the level that reopens.
+/// A designer's whole day, headless, as the window's commands run it: a new level from the
+/// template; a warden from the palette, placed on the snap grid, whose first beat stops
+/// short of the wall it was placed against, and a shard in the dark corner; the audibility
+/// overlay hears a sprint near the warden and not across the room, and only on floor the
+/// player reaches; the play-check proves the level can be finished unseen; the save is the
+/// level that reopens.
 #[test]
 fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
     use gloam::edit::audibility::{NoiseKind, compute};
@@ -1059,6 +1060,8 @@ fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
     assert!(heard.heard.iter().any(|(place, _, _)| near(*place, at)));
     let far = Vec3::new(-3.5, 0.0, 3.5);
     assert!(!heard.heard.iter().any(|(place, _, _)| near(*place, far)));
+    // Only where the player can walk: the room's floor, not the tops of its 3 m walls.
+    assert!(heard.heard.iter().all(|(place, _, _)| place.y.abs() < 0.5));
 
     // The play-check: won unseen, with the shard.
     let mut check = PlayCheck::default();

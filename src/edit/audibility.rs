@@ -6,17 +6,21 @@
 //! acoustics, against the hearing threshold), so the map and the game cannot disagree.
 //!
 //! The level is loaded into its own `Engine`, its wardens walk their beats for `time`
-//! seconds, and every walkable place on a `CELL`-metre lattice within the noise's reach of
-//! a warden is asked, in parallel.
+//! seconds, and every place on a `CELL`-metre lattice that the player can walk to from
+//! the start (as the exposure map floods it) and that lies within the noise's reach of a
+//! warden is asked, in parallel.
 
 use bevy_ecs::prelude::With;
 use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::frame::Engine;
+use crate::game::exposure_map::flood;
 use crate::game::noise::tuning::{LANDING_RADIUS, SPRINT_RADIUS};
 use crate::game::noise::{Noise, over_threshold_db};
-use crate::game::{Knockable, NavGrid, SIMULATION_HZ, Transform, Warden, WorldGeometry};
+use crate::game::{
+    Knockable, NavGrid, PlayerStart, SIMULATION_HZ, Transform, Warden, WorldGeometry,
+};
 use crate::render::RenderSettings;
 use crate::scene::Scene;
 
@@ -90,15 +94,35 @@ pub fn compute(scene: &Scene, time: f64, noise: NoiseKind) -> Option<Audibility>
             })
             .unwrap_or(crate::scene::level::KnockDef::default().noise),
     };
+    let spawn = world
+        .query_filtered::<&Transform, With<PlayerStart>>()
+        .iter(world)
+        .next()
+        .map(|placed| placed.translation);
     let grid = world.get_resource::<NavGrid>()?;
     let geometry = world.get_resource::<WorldGeometry>()?.0.as_ref();
     if wardens.is_empty() {
         return None;
     }
+    // The places the player can walk to from the start (all walkable ones in a level
+    // without a start): the top of a wall is floor to the grid, but no one sprints there.
+    let spawn = spawn.and_then(|at| grid.node_near(at));
+    let reachable: Option<Vec<bool>> = spawn.map(|spawn| {
+        let mut reached = vec![false; grid.index_bound()];
+        for node in flood(grid, spawn) {
+            reached[grid.index(node)] = true;
+        }
+        reached
+    });
     // The walkable places on the map's lattice within the noise's reach of a warden.
     let step = (CELL / grid.cell).round().max(1.0) as usize;
     let places: Vec<Vec3> = grid
         .nodes()
+        .filter(|node| {
+            reachable
+                .as_ref()
+                .is_none_or(|reached| reached[grid.index(*node)])
+        })
         .filter(|node| {
             let (column, row) = (node.column % grid.width, node.column / grid.width);
             column % step == 0 && row % step == 0
