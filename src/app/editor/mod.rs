@@ -45,7 +45,8 @@
 //!   the camera is not flying. Snap (on by default) steps moves by the grid (0.25 m) and
 //!   turns by the angle (15 degrees), both set in the tool bar; waypoints snap to the grid
 //!   too. The grid is drawn over the ground plane at the snap size (G hides it), the X axis
-//!   red and the Z axis blue.
+//!   red and the Z axis blue, and the level hides it where it stands in front
+//!   (`edit::camera::ViewDepth`).
 //! - **Measure and come back:** M turns clicks into a measuring tape: two clicks, and the
 //!   distance between the points they meet (with its run along each axis) is drawn between
 //!   them. Ctrl+1 to Ctrl+4 keep the view as a bookmark; 1 to 4 go back to it.
