@@ -991,10 +991,10 @@ fn thumbnails_are_rendered_once_cached_by_content_and_a_broken_asset_says_why() 
 #[test]
 fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
     use gloam::edit::audibility::{NoiseKind, compute};
-    use gloam::edit::palette::{Prefab, assets_folder};
+    use gloam::edit::palette::Prefab;
     use gloam::edit::play_check::PlayCheck;
     use gloam::edit::template::new_scene;
-    use gloam::edit::{first_beat, level_point, placing_point};
+    use gloam::edit::{first_beat, level_point, placing_point, prefab_def};
 
     let dir = common::scratch_dir("whole-day");
     let path = dir.join("levels").join("vault.ron");
@@ -1002,7 +1002,6 @@ fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
     let scene = new_scene(&path).expect("a new level");
     let mut engine = Engine::new(&scene, RenderSettings::real_time(32, 18));
     let mut editor = Editor::unsaved();
-    let assets = assets_folder(&path);
 
     // A click from above lands on the floor; the warden's beat is fitted to the room.
     let mut place = |engine: &mut Engine, prefab: Prefab, x: f32, z: f32| {
@@ -1012,11 +1011,9 @@ fn a_whole_day_from_a_new_file_to_a_level_proven_fair() {
         for (on, clicked) in [(at.x, x), (at.z, z)] {
             assert!((on * 4.0 - (on * 4.0).round()).abs() < 1e-4 && (on - clicked).abs() <= 0.125);
         }
-        let mut def = prefab.def(at, &path, &assets);
-        if let Some(warden) = &mut def.warden {
-            warden.route = first_beat(engine, at);
-        }
-        editor.place(engine, def).expect("placed");
+        editor
+            .place(engine, prefab_def(engine, prefab, at, &path))
+            .expect("placed");
         at
     };
     // Against the north wall (its face at z = -4): no room to the north, so the beat runs

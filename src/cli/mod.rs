@@ -97,19 +97,18 @@ pub enum Command {
         #[arg(long, value_enum, default_value_t = crate::simd::Simd::Native)]
         simd: crate::simd::Simd,
     },
-    /// Edit a level in a window: the path-traced view with an outline, a palette of assets
-    /// and prefabs, an inspector and a gizmo. Keys: click selects, Shift+click adds, a drag
-    /// draws a box to select, right
-    /// mouse + W A S D Q E flies (Shift: faster), W/E/R move/rotate/scale, F frames the
-    /// selection, G shows the grid, M measures, Ctrl+1..4 keep the view and 1..4 go back, Delete deletes, Ctrl+D duplicates, Ctrl+C / Ctrl+X / Ctrl+V copy, cut
-    /// and paste through the system clipboard (as level text), Ctrl+Z undoes, Ctrl+Shift+Z or Ctrl+Y redoes, Ctrl+S saves
-    /// (the previous file kept as LEVEL.bak), F4 switches between the converging view and
-    /// the game's 1-spp filtered view, F5 play-tests the level as edited from the
-    /// editor's camera (Esc comes back), F6 runs the player bot on the level as edited
+    /// Edit a level in a window: the path-traced view with an outline, a palette of assets and
+    /// prefabs, an inspector and a gizmo. Keys: click selects, Shift+click adds, a drag draws a
+    /// box to select, right mouse + W A S D Q E flies (Shift: faster), W/E/R move/rotate/scale,
+    /// F frames the selection, G shows the grid, M measures, Ctrl+1..4 keep the view and 1..4
+    /// go back, Delete deletes, Ctrl+D duplicates, Ctrl+C / Ctrl+X / Ctrl+V copy, cut and paste
+    /// through the system clipboard (as level text), Ctrl+Z undoes, Ctrl+Shift+Z or Ctrl+Y
+    /// redoes, Ctrl+S saves (the previous file kept as LEVEL.bak), F4 switches between the
+    /// converging view and the game's 1-spp filtered view, F5 play-tests the level as edited
+    /// from the editor's camera (Esc comes back), F6 runs the player bot on the level as edited
     /// and draws how it went (play-check), Esc drops the palette's choice or the selection.
-    /// Unsaved edits are autosaved to .LEVEL.autosave beside it every two minutes.
-    /// `--new` starts LEVEL from a template instead (File > New level does so in the
-    /// window).
+    /// Unsaved edits are autosaved to .LEVEL.autosave beside it every two minutes. `--new`
+    /// starts LEVEL from a template instead (File > New level does so in the window).
     #[command(allow_negative_numbers = true)]
     Edit {
         /// The level file to edit.

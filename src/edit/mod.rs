@@ -64,7 +64,7 @@ struct Step {
 /// What a level file says of the level as a whole, as a designer edits it: its name, its
 /// place in the campaign, its sky and its ambience (`scene::level::Level`'s fields beside
 /// the entities; the format's version and `playable` are not the designer's to change).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct LevelProperties {
     pub name: String,
     pub campaign: Option<u32>,
@@ -74,18 +74,14 @@ pub struct LevelProperties {
 impl LevelProperties {
     /// The world's level properties (a world with no level has none yet: the defaults).
     pub fn of(world: &World) -> LevelProperties {
-        world.get_resource::<LevelInfo>().map_or_else(
-            || LevelProperties {
-                name: String::new(),
-                campaign: None,
-                environment: Environment::default(),
-            },
-            |info| LevelProperties {
+        world
+            .get_resource::<LevelInfo>()
+            .map(|info| LevelProperties {
                 name: info.name.clone(),
                 campaign: info.campaign,
                 environment: info.environment.clone(),
-            },
-        )
+            })
+            .unwrap_or_default()
     }
 
     /// Makes these the world's level properties; the next frame's extraction reads the sky
@@ -99,7 +95,7 @@ impl LevelProperties {
             }
             None => world.insert_resource(LevelInfo {
                 source: PathBuf::new(),
-                version: crate::scene::level::LEVEL_VERSION,
+                version: LEVEL_VERSION,
                 name: self.name.clone(),
                 playable: true,
                 campaign: self.campaign,
@@ -1000,18 +996,27 @@ pub fn placing_point(engine: &Engine, ray: &Ray, step: Option<f32>) -> Option<Ve
     Some(surface_point(engine, &down).unwrap_or(snapped))
 }
 
-/// Metres a newly placed warden's first beat runs out (and back), where the level has room.
-const FIRST_BEAT: f32 = 4.0;
-
 /// How far short of what it would meet a first beat stops: a warden's half-width, and room
 /// to turn.
 const BEAT_CLEARANCE: f32 = 0.6;
+
+/// `prefab` standing at `at` in `engine`'s level, its assets named relative to the level
+/// file `level` (`palette::Prefab::def`), with a warden's first beat fitted to the room it
+/// stands in (`first_beat`): what the palette places.
+pub fn prefab_def(engine: &Engine, prefab: palette::Prefab, at: Vec3, level: &Path) -> EntityDef {
+    let mut def = prefab.def(at, level, &palette::assets_folder(level));
+    if let Some(warden) = &mut def.warden {
+        warden.route = first_beat(engine, at);
+    }
+    def
+}
 
 /// The first beat of a warden placed at `at`: out and back along whichever of -Z, +Z, -X
 /// and +X has the most room for a warden's body, at most `FIRST_BEAT` and stopping
 /// `BEAT_CLEARANCE` short of anything in the way, so it never runs through a wall. The
 /// inspector and the waypoints in the view edit it from there.
 pub fn first_beat(engine: &Engine, at: Vec3) -> Vec<Vec3> {
+    use palette::FIRST_BEAT;
     let room = |direction: Vec3| {
         // A body's width of rays at knee and chest height: one ray down the middle slips
         // through the seam between two wall pieces, or under a table.

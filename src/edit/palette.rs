@@ -24,6 +24,10 @@ pub enum Prefab {
     PlayerSpawn,
 }
 
+/// Metres a warden prefab's first beat runs out (and back), where the level has room
+/// (`edit::prefab_def` fits it to the room: `edit::first_beat`).
+pub const FIRST_BEAT: f32 = 4.0;
+
 /// Height above the floor a lamp prefab hangs at (the kit's lamp brackets' height).
 const LAMP_HEIGHT: f32 = 2.5;
 
@@ -76,9 +80,8 @@ impl Prefab {
             }
             Prefab::Shard => def.shard = Some(ShardDef::default()),
             Prefab::Warden => {
-                // A first beat of 4 m ahead and back (the editor fits it to the room it is
-                // placed in: `edit::first_beat`); the inspector edits the route.
-                def.warden = Some(WardenDef::walking(vec![at + Vec3::new(0.0, 0.0, -4.0), at]));
+                // A first beat ahead and back; the inspector edits the route.
+                def.warden = Some(WardenDef::walking(vec![at + Vec3::NEG_Z * FIRST_BEAT, at]));
             }
             Prefab::Door => {}
             Prefab::Exit => def.exit = Some(ExitDef::default()),

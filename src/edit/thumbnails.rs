@@ -189,21 +189,28 @@ pub enum Origin {
 /// rendered and (when there is a folder) written there. A cache that cannot be written is
 /// no error: the thumbnail is still shown.
 pub fn thumbnail(asset: &Path, folder: Option<&Path>) -> anyhow::Result<(Thumbnail, Origin)> {
-    let file = match folder {
-        Some(folder) => Some(folder.join(cache_name(asset)?)),
-        None => None,
-    };
+    let file = folder
+        .map(|folder| cache_name(asset).map(|name| folder.join(name)))
+        .transpose()?;
     if let Some(cached) = file.as_deref().and_then(read_cached) {
         return Ok((cached, Origin::Cache));
     }
+    Ok((render_and_keep(asset, file.as_deref())?, Origin::Rendered))
+}
+
+/// `asset`'s thumbnail rendered, and written to the cache `file` when there is one (a
+/// cache that cannot be written is no error: the thumbnail is still shown).
+fn render_and_keep(asset: &Path, file: Option<&Path>) -> anyhow::Result<Thumbnail> {
     let rendered = render_thumbnail(asset)?;
-    if let (Some(file), Some(folder)) = (file, folder) {
-        let _ = std::fs::create_dir_all(folder);
+    if let Some(file) = file {
+        if let Some(folder) = file.parent() {
+            let _ = std::fs::create_dir_all(folder);
+        }
         if let Ok(bytes) = png_bytes(&rendered) {
-            let _ = write_atomically(&file, &bytes);
+            let _ = write_atomically(file, &bytes);
         }
     }
-    Ok((rendered, Origin::Rendered))
+    Ok(rendered)
 }
 
 /// A cached thumbnail, if `file` decodes to one of this size.
@@ -258,35 +265,30 @@ impl Thumbnails {
                 .num_threads(1)
                 .thread_name(|_| "thumbnails".into())
                 .build();
-            let names: Vec<Option<PathBuf>> = assets
-                .iter()
-                .map(|asset| {
-                    let folder = folder.as_ref()?;
-                    Some(folder.join(cache_name(asset).ok()?))
-                })
-                .collect();
+            // Each asset hashed once: the cached ones go at once, the rest are rendered
+            // after, into the files they were looked for in.
             let mut missing = Vec::new();
-            for (asset, name) in assets.into_iter().zip(names) {
-                match name.as_deref().and_then(read_cached) {
+            for asset in assets {
+                let file = folder
+                    .as_ref()
+                    .and_then(|folder| Some(folder.join(cache_name(&asset).ok()?)));
+                match file.as_deref().and_then(read_cached) {
                     Some(cached) => {
                         if sender.send(((asset, Ok(cached)), Origin::Cache)).is_err() {
                             return;
                         }
                     }
-                    None => missing.push(asset),
+                    None => missing.push((asset, file)),
                 }
             }
-            for asset in missing {
+            for (asset, file) in missing {
                 let made = match &pool {
-                    Ok(pool) => pool.install(|| thumbnail(&asset, folder.as_deref())),
+                    Ok(pool) => pool.install(|| render_and_keep(&asset, file.as_deref())),
                     Err(error) => Err(anyhow!("no thread to render on: {error}")),
                 };
-                let (result, origin) = match made {
-                    Ok((picture, origin)) => (Ok(picture), origin),
-                    Err(error) => (Err(format!("{error:#}")), Origin::Rendered),
-                };
+                let result = made.map_err(|error| format!("{error:#}"));
                 // The palette went (another level, the window closed): stop.
-                if sender.send(((asset, result), origin)).is_err() {
+                if sender.send(((asset, result), Origin::Rendered)).is_err() {
                     return;
                 }
             }

@@ -619,12 +619,7 @@ impl EditorApp {
                     Some(at) => {
                         let def = match item {
                             panels::PaletteItem::Prefab(prefab) => {
-                                let mut def =
-                                    prefab.def(at, &self.path, &assets_folder(&self.path));
-                                if let Some(warden) = &mut def.warden {
-                                    warden.route = crate::edit::first_beat(engine, at);
-                                }
-                                def
+                                crate::edit::prefab_def(engine, prefab, at, &self.path)
                             }
                             panels::PaletteItem::Asset(asset) => asset_def(&asset, at, &self.path),
                         };

@@ -283,6 +283,7 @@ pub struct Panels {
 impl Panels {
     pub fn new(level: &Path) -> Panels {
         let folder = assets_folder(level);
+        let assets = asset_files(&folder);
         Panels {
             flying: false,
             fly_keys: FlyKeys::default(),
@@ -317,11 +318,11 @@ impl Panels {
             grid: 0.25,
             angle: 15.0,
             armed: None,
-            asset_names: asset_files(&folder)
+            asset_names: assets
                 .iter()
                 .map(|asset| asset_reference(level, asset))
                 .collect(),
-            assets: asset_files(&folder),
+            assets,
             sounds: sound_files(&folder)
                 .iter()
                 .map(|sound| asset_reference(level, sound))
@@ -400,11 +401,11 @@ impl Panels {
             self.leave_prompt(&ctx, out);
         } else if self.conflict {
             conflict_prompt(&ctx, out);
-        } else if let Some(autosave) = &self.autosave_offer {
-            if let Some(command) = autosave_prompt(&ctx, autosave) {
-                out.push(command);
-                self.autosave_offer = None;
-            }
+        } else if let Some(autosave) = &self.autosave_offer
+            && let Some(command) = autosave_prompt(&ctx, autosave)
+        {
+            out.push(command);
+            self.autosave_offer = None;
         }
     }
 
@@ -775,13 +776,16 @@ impl Panels {
                 });
                 ui.label("Assets");
                 ui.horizontal_wrapped(|ui| {
-                    for asset in self.assets.clone() {
+                    // Taken out for the loop, as the tiles change `self` (which is armed).
+                    let assets = std::mem::take(&mut self.assets);
+                    for asset in &assets {
                         let name = asset
                             .file_stem()
                             .map_or_else(String::new, |stem| stem.to_string_lossy().into_owned());
                         let item = PaletteItem::Asset(asset.clone());
-                        self.palette_tile(ui, item, &name, Picture::Thumbnail(&asset));
+                        self.palette_tile(ui, item, &name, Picture::Thumbnail(asset));
                     }
+                    self.assets = assets;
                 });
             });
     }

@@ -99,18 +99,16 @@ impl Panels {
             gizmo_busy || waypoint_busy,
             out,
         );
-        // The gizmo senses clicks through a widget of its own at the pointer, over the view
-        // in its layer, and may take a click no handle was under: such a click is the
-        // view's, so the click after a placement (the new entity's gizmo left under the
-        // pointer) still places.
-        let clicked = response.clicked()
-            || (response.contains_pointer() && ui.input(|i| i.pointer.primary_clicked()));
+        // A click is the view's when it lands on the view's rectangle with no window or
+        // popup over it and no handle under it (the busy flags). Not `response.clicked()`:
+        // the gizmo senses clicks through a widget of its own at the pointer, above the
+        // view in the same layer, which takes the click after a placement (the new
+        // entity's gizmo left under the pointer) though no handle is there.
+        let clicked = response.contains_pointer() && ui.input(|i| i.pointer.primary_clicked());
         if clicked
             && !gizmo_busy
             && !waypoint_busy
-            && let Some(at) = response
-                .interact_pointer_pos()
-                .or_else(|| ui.input(|i| i.pointer.interact_pos()))
+            && let Some(at) = ui.input(|i| i.pointer.interact_pos())
         {
             let add = ui.input(|i| i.modifiers.shift);
             let fraction = Vec2::new(
@@ -233,8 +231,6 @@ impl Panels {
             });
     }
 
-    /// The selection's boxes, a marker for each entity that draws nothing, and each
-    /// warden's beat.
     /// A primary drag that starts on nothing else draws a box; on release, every entity
     /// whose place (its origin, or its marker) lies inside becomes the selection (Shift
     /// adds to it).
@@ -317,6 +313,8 @@ impl Panels {
         }
     }
 
+    /// The selection's boxes, a marker for each entity that draws nothing, and each
+    /// warden's beat.
     fn overlays(&self, painter: &egui::Painter, frame: &FrameInput, projection: &ViewProjection) {
         let highlight = Color32::from_rgb(255, 170, 40);
         for (min, max) in &frame.bounds {
